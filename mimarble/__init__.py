@@ -1,0 +1,32 @@
+"""mimarble — the marble solid texture of Park & Park (2004) for Mitsuba 3.
+
+Importing the package chooses a libLLVM that cannot abort the process (before
+Dr.Jit loads one), sets a Mitsuba variant if none is set yet (``cuda_ad_rgb``
+with a usable GPU, else ``llvm_ad_rgb``, else ``scalar_rgb``; ``$MIMARBLE_VARIANT``
+overrides), and registers the ``marble`` texture for every variant.
+"""
+
+from . import environment
+from .environment import EnvironmentProblem, use_variant
+
+environment.prepare_llvm()
+dr, mi = environment.import_drjit_and_mitsuba()
+
+# A variant problem at import (a bad $MIMARBLE_VARIANT) must not break the
+# import: it is kept here, and raised again by whatever needs the variant.
+startup_problem = None
+if mi.variant() is None:
+    try:
+        use_variant()
+    except EnvironmentProblem as e:
+        startup_problem = e
+
+from . import noise  # noqa: E402
+from . import marble  # noqa: E402
+
+if mi.variant() is not None:
+    marble.register()
+mi.detail.add_variant_callback(marble._on_variant_change)
+
+__all__ = ["EnvironmentProblem", "marble", "noise", "use_variant"]
+__version__ = "0.1.0"

@@ -1,0 +1,310 @@
+"""Choosing the libLLVM Dr.Jit loads, and the Mitsuba variant.
+
+Dr.Jit 1.5 loads libLLVM when ``drjit`` is imported. With LLVM 15 it loads fine
+and then aborts the whole process (SIGABRT, ``LLVM ERROR: Cannot select …
+fminimum``) at the first kernel that uses a NaN-propagating min/max; LLVM 14 is
+refused. So the library must be chosen *before* ``drjit`` is imported:
+
+1. ``DRJIT_LIBLLVM_PATH`` set by the user: kept if it is LLVM ≥ 16, else the
+   LLVM backend is switched off and the problem is reported in one sentence.
+2. Otherwise the newest libLLVM ≥ 16 in the usual library folders is chosen.
+3. None found: the LLVM backend is switched off (CUDA and scalar variants still
+   work) and the sentence says what to install.
+
+"Switched off" means ``DRJIT_LIBLLVM_PATH`` is pointed at a path that cannot be
+loaded, so Dr.Jit disables its LLVM backend instead of aborting.
+
+This module imports neither ``drjit`` nor ``mitsuba`` at module level: call
+:func:`prepare_llvm` first, import them afterwards.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import glob
+import os
+import re
+import subprocess
+import sys
+import warnings
+
+MIN_LLVM_MAJOR = 16
+INSTALL_HINT = "install libLLVM 16 or newer (on Debian or Ubuntu, as root: apt-get install libllvm19)"
+VARIANT_ENV = "MIMARBLE_VARIANT"
+AUTO_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+
+# Dr.Jit disables its LLVM backend when this cannot be loaded (its search has no
+# fallback once DRJIT_LIBLLVM_PATH is set).
+_DISABLED_PATH = "/nonexistent/mimarble-disabled-libLLVM.so"
+
+_SEARCH_GLOBS = (
+    "/usr/lib/*-linux-gnu/libLLVM*.so*",
+    "/usr/lib/llvm-*/lib/libLLVM*.so*",
+    "/usr/lib64/libLLVM*.so*",
+    "/usr/lib/libLLVM*.so*",
+    "/usr/local/lib/libLLVM*.so*",
+    "/opt/homebrew/opt/llvm/lib/libLLVM*.dylib",
+    "/usr/local/opt/llvm/lib/libLLVM*.dylib",
+)
+
+# libLLVM-15.so.1, libLLVM-14.0.6.so.1, libLLVM.so.19.1, libLLVM-19.so, libLLVM.dylib…
+_VERSION_IN_NAME = re.compile(r"libLLVM[-.](?:so\.)?(\d+)")
+
+
+class EnvironmentProblem(RuntimeError):
+    """Rendering cannot work in this environment; the message is one sentence for the user."""
+
+
+@dataclasses.dataclass(frozen=True)
+class LLVMChoice:
+    path: str | None       # the library Dr.Jit is told to load (None: disabled or unknown)
+    major: int | None      # its LLVM major version, when known
+    source: str            # "DRJIT_LIBLLVM_PATH", "search", "already loaded", "none"
+    problem: str | None    # one sentence when LLVM variants cannot work
+
+    @property
+    def usable(self) -> bool:
+        return self.problem is None
+
+
+def llvm_major_from_name(path: str) -> int | None:
+    """The LLVM major version a library's file name (or its link target) states."""
+    for name in (os.path.basename(path), os.path.basename(os.path.realpath(path))):
+        m = _VERSION_IN_NAME.search(name)
+        if m:
+            return int(m.group(1))
+    return None
+
+
+_PROBE = r"""
+import ctypes, sys
+try:
+    lib = ctypes.CDLL(sys.argv[1])
+except OSError:
+    print("unloadable"); sys.exit(0)
+get = getattr(lib, "LLVMGetVersion", None)   # exists from LLVM 16 on
+if get is None:
+    print("old"); sys.exit(0)
+v = [ctypes.c_uint() for _ in range(3)]
+get(*[ctypes.byref(x) for x in v])
+print(v[0].value)
+"""
+
+
+def probe_llvm_major(path: str) -> int | None | str:
+    """Load the library in a child process and ask its version.
+
+    Returns the major version, ``"old"`` (no ``LLVMGetVersion``: LLVM ≤ 15) or
+    ``"unloadable"``. A child process, because a library loaded here would be
+    the one Dr.Jit picks up.
+    """
+    try:
+        out = subprocess.run([sys.executable, "-c", _PROBE, path], capture_output=True,
+                             text=True, timeout=60).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unloadable"
+    return int(out) if out.isdigit() else (out or "unloadable")
+
+
+def llvm_major(path: str) -> int | str:
+    """Major version of the libLLVM at ``path``, ``"old"`` or ``"unloadable"``."""
+    if not os.path.isfile(path):
+        return "unloadable"
+    major = llvm_major_from_name(path)
+    return major if major is not None else probe_llvm_major(path)
+
+
+def search_libllvm() -> list[tuple[int, str]]:
+    """Every libLLVM ≥ 16 found in the usual folders, newest first."""
+    found = {}
+    dirs = [d for d in os.environ.get("LD_LIBRARY_PATH", "").split(os.pathsep) if d]
+    patterns = [os.path.join(d, "libLLVM*.so*") for d in dirs] + list(_SEARCH_GLOBS)
+    for pattern in patterns:
+        for path in glob.glob(pattern):
+            major = llvm_major_from_name(path)
+            real = os.path.realpath(path)
+            if major is not None and major >= MIN_LLVM_MAJOR and os.path.isfile(real):
+                found.setdefault(real, (major, path))
+    return sorted(found.values(), key=lambda mp: (-mp[0], mp[1]))
+
+
+def _loaded_libllvm() -> str | None:
+    """The libLLVM mapped into this process, if any (Linux only)."""
+    try:
+        with open("/proc/self/maps") as f:
+            m = re.search(r"(/\S*libLLVM\S*)", f.read())
+    except OSError:
+        return None
+    return m.group(1) if m else None
+
+
+def _bad_library_sentence(path: str, what: int | str) -> str:
+    if what == "unloadable":
+        detail = "cannot be loaded"
+    elif what == "old":
+        detail = f"is older than LLVM {MIN_LLVM_MAJOR}"
+    else:
+        detail = f"is LLVM {what}"
+    return (f"DRJIT_LIBLLVM_PATH={path} {detail}, but Dr.Jit 1.5 needs libLLVM "
+            f"{MIN_LLVM_MAJOR} or newer (LLVM 15 aborts the process): {INSTALL_HINT} "
+            f"and point DRJIT_LIBLLVM_PATH at it, or unset it.")
+
+
+_choice: LLVMChoice | None = None
+
+
+def prepare_llvm() -> LLVMChoice:
+    """Decide which libLLVM Dr.Jit will load; must run before ``import drjit``.
+
+    Idempotent. Never aborts and never raises: a problem is recorded in the
+    returned choice (and LLVM switched off), for callers to report.
+    """
+    global _choice
+    if _choice is not None:
+        return _choice
+
+    if "drjit" in sys.modules:
+        # Too late to choose: ask Dr.Jit what it loaded.
+        import drjit as dr
+        major = dr.detail.llvm_version()[0]
+        path = _loaded_libllvm()
+        if major < 0:
+            problem = f"Dr.Jit found no usable libLLVM: {INSTALL_HINT}."
+        elif major < MIN_LLVM_MAJOR:
+            problem = (f"Dr.Jit was imported before mimarble and loaded LLVM {major} ({path}), "
+                       f"which aborts the process: import mimarble first, or {INSTALL_HINT}.")
+        else:
+            problem = None
+        _choice = LLVMChoice(path, major if major >= 0 else None, "already loaded", problem)
+        return _choice
+
+    user_path = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if user_path:
+        what = llvm_major(user_path)
+        if isinstance(what, int) and what >= MIN_LLVM_MAJOR:
+            _choice = LLVMChoice(user_path, what, "DRJIT_LIBLLVM_PATH", None)
+        else:
+            _choice = LLVMChoice(None, what if isinstance(what, int) else None,
+                                 "DRJIT_LIBLLVM_PATH", _bad_library_sentence(user_path, what))
+    else:
+        found = search_libllvm()
+        if found:
+            major, path = found[0]
+            _choice = LLVMChoice(path, major, "search", None)
+        else:
+            _choice = LLVMChoice(None, None, "none",
+                                 f"No libLLVM {MIN_LLVM_MAJOR} or newer was found: {INSTALL_HINT}.")
+
+    os.environ["DRJIT_LIBLLVM_PATH"] = _choice.path if _choice.usable else _DISABLED_PATH
+    return _choice
+
+
+@contextlib.contextmanager
+def _quiet_stderr(enabled: bool):
+    """Silence file descriptor 2 (Dr.Jit's C++ prints there when LLVM is switched off)."""
+    if not enabled:
+        yield
+        return
+    sys.stderr.flush()
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+            yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def import_drjit_and_mitsuba():
+    """Import Dr.Jit and Mitsuba after choosing the libLLVM; returns ``(dr, mi)``."""
+    choice = prepare_llvm()
+    with _quiet_stderr("drjit" not in sys.modules and not choice.usable):
+        import drjit as dr
+        import mitsuba as mi
+    return dr, mi
+
+
+def cuda_usable() -> bool:
+    dr, _ = import_drjit_and_mitsuba()
+    try:
+        return bool(dr.has_backend(dr.JitBackend.CUDA))
+    except Exception:  # a broken driver reports itself as an exception
+        return False
+
+
+def variant_problem(variant: str) -> str | None:
+    """Why ``variant`` cannot render here, or None when it can."""
+    _, mi = import_drjit_and_mitsuba()
+    if variant not in mi.variants():
+        return (f"Unknown Mitsuba variant {variant!r}: this Mitsuba has "
+                f"{', '.join(mi.variants())}.")
+    if variant.startswith("llvm_"):
+        return prepare_llvm().problem
+    if variant.startswith("cuda_") and not cuda_usable():
+        return f"Variant {variant} needs a CUDA GPU and driver, and none is usable here."
+    return None
+
+
+def choose_variant(requested: str | None = None) -> str:
+    """The variant to use: ``requested``, else ``$MIMARBLE_VARIANT``, else the best usable.
+
+    Raises :class:`EnvironmentProblem` when an explicitly requested variant cannot work.
+    Automatic choice: ``cuda_ad_rgb`` with a usable GPU, else ``llvm_ad_rgb``, else
+    ``scalar_rgb`` with a warning that it is slow.
+    """
+    requested = requested or os.environ.get(VARIANT_ENV) or None
+    if requested:
+        problem = variant_problem(requested)
+        if problem:
+            raise EnvironmentProblem(problem)
+        return requested
+    for variant in AUTO_VARIANTS:
+        if variant_problem(variant) is None:
+            if variant.startswith("scalar"):
+                llvm = prepare_llvm().problem
+                warnings.warn(f"mimarble: using the slow scalar_rgb variant. {llvm}", stacklevel=3)
+            return variant
+    raise EnvironmentProblem("No Mitsuba variant can render here.")  # scalar always can
+
+
+def use_variant(requested: str | None = None) -> str:
+    """Set the Mitsuba variant, keeping one the user already set unless another is requested."""
+    _, mi = import_drjit_and_mitsuba()
+    current = mi.variant()
+    if requested is None and not os.environ.get(VARIANT_ENV) and current is not None:
+        return current
+    variant = choose_variant(requested)
+    if variant != current:
+        mi.set_variant(variant)
+    return variant
+
+
+def doctor() -> tuple[list[tuple[str, str]], bool]:
+    """Facts about the rendering environment, and whether rendering can work."""
+    choice = prepare_llvm()
+    dr, mi = import_drjit_and_mitsuba()
+    rows = [("python", sys.version.split()[0]),
+            ("mitsuba", mi.__version__),
+            ("drjit", dr.__version__)]
+    loaded = _loaded_libllvm()
+    version = dr.detail.llvm_version()
+    if version[0] >= 0:
+        rows.append(("libLLVM", f"{loaded or choice.path} (LLVM {'.'.join(map(str, version))}, "
+                                f"chosen by {choice.source})"))
+    else:
+        rows.append(("libLLVM", "none loaded"))
+    rows.append(("cuda", "usable" if cuda_usable() else "not usable"))
+    ok = True
+    try:
+        variant = choose_variant()
+        rows.append(("variant", variant))
+    except EnvironmentProblem as e:
+        rows.append(("variant", f"none: {e}"))
+        ok = False
+    if choice.problem:
+        rows.append(("problem", choice.problem))
+        # An LLVM problem stops rendering only when nothing better than scalar is left.
+        ok = ok and not (os.environ.get(VARIANT_ENV, "").startswith("llvm_"))
+    return rows, ok

@@ -1,0 +1,81 @@
+"""SceneError: every user error in a scene file, as ``FILE:LINE:COL: message``."""
+
+from __future__ import annotations
+
+__all__ = ["SceneError", "TAB_SIZE"]
+
+#: Tab stops used to display a source line (columns still count a tab as one).
+TAB_SIZE = 8
+
+
+class SceneError(Exception):
+    """A syntax or validation error in a scene file.
+
+    Attributes: ``filename``, ``line`` and ``column`` (1-based; column counts
+    characters, a tab is one), ``message``, ``source_line`` (the text of the
+    offending line, without its newline). ``str(err)`` is::
+
+        FILE:LINE:COL: message
+        the offending source line
+                ^
+
+    with tabs expanded to 8-column stops and the caret under the column.
+    Errors without a position (a file that cannot be read) have ``line`` and
+    ``column`` None and print as ``FILE: message`` alone.
+    The command-line interface prints ``str(err)`` and exits with status 2.
+    """
+
+    exit_status = 2
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        filename: str = "<string>",
+        line: int | None = None,
+        column: int | None = None,
+        source_line: str | None = None,
+    ) -> None:
+        self.message = message
+        self.filename = filename
+        self.line = line
+        self.column = column
+        self.source_line = source_line
+        super().__init__(message)
+
+    @classmethod
+    def at(cls, text: str, filename: str, line: int, column: int, message: str) -> "SceneError":
+        """An error at (line, column) of ``text``, quoting that line."""
+        lines = text.split("\n")
+        src = lines[line - 1] if 1 <= line <= len(lines) else ""
+        return cls(message, filename=filename, line=line, column=column, source_line=src.rstrip("\r"))
+
+    def __reduce__(self):
+        return (_rebuild, (self.message, self.filename, self.line, self.column, self.source_line))
+
+    @property
+    def location(self) -> str:
+        """``FILE:LINE:COL`` (or less, when the position is unknown)."""
+        parts = [self.filename]
+        if self.line is not None:
+            parts.append(str(self.line))
+            if self.column is not None:
+                parts.append(str(self.column))
+        return ":".join(parts)
+
+    def __str__(self) -> str:
+        head = f"{self.location}: {self.message}"
+        if self.line is None or self.source_line is None:
+            return head
+        shown = self.source_line.expandtabs(TAB_SIZE)
+        if self.column is None:
+            return f"{head}\n{shown}"
+        prefix = self.source_line[: max(self.column - 1, 0)]
+        # Pad past the end of the line if the column is beyond it (end of file).
+        prefix += " " * max(self.column - 1 - len(prefix), 0)
+        width = len(prefix.expandtabs(TAB_SIZE))
+        return f"{head}\n{shown}\n{' ' * width}^"
+
+
+def _rebuild(message, filename, line, column, source_line):
+    return SceneError(message, filename=filename, line=line, column=column, source_line=source_line)

@@ -1,0 +1,270 @@
+"""The scene model: immutable, typed, dependency-free.
+
+This is the only thing the rest of mimarble consumes from the scene language
+(the Mitsuba translator and the NumPy reference tracer both read it). Every
+class is a frozen dataclass, compared and hashed by value. Vectors and colours
+are tuples of three Python floats; counts are ints.
+
+Each node may carry ``pos``, the :class:`Pos` (1-based line and column) of the
+keyword that introduced it in the source file, so that later stages can point
+at it in their own messages. ``pos`` takes no part in equality, hashing or
+``repr``: two scenes that differ only in layout or comments are equal.
+
+The defaults of the constructors are the language's defaults (see
+docs/scene-language.md), so ``MarbleChannel()`` is the marble of a
+``marble { }`` block and ``Scene()`` is an empty file. Constructors do not
+validate; :func:`mimarble.scene.parse` does, with file positions.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import Literal, NamedTuple, Union
+
+__all__ = [
+    "Vec3",
+    "RGB",
+    "Pos",
+    "Image",
+    "Camera",
+    "Light",
+    "ColorChannel",
+    "MarbleChannel",
+    "Channel",
+    "Material",
+    "Sphere",
+    "Scene",
+    "FrozenMap",
+    "MarbleFunction",
+    "Axis",
+    "FIG5_RAMP",
+    "MARBLE_FUNCTIONS",
+    "AXES",
+]
+
+Vec3 = tuple[float, float, float]
+RGB = tuple[float, float, float]
+MarbleFunction = Literal["abs_sine", "sine", "cosine"]
+Axis = Literal["x", "y", "z"]
+
+#: The marble functions, in the order of the documentation.
+MARBLE_FUNCTIONS: tuple[str, ...] = ("abs_sine", "sine", "cosine")
+#: The coordinate axes a marble may run along.
+AXES: tuple[str, ...] = ("x", "y", "z")
+
+#: The paper's Fig. 5 ramp: 8 colours from red <1 0 0> to orange <1 0.875 0>.
+FIG5_RAMP: tuple[RGB, ...] = tuple((1.0, k / 8.0, 0.0) for k in range(8))
+
+
+class Pos(NamedTuple):
+    """A 1-based source position."""
+
+    line: int
+    column: int
+
+    def __str__(self) -> str:
+        return f"{self.line}:{self.column}"
+
+
+def _pos() -> Pos | None:
+    return field(default=None, compare=False, repr=False, kw_only=True)  # type: ignore[return-value]
+
+
+class FrozenMap(Mapping):
+    """An immutable, hashable, insertion-ordered mapping (``str -> Material``)."""
+
+    __slots__ = ("_d", "_h")
+
+    def __init__(self, items=()):
+        self._d = dict(items)
+        self._h = None
+
+    def __getitem__(self, key):
+        return self._d[key]
+
+    def __iter__(self) -> Iterator:
+        return iter(self._d)
+
+    def __len__(self) -> int:
+        return len(self._d)
+
+    def __hash__(self) -> int:
+        if self._h is None:
+            self._h = hash(tuple(self._d.items()))
+        return self._h
+
+    def __eq__(self, other) -> bool:
+        if isinstance(other, Mapping):
+            return dict(self._d.items()) == dict(other.items())
+        return NotImplemented
+
+    def __repr__(self) -> str:
+        return f"FrozenMap({self._d!r})"
+
+
+@dataclass(frozen=True)
+class Image:
+    """``image { width W height H samples S background <r g b> }``.
+
+    ``samples`` is the number of samples per pixel, a perfect square n*n:
+    pixels are sampled at the centres of an n x n stratified grid (the pixel
+    centre when ``samples == 1``). ``samples_per_axis`` is n.
+    """
+
+    width: int = 500
+    height: int = 500
+    samples: int = 1
+    background: RGB = (0.0, 0.0, 0.0)
+    pos: Pos | None = _pos()
+
+    @property
+    def samples_per_axis(self) -> int:
+        return math.isqrt(self.samples)
+
+    @property
+    def aspect(self) -> float:
+        """width / height."""
+        return self.width / self.height
+
+
+@dataclass(frozen=True)
+class Camera:
+    """``camera { eye <> lookat <> up <> fov F }``, a pinhole camera.
+
+    ``fov`` is the full *vertical* field of view in degrees (Mitsuba:
+    ``fov_axis = "y"``); the horizontal one follows from the image aspect.
+    ``up`` need not be perpendicular to the view direction, only not parallel.
+    """
+
+    eye: Vec3 = (0.0, 0.0, 10.0)
+    lookat: Vec3 = (0.0, 0.0, 0.0)
+    up: Vec3 = (0.0, 1.0, 0.0)
+    fov: float = 30.0
+    pos: Pos | None = _pos()
+
+
+@dataclass(frozen=True)
+class Light:
+    """``light { position <> color <> }``: a point light without distance falloff."""
+
+    position: Vec3
+    color: RGB = (1.0, 1.0, 1.0)
+    pos: Pos | None = _pos()
+
+
+@dataclass(frozen=True)
+class ColorChannel:
+    """``color < r g b >``: a constant colour (the paper's ChannelColor)."""
+
+    rgb: RGB
+    pos: Pos | None = _pos()
+
+
+@dataclass(frozen=True)
+class MarbleChannel:
+    """``marble { ... }``: the paper's marble (ChannelMarble).
+
+    With ``v = scale * p`` (p in world space) and
+    ``F(v) = sum_{i<octaves} N(2^i v) / 2^i`` (``|N|`` when ``turbulence``)::
+
+        abs_sine: t = |sin(pi * (period * v_axis + distortion * F(v)))|
+        sine:     t = 0.5 * (sin(period * v_axis + distortion * F(v)) + 1)
+        cosine:   t = 0.5 * (cos(v_axis + distortion * F(v)) + 1)   (period unused)
+
+    The colour is ``ramp`` at ``t``: K >= 2 colours at keys ``k / (K - 1)``,
+    piecewise linear, ``t`` clamped to [0, 1].
+    """
+
+    scale: float = 1.0
+    period: float = 1.0
+    distortion: float = 1.0
+    octaves: int = 8
+    function: MarbleFunction = "abs_sine"
+    axis: Axis = "x"
+    turbulence: bool = False
+    ramp: tuple[RGB, ...] = FIG5_RAMP
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.ramp, tuple):
+            object.__setattr__(self, "ramp", tuple(tuple(c) for c in self.ramp))
+
+    @property
+    def axis_index(self) -> int:
+        """0, 1 or 2 for ``axis`` x, y or z."""
+        return AXES.index(self.axis)
+
+
+#: What a material component is bound to. ``None`` in a Material means the
+#: component is absent (contributes nothing; renderers may skip it).
+Channel = Union[ColorChannel, MarbleChannel]
+
+
+@dataclass(frozen=True)
+class Material:
+    """``material "name" { ambient {CH} diffuse {CH} specular {CH} shininess N }``.
+
+    Shading (whitted mode), per light l with visibility V and intensity I_l::
+
+        L = ka(p) * A + sum_l V * I_l * (kd(p) * max(0, n.l)
+                                         + ks(p) * max(0, n.h) ** shininess)
+    """
+
+    name: str
+    ambient: Channel | None = None
+    diffuse: Channel | None = None
+    specular: Channel | None = None
+    shininess: float = 32.0
+    pos: Pos | None = _pos()
+
+    def channels(self) -> dict[str, Channel]:
+        """The components that are present, by name (ambient, diffuse, specular)."""
+        return {
+            k: c
+            for k, c in (("ambient", self.ambient), ("diffuse", self.diffuse), ("specular", self.specular))
+            if c is not None
+        }
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """``sphere { center <> radius R material "name" }``."""
+
+    material: str
+    center: Vec3 = (0.0, 0.0, 0.0)
+    radius: float = 1.0
+    pos: Pos | None = _pos()
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole scene file.
+
+    ``materials`` maps names to materials in file order; every
+    ``Sphere.material`` is a key of it (after :func:`parse`). ``ambient`` is
+    the global ambient light A. ``source`` is the file it came from (None for
+    text parsed without a file name); it takes no part in equality.
+    """
+
+    image: Image = Image()
+    camera: Camera = Camera()
+    ambient: RGB = (0.0, 0.0, 0.0)
+    lights: tuple[Light, ...] = ()
+    materials: Mapping[str, Material] = field(default_factory=FrozenMap)
+    spheres: tuple[Sphere, ...] = ()
+    source: str | None = field(default=None, compare=False)
+
+    def __post_init__(self) -> None:
+        # Accept lists and dicts from programmatic construction; store immutably.
+        if not isinstance(self.materials, FrozenMap):
+            object.__setattr__(self, "materials", FrozenMap(self.materials))
+        for name in ("lights", "spheres"):
+            value = getattr(self, name)
+            if not isinstance(value, tuple):
+                object.__setattr__(self, name, tuple(value))
+
+    def material_of(self, sphere: Sphere) -> Material:
+        """The material a sphere refers to."""
+        return self.materials[sphere.material]
