@@ -52,6 +52,10 @@ _SEARCH_GLOBS = (
 _VERSION_IN_NAME = re.compile(r"libLLVM[-.](?:so\.)?(\d+)")
 
 
+class SlowVariantWarning(UserWarning):
+    """Only the scalar variant can render here."""
+
+
 class EnvironmentProblem(RuntimeError):
     """Rendering cannot work in this environment; the message is one sentence for the user."""
 
@@ -264,7 +268,8 @@ def choose_variant(requested: str | None = None) -> str:
         if variant_problem(variant) is None:
             if variant.startswith("scalar"):
                 llvm = prepare_llvm().problem
-                warnings.warn(f"mimarble: using the slow scalar_rgb variant. {llvm}", stacklevel=3)
+                warnings.warn(f"mimarble: using the slow scalar_rgb variant. {llvm}",
+                              SlowVariantWarning, stacklevel=3)
             return variant
     raise EnvironmentProblem("No Mitsuba variant can render here.")  # scalar always can
 
@@ -296,15 +301,15 @@ def doctor() -> tuple[list[tuple[str, str]], bool]:
     else:
         rows.append(("libLLVM", "none loaded"))
     rows.append(("cuda", "usable" if cuda_usable() else "not usable"))
-    ok = True
     try:
-        variant = choose_variant()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")   # the problem gets its own row below
+            variant = choose_variant()
         rows.append(("variant", variant))
     except EnvironmentProblem as e:
         rows.append(("variant", f"none: {e}"))
-        ok = False
+        return rows, False
     if choice.problem:
         rows.append(("problem", choice.problem))
-        # An LLVM problem stops rendering only when nothing better than scalar is left.
-        ok = ok and not (os.environ.get(VARIANT_ENV, "").startswith("llvm_"))
-    return rows, ok
+    # Only the slow scalar fallback left counts as "cannot work": fix the problem above.
+    return rows, not variant.startswith("scalar_")

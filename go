@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Set-up and entry point, in one: the first run installs what mimarble needs
+# (libLLVM >= 16 via apt when run as root, then a virtual environment .venv with
+# the package and its test tools); every run then does what was asked.
+#
+#   ./go test [PYTEST ARGS]     run the test suite (pytest)
+#   ./go COMMAND [ARGS]         run `mimarble COMMAND`, e.g. ./go render scenes/fig11a.scene -o m.png
+#   ./go python [ARGS]          the environment's Python
+set -euo pipefail
+here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
+cd "$here"
+venv="$here/.venv"
+python="${PYTHON:-python3}"
+
+# 1. A libLLVM Dr.Jit 1.5 can use (>= 16; Debian's 15 aborts the process, 14 is refused).
+#    mimarble.environment finds it; it imports nothing beyond the standard library.
+have_llvm() {
+    "$python" -c 'import runpy, sys; env = runpy.run_path("mimarble/environment.py"); sys.exit(0 if env["search_libllvm"]() else 1)'
+}
+if ! have_llvm; then
+    if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+        echo "go: installing libllvm19 (Dr.Jit needs libLLVM >= 16)" >&2
+        apt-get update -qq >&2
+        DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libllvm19 >&2 \
+            || echo "go: could not install libllvm19; mimarble will say what it can do without it" >&2
+    else
+        echo "go: no libLLVM >= 16 found and cannot install it (needs root and apt-get);" \
+             "mimarble will say what it can do without it" >&2
+    fi
+fi
+
+# 2. The package, editable, with its test tools, in .venv (redone when pyproject.toml changes).
+stamp="$venv/.installed-pyproject"
+if [ ! -x "$venv/bin/python" ] || ! cmp -s pyproject.toml "$stamp"; then
+    echo "go: setting up $venv" >&2
+    [ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
+    "$venv/bin/python" -m pip install -q --upgrade pip >&2
+    "$venv/bin/python" -m pip install -q -e ".[test]" >&2
+    cp pyproject.toml "$stamp"
+fi
+
+case "${1:-}" in
+    test) shift; exec "$venv/bin/python" -m pytest -q "$@" ;;
+    python) shift; exec "$venv/bin/python" "$@" ;;
+    "") exec "$venv/bin/python" -m mimarble --help ;;
+    *) exec "$venv/bin/python" -m mimarble "$@" ;;
+esac
