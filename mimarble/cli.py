@@ -13,7 +13,7 @@ import sys
 
 def _doctor(args) -> int:
     from . import environment
-    rows, ok = environment.doctor()
+    rows, ok = environment.doctor(args.variant)
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")

@@ -286,8 +286,12 @@ def use_variant(requested: str | None = None) -> str:
     return variant
 
 
-def doctor() -> tuple[list[tuple[str, str]], bool]:
-    """Facts about the rendering environment, and whether rendering can work."""
+def doctor(requested: str | None = None) -> tuple[list[tuple[str, str]], bool]:
+    """Facts about the rendering environment, and whether rendering can work.
+
+    ``requested`` is a variant the user asked for (``--variant``); without it,
+    the automatic choice (or ``$MIMARBLE_VARIANT``) is examined.
+    """
     choice = prepare_llvm()
     dr, mi = import_drjit_and_mitsuba()
     rows = [("python", sys.version.split()[0]),
@@ -304,7 +308,7 @@ def doctor() -> tuple[list[tuple[str, str]], bool]:
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")   # the problem gets its own row below
-            variant = choose_variant()
+            variant = choose_variant(requested)
         rows.append(("variant", variant))
     except EnvironmentProblem as e:
         rows.append(("variant", f"none: {e}"))
