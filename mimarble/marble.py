@@ -188,7 +188,8 @@ class MarbleTexture:
             [mi.Color3f(c) for c in colours]
         self.octaves_param = mi.UInt32(self.octaves)
         if "to_world" in props:
-            self.to_texture = mi.Transform4f(props["to_world"].inverse())
+            # Properties hold transforms in double precision; the kernel uses float.
+            self.to_texture = mi.Transform4f(mi.Matrix4f(props["to_world"].inverse().matrix))
         else:
             self.to_texture = None
         self.parameters_changed([])
@@ -269,8 +270,9 @@ class MarbleTexture:
 
     def colour_at(self, p_world):
         """The marble colour at world-space points (any Dr.Jit array of points)."""
-        if self.ramp_size == 1:
-            return self._ramp_colour(0)
+        if self.ramp_size == 1:   # a constant: no noise, no ramp interpolation
+            zero = dr.zeros(mi.UInt32, dr.width(p_world)) if dr.is_jit_v(mi.Float) else 0
+            return self._ramp_colour(zero)
         p = p_world if self.to_texture is None else self.to_texture @ p_world
         return self.ramp_at(self.stripe(p * self.scale))
 
@@ -306,7 +308,7 @@ class MarbleTexture:
     def _ramp_numpy(self) -> np.ndarray:
         if isinstance(self.ramp, list):
             return np.array([[c[0], c[1], c[2]] for c in self.ramp], dtype=np.float64)
-        return np.array(self.ramp, dtype=np.float64).reshape(-1, 3)
+        return np.array(self.ramp, dtype=np.float64).T   # Color3f converts as (3, K)
 
 
 def _first(value) -> float:
