@@ -23,10 +23,13 @@ if mi.variant() is None:
 
 from . import noise  # noqa: E402
 from . import marble  # noqa: E402
+from . import plugins  # noqa: E402
+from . import mitsuba as _mitsuba  # noqa: E402  (declares the material and integrator)
+from . import scene  # noqa: E402
+from .mitsuba import render, to_mitsuba, write_image  # noqa: E402
 
-if mi.variant() is not None:
-    marble.register()
-mi.detail.add_variant_callback(marble._on_variant_change)
+plugins.install()
 
-__all__ = ["EnvironmentProblem", "marble", "noise", "use_variant"]
+__all__ = ["EnvironmentProblem", "marble", "noise", "render", "scene", "to_mitsuba",
+           "use_variant", "write_image"]
 __version__ = "0.1.0"

@@ -69,6 +69,7 @@ import numpy as np
 
 from . import environment
 from .noise import MAX_OCTAVES, fractal3
+from .plugins import plugin
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -160,11 +161,10 @@ def ramp_mean(ramp, function: str) -> np.ndarray:
 
 
 # ---------------------------------------------------------------------------
-# The texture. Methods are written once for every RGB variant; the class is
-# bound to each variant's mi.Texture by register() (nanobind types cannot take
-# a plain mixin as a second base).
+# The texture, written once for every RGB variant (see mimarble.plugins).
 
-class MarbleTexture:
+@plugin("texture", "marble")
+class Marble:
     """Marble solid texture (Park & Park 2004). See the module docstring for parameters."""
 
     def __init__(self, props):
@@ -316,30 +316,3 @@ def _first(value) -> float:
     if isinstance(value, (int, float)):
         return float(value)
     return float(value[0]) if dr.width(value) > 0 else float("nan")
-
-
-# ---------------------------------------------------------------------------
-# Registration for every variant
-
-_registered: dict[str, type] = {}
-
-
-def marble_class(variant: str | None = None) -> type:
-    """The ``marble`` texture class bound to ``variant``'s ``mi.Texture`` (default: current)."""
-    variant = variant or mi.variant()
-    if variant not in _registered:
-        namespace = {k: v for k, v in vars(MarbleTexture).items()
-                     if k not in ("__dict__", "__weakref__")}
-        _registered[variant] = type("Marble", (mi.Texture,), namespace)
-    return _registered[variant]
-
-
-def register(variant: str | None = None) -> None:
-    """Register ``marble`` with Mitsuba's plugin manager for the current variant."""
-    cls = marble_class(variant)
-    mi.register_texture("marble", lambda props: cls(props))
-
-
-def _on_variant_change(old, new):
-    if new is not None:
-        register(new)

@@ -1,0 +1,116 @@
+"""``channel_material``: the paper's material, channels bound to colours or marble.
+
+A BSDF plugin that carries the three channels of the paper's §3.2 — ``ambient``,
+``diffuse``, ``specular``, each any Mitsuba texture (``rgb`` for the paper's
+ChannelColor, ``marble`` for ChannelMarble) or absent — and a Phong exponent
+``shininess``. The ``whitted`` integrator reads the channels through
+:meth:`channels`; a channel given twice as the same texture object (a ``ref`` in
+the scene dict) is evaluated once.
+
+.. list-table::
+   :header-rows: 1
+
+   * - Parameter
+     - Type
+     - Description
+   * - ``ambient``, ``diffuse``, ``specular``
+     - texture (absent: black, and no work)
+     - The channels ka, kd, ks.
+   * - ``shininess``
+     - float (32)
+     - Phong exponent of the specular channel.
+
+Under any other integrator it behaves as a Lambertian BSDF with reflectance
+``diffuse`` (so ``path`` and the ``aov`` albedo still make sense).
+"""
+
+from __future__ import annotations
+
+from .. import environment
+from ..plugins import plugin
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+CHANNELS = ("ambient", "diffuse", "specular")
+
+
+@plugin("bsdf", "channel_material")
+class ChannelMaterial:
+    """The paper's Material: ambient/diffuse/specular channels and a shininess."""
+
+    def __init__(self, props):
+        mi.BSDF.__init__(self, props)
+        for name in CHANNELS:   # get_texture turns an inline rgb into a texture, as C++ plugins do
+            setattr(self, name, props.get_texture(name) if name in props else None)
+        shininess = props.get("shininess", 32.0)
+        if not isinstance(shininess, (int, float)) or not 0 < shininess < float("inf"):
+            raise ValueError(f"channel_material: shininess={shininess!r} must be a positive number")
+        self.shininess = mi.Float(shininess)
+        dr.make_opaque(self.shininess)
+        self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
+        self.m_components = [self.m_flags]
+
+    # -- what the whitted integrator calls --------------------------------------
+
+    def channels(self, si, active=True):
+        """(ka, kd, ks, shininess) at the surface point ``si``; absent channels are 0."""
+        values = {}
+        for name in CHANNELS:
+            texture = getattr(self, name)
+            if texture is None:
+                values[name] = dr.zeros(mi.Color3f, dr.width(si.p))
+                continue
+            shared = next((values[other] for other in values
+                           if getattr(self, other) is texture), None)
+            values[name] = shared if shared is not None else texture.eval(si, active)
+        return values["ambient"], values["diffuse"], values["specular"], self.shininess
+
+    def has_channel(self, name: str) -> bool:
+        return getattr(self, name) is not None
+
+    # -- a Lambertian BSDF for every other integrator -------------------------
+
+    def _albedo(self, si, active):
+        if self.diffuse is None:
+            return dr.zeros(mi.Color3f, dr.width(si.p))
+        return self.diffuse.eval(si, active)
+
+    def sample(self, ctx, si, sample1, sample2, active=True):
+        cos_i = mi.Frame3f.cos_theta(si.wi)
+        bs = dr.zeros(mi.BSDFSample3f)
+        bs.wo = mi.warp.square_to_cosine_hemisphere(sample2)
+        bs.pdf = mi.warp.square_to_cosine_hemisphere_pdf(bs.wo)
+        bs.eta = 1.0
+        bs.sampled_type = mi.UInt32(+mi.BSDFFlags.DiffuseReflection)
+        bs.sampled_component = 0
+        ok = active & (cos_i > 0) & (bs.pdf > 0)
+        return bs, dr.select(ok, self._albedo(si, ok), 0.0)
+
+    def eval(self, ctx, si, wo, active=True):
+        cos_o = mi.Frame3f.cos_theta(wo)
+        ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (cos_o > 0)
+        return dr.select(ok, self._albedo(si, ok) * dr.inv_pi * cos_o, 0.0)
+
+    def pdf(self, ctx, si, wo, active=True):
+        ok = active & (mi.Frame3f.cos_theta(si.wi) > 0) & (mi.Frame3f.cos_theta(wo) > 0)
+        return dr.select(ok, mi.warp.square_to_cosine_hemisphere_pdf(wo), 0.0)
+
+    def eval_pdf(self, ctx, si, wo, active=True):
+        return self.eval(ctx, si, wo, active), self.pdf(ctx, si, wo, active)
+
+    def eval_diffuse_reflectance(self, si, active=True):
+        return self._albedo(si, active)
+
+    def traverse(self, cb):
+        for name in CHANNELS:
+            texture = getattr(self, name)
+            if texture is not None:
+                cb.put(name, texture, mi.ParamFlags.Differentiable)
+        cb.put("shininess", self.shininess, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys=[]):
+        dr.make_opaque(self.shininess)
+
+    def to_string(self):
+        parts = [f"{name}={getattr(self, name)}" for name in CHANNELS if self.has_channel(name)]
+        return f"ChannelMaterial[{', '.join(parts)}, shininess={self.shininess}]"

@@ -1,0 +1,139 @@
+"""Scene model → Mitsuba scene dict, in two modes.
+
+``whitted``: the paper's model exactly — ``channel_material`` BSDFs, ``point``
+lights, the ``whitted`` integrator, a non-jittered ``stratified`` sampler and a
+``box`` filter, so every pixel is the mean of its n×n stratum centres.
+
+``path``: physically based — the marble drives Mitsuba's own BSDFs under the
+``path`` integrator. The paper's quantities map as follows (docs/rendering-model.md):
+
+* diffuse channel kd → ``diffuse`` reflectance; with a specular channel,
+  ``roughplastic`` (diffuse_reflectance kd, specular_reflectance ks, Beckmann
+  α = √(2/(shininess+2)), the usual Phong-exponent match);
+* a light of colour I → ``point`` intensity I·π·d², d its distance to the
+  camera's look-at point: a Lambertian surface there then receives
+  kd·I·cosθ, as in whitted mode, and the 1/d² falloff is physical elsewhere;
+* the global ambient A → a hidden ``constant`` environment of radiance A
+  (a Lambertian surface open to the sky reflects kd⊙A: the ambient term with
+  kd in place of ka);
+* the background colour is not rendered in path mode (misses are black).
+
+Every distinct marble channel becomes one top-level texture referenced by id,
+so a marble used for both ambient and diffuse is one texture, evaluated once.
+Constant channels are plain ``rgb`` textures: no noise code is generated for them.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..scene import model
+
+MODES = ("whitted", "path")
+
+
+def texture_dict(channel: model.ColorChannel | model.MarbleChannel) -> dict:
+    """The Mitsuba texture of one channel."""
+    if isinstance(channel, model.ColorChannel):
+        return {"type": "rgb", "value": list(channel.rgb)}
+    return {
+        "type": "marble",
+        "scale": channel.scale,
+        "period": channel.period,
+        "distortion": channel.distortion,
+        "octaves": channel.octaves,
+        "function": channel.function,
+        "axis": channel.axis,
+        "turbulence": channel.turbulence,
+        "ramp": ", ".join(" ".join(repr(float(x)) for x in c) for c in channel.ramp),
+    }
+
+
+def _distance(a, b) -> float:
+    return math.dist(a, b)
+
+
+def _sensor(scene: model.Scene, sampler: dict) -> dict:
+    import mitsuba as mi   # imported here: the module itself stays importable without it
+    cam, img = scene.camera, scene.image
+    return {
+        "type": "perspective",
+        "fov": cam.fov,
+        "fov_axis": "y",
+        "to_world": mi.ScalarTransform4f().look_at(origin=list(cam.eye), target=list(cam.lookat),
+                                                   up=list(cam.up)),
+        "film": {"type": "hdrfilm", "width": img.width, "height": img.height,
+                 "pixel_format": "rgb", "rfilter": {"type": "box"}},
+        "sampler": sampler,
+    }
+
+
+def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None) -> dict:
+    """A Mitsuba scene dict for ``scene`` (``mi.load_dict`` it to render).
+
+    ``spp`` overrides the scene's samples per pixel; in whitted mode it must be
+    a perfect square (an n×n grid of stratum centres).
+    """
+    if mode not in MODES:
+        raise ValueError(f"mode={mode!r} must be one of {', '.join(MODES)}")
+    spp = scene.image.samples if spp is None else spp
+    if spp < 1 or (mode == "whitted" and math.isqrt(spp) ** 2 != spp):
+        raise ValueError(f"spp={spp} must be a positive perfect square (1, 4, 9, …) in whitted mode"
+                         if mode == "whitted" else f"spp={spp} must be positive")
+
+    out: dict = {"type": "scene"}
+    textures: dict = {}            # channel value -> texture id (dedupes equal channels)
+
+    def ref(channel):
+        if isinstance(channel, model.ColorChannel):   # a constant: inline, nothing to share
+            return texture_dict(channel)
+        if channel not in textures:
+            textures[channel] = f"texture_{len(textures)}"
+            out[textures[channel]] = texture_dict(channel)
+        return {"type": "ref", "id": textures[channel]}
+
+    if mode == "whitted":
+        out["integrator"] = {"type": "whitted", "ambient": list(scene.ambient),
+                             "background": list(scene.image.background)}
+        sampler = {"type": "stratified", "sample_count": spp, "jitter": False}
+    else:
+        out["integrator"] = {"type": "path", "max_depth": 4, "hide_emitters": True}
+        sampler = {"type": "independent", "sample_count": spp}
+    out["sensor"] = _sensor(scene, sampler)
+
+    materials = {}
+    for name, material in scene.materials.items():
+        if mode == "whitted":
+            bsdf = {"type": "channel_material", "shininess": material.shininess}
+            for channel_name, channel in material.channels().items():
+                bsdf[channel_name] = ref(channel)
+        else:
+            bsdf = _path_bsdf(material, ref)
+        materials[name] = bsdf
+
+    for k, sphere in enumerate(scene.spheres):
+        out[f"sphere_{k}"] = {"type": "sphere", "center": list(sphere.center),
+                              "radius": sphere.radius, "bsdf": materials[sphere.material]}
+
+    for k, light in enumerate(scene.lights):
+        intensity = list(light.color)
+        if mode == "path":
+            d2 = _distance(light.position, scene.camera.lookat) ** 2
+            intensity = [c * math.pi * d2 for c in light.color]
+        out[f"light_{k}"] = {"type": "point", "position": list(light.position),
+                             "intensity": {"type": "rgb", "value": intensity}}
+
+    if mode == "path" and any(scene.ambient):
+        out["ambient"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(scene.ambient)}}
+    return out
+
+
+def _path_bsdf(material: model.Material, ref) -> dict:
+    diffuse = ref(material.diffuse) if material.diffuse is not None else \
+        {"type": "rgb", "value": [0.0, 0.0, 0.0]}
+    if material.specular is None:
+        return {"type": "diffuse", "reflectance": diffuse}
+    return {"type": "roughplastic", "distribution": "beckmann",
+            "alpha": math.sqrt(2.0 / (material.shininess + 2.0)),
+            "diffuse_reflectance": diffuse, "specular_reflectance": ref(material.specular),
+            "nonlinear": True}
