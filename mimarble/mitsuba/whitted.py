@@ -56,6 +56,17 @@ def _colour(props, name):
     return mi.Color3f(*rgb)
 
 
+def _no_channels(si):
+    zero = dr.zeros(mi.Color3f, dr.width(si.p))
+    return zero, zero, zero, mi.Float(1.0)
+
+
+def _material_channels(material, si, active):
+    if hasattr(material, "channels"):
+        return material.channels(si, active)
+    return _no_channels(si)
+
+
 @plugin("integrator", "whitted")
 class Whitted:
     """Whitted-style shading of the paper: ambient + diffuse + Phong specular, hard shadows."""
@@ -94,6 +105,17 @@ class Whitted:
                                  f"the whitted integrator shades with point lights only")
         return lights
 
+    @staticmethod
+    def _channels(si, ray, hit):
+        """The hit material's channels: a symbolic call over materials in JIT variants.
+
+        A symbolic call traces *every* live BSDF instance of the variant (other
+        scenes' too), so instances that are not channel materials give zeros.
+        """
+        if dr.is_jit_v(mi.Float):
+            return dr.dispatch(si.bsdf(ray), _material_channels, si, hit)
+        return _material_channels(si.bsdf(ray), si, hit) if hit else _no_channels(si)
+
     def sample(self, scene, sampler, ray, medium=None, active=True):
         # Static facts about the scene decide which code is traced at all.
         any_specular = any(m.has_channel("specular") for m in self._materials(scene))
@@ -101,8 +123,7 @@ class Whitted:
 
         si = scene.ray_intersect(ray, active)
         hit = mi.Bool(active) & si.is_valid()
-        ka, kd, ks, shininess = dr.dispatch(
-            si.bsdf(ray), lambda material, si, on: material.channels(si, on), si, hit)
+        ka, kd, ks, shininess = self._channels(si, ray, hit)
 
         v = -mi.Vector3f(ray.d)
         n = mi.Vector3f(si.n)

@@ -1,0 +1,95 @@
+"""The command line: renders, user errors (FILE:LINE:COL, exit 2, no traceback, no file)."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mimarble
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SMALL = """image { width 8 height 6 samples 4 }
+camera { eye < 0 0 5 > lookat < 0 0 0 > up < 0 1 0 > fov 30 }
+light { position < 5 5 5 > color < 1 1 1 > }
+material "m" { diffuse { marble { octaves 3 } } }
+sphere { center < 0 0 0 > radius 1 material "m" }
+"""
+
+
+def mimarble_cli(*args, cwd=ROOT):
+    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb",
+               PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
+    return subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture
+def small_scene(tmp_path):
+    path = tmp_path / "small.scene"
+    path.write_text(SMALL)
+    return path
+
+
+@pytest.mark.parametrize("suffix", [".png", ".exr"])
+def test_render_writes_the_image(tmp_path, small_scene, suffix):
+    out = tmp_path / f"out{suffix}"
+    result = mimarble_cli("render", small_scene, "-o", out)
+    assert result.returncode == 0, result.stderr
+    bitmap = mimarble.mi.Bitmap(str(out))
+    assert (bitmap.width(), bitmap.height()) == (8, 6)
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []   # no temp left
+
+
+def test_png_is_the_srgb_encoding_of_the_linear_render(tmp_path, small_scene):
+    out = tmp_path / "out.png"
+    assert mimarble_cli("render", small_scene, "-o", out).returncode == 0
+    png = np.array(mimarble.mi.Bitmap(str(out)), dtype=np.float64) / 255
+    linear = np.clip(mimarble.render(small_scene), 0, 1)
+    srgb = np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055)
+    assert np.abs(png - srgb).max() <= 1 / 255 + 1e-6
+
+
+@pytest.mark.parametrize("text, where, words", [
+    (SMALL.replace("radius 1", "radius -1"), ":5:", "radius"),
+    (SMALL.replace('material "m" }', 'material "nope" }'), ":5:", "nope"),
+    (SMALL.replace("octaves 3", "octaves 99"), ":4:", "octaves"),
+    (SMALL + "}\n", ":6:1:", "}"),
+    (SMALL.replace("< 5 5 5 >", "< 5 5 >"), ":3:", "3 numbers"),
+])
+def test_scene_errors_point_at_file_line_column(tmp_path, text, where, words):
+    path = tmp_path / "bad.scene"
+    path.write_text(text)
+    out = tmp_path / "bad.png"
+    result = mimarble_cli("render", path, "-o", out)
+    assert result.returncode == 2
+    first = result.stderr.splitlines()[0]
+    assert first.startswith(str(path) + where) and words in first
+    assert "^" in result.stderr and "Traceback" not in result.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("args, words", [
+    (["--spp", "3"], "perfect square"),
+    (["-o", "x.jpg"], "unsupported image format"),
+    (["-o", "missing/x.png"], "does not exist"),
+])
+def test_argument_errors_exit_2_without_traceback(tmp_path, small_scene, args, words):
+    result = mimarble_cli("render", small_scene, *args, cwd=tmp_path)
+    assert result.returncode == 2 and words in result.stderr
+    assert "Traceback" not in result.stderr
+    assert list(tmp_path.glob("*.png")) == []
+
+
+def test_missing_scene_file_is_a_clear_error(tmp_path):
+    result = mimarble_cli("render", tmp_path / "nowhere.scene")
+    assert result.returncode == 2 and "nowhere.scene" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_path_mode_renders(tmp_path, small_scene):
+    out = tmp_path / "p.exr"
+    result = mimarble_cli("render", small_scene, "--mode", "path", "--spp", "2", "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert np.isfinite(np.array(mimarble.mi.Bitmap(str(out)))).all()
