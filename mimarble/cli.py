@@ -72,6 +72,16 @@ def _render(args) -> int:
     return 0
 
 
+def _gallery(args) -> int:
+    from .gallery import make_gallery
+    scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
+    if not scenes:
+        raise UsageError("no scenes given and none in ./scenes")
+    for out, seconds in make_gallery(scenes, args.output, args.size, args.mode):
+        print(f"{out} ({seconds:.2f} s)")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mimarble",
@@ -88,6 +98,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
                    help="whitted: the paper's shading (default); path: physically based")
     p.set_defaults(run=_render)
+
+    p = sub.add_parser("gallery", help="render scenes small for the README gallery")
+    p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")
+    p.add_argument("-o", "--output", default="docs/gallery", help="folder (default: docs/gallery)")
+    p.add_argument("--size", type=int, default=160, help="image width and height (default: 160)")
+    p.add_argument("--mode", choices=("whitted", "path"), default="whitted")
+    p.set_defaults(run=_gallery)
 
     p = sub.add_parser("doctor", help="show the libLLVM, variant and versions in use")
     p.set_defaults(run=_doctor, needs_variant=False)
