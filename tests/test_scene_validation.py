@@ -88,7 +88,6 @@ def check(text: str, line: int, column: int, fragment: str) -> SceneError:
         ('material "m" { diffuse { marble { turbulence yes } } }', 1, 46, "unknown turbulence 'yes'; expected true or false"),
         ('material "m" { diffuse { marble { function 3 } } }', 1, 44, "expected a function name"),
         ('material "m" { diffuse { marble {\n ramp { } } } }', 2, 2, "empty ramp"),
-        ('material "m" { diffuse { marble { ramp { <1 1 1> } } } }', 1, 35, "at least 2 colours, found 1"),
     ],
 )
 def test_validation_error_is_positioned(text, line, col, fragment):
@@ -132,3 +131,9 @@ def test_integral_float_literals_count_as_integers():
 
 def test_up_need_not_be_perpendicular():
     assert parse("camera { eye <0 0 10> up <0 1 1> }").camera.up == (0.0, 1.0, 1.0)
+
+
+def test_a_one_colour_ramp_is_accepted_as_a_constant():
+    from mimarble.scene import parse
+    s = parse('material "m" { diffuse { marble { ramp { <0.1 0.2 0.3> } } } }')
+    assert s.materials["m"].diffuse.ramp == ((0.1, 0.2, 0.3),)

@@ -68,7 +68,7 @@ LIMITS = {
     "image_size": (1, 16384),  # width and height, pixels
     "max_image_samples": 1 << 28,  # width * height * samples
     "octaves": (0, 64),
-    "ramp_colours": (2, 256),
+    "ramp_colours": (1, 256),
     "max_abs_number": 3.4028234663852886e38,  # float32 max: the Mitsuba path is single precision
 }
 
