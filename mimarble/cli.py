@@ -50,25 +50,71 @@ def _spp(args, scene) -> int:
     return spp
 
 
-def _write(out: Path, image) -> None:
-    from .mitsuba import write_image
+def _write(out: Path, image, eight_bit: bool = False) -> None:
+    from .mitsuba.render import write_image, write_rgb8
+    if not (out.parent if str(out.parent) else Path(".")).is_dir():
+        raise UsageError(f"{out}: folder {out.parent} does not exist")
     try:
-        write_image(out, image)
+        (write_rgb8 if eight_bit else write_image)(out, image)
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{out}: could not write the image: {e}") from None
 
 
-def _render(args) -> int:
+def _render_to_file(args, renderer, description: str) -> int:
+    """Load, check arguments, render, write whole, report: shared by render and reference."""
     import mimarble
     out = _output_path(args)
     scene = mimarble.scene.load(args.scene)
     spp = _spp(args, scene)
     start = time.perf_counter()
-    image = mimarble.render(scene, spp=spp, mode=args.mode)
+    image = renderer(scene, spp)
     seconds = time.perf_counter() - start
     _write(out, image)
-    print(f"{out}: {scene.image.width}x{scene.image.height}, {spp} spp, {args.mode} mode, "
-          f"{mimarble.mi.variant()}, {seconds:.2f} s")
+    print(f"{out}: {scene.image.width}x{scene.image.height}, {spp} spp, {description}, "
+          f"{seconds:.2f} s")
+    return 0
+
+
+def _render(args) -> int:
+    import mimarble
+    return _render_to_file(args, lambda scene, spp: mimarble.render(scene, spp=spp, mode=args.mode),
+                           f"{args.mode} mode, {mimarble.mi.variant()}")
+
+
+def _reference(args) -> int:
+    from . import reference
+    return _render_to_file(args, lambda scene, spp: reference.render(scene, spp=spp),
+                           "reference tracer (NumPy float64)")
+
+
+def _compare(args) -> int:
+    import json
+
+    import mimarble
+    from . import reference
+    from .compare import error_map, image_metrics
+    if args.diff and Path(args.diff).suffix.lower() != ".png":
+        raise UsageError(f"--diff {args.diff}: the error map is written as .png")
+    scene = mimarble.scene.load(args.scene)
+    spp = _spp(args, scene)
+    start = time.perf_counter()
+    ours = mimarble.render(scene, spp=spp)
+    mitsuba_seconds = time.perf_counter() - start
+    start = time.perf_counter()
+    ref = reference.render(scene, spp=spp)
+    reference_seconds = time.perf_counter() - start
+    metrics = image_metrics(ours, ref)
+    metrics.update(scene=str(args.scene), spp=spp, variant=mimarble.mi.variant(),
+                   mitsuba_seconds=mitsuba_seconds, reference_seconds=reference_seconds)
+    if args.diff:
+        _write(Path(args.diff), error_map(ours, ref), eight_bit=True)
+    print(f"{args.scene}: {scene.image.width}x{scene.image.height}, {spp} spp, whitted "
+          f"({mimarble.mi.variant()}) vs reference (float64)")
+    print(f"  RMSE {metrics['rmse']:.3g}   PSNR {metrics['psnr']:.2f} dB   max |error| "
+          f"{metrics['max_abs']:.3g}   pixels off by > 1/255: {100 * metrics['frac_over_1_255']:.3f} %")
+    print(f"  time: Mitsuba {mitsuba_seconds:.2f} s, reference {reference_seconds:.2f} s")
+    if args.json:
+        print(json.dumps(metrics))
     return 0
 
 
@@ -98,6 +144,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
                    help="whitted: the paper's shading (default); path: physically based")
     p.set_defaults(run=_render)
+
+    p = sub.add_parser("reference", help="render a scene with the float64 reference tracer")
+    p.add_argument("scene", help="scene file")
+    p.add_argument("-o", "--output", help="OUT.png or OUT.exr (default: the scene's name with .png)")
+    p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
+    p.set_defaults(run=_reference, mode="whitted")
+
+    p = sub.add_parser("compare", help="Mitsuba (whitted) against the reference tracer")
+    p.add_argument("scene", help="scene file")
+    p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
+    p.add_argument("--json", action="store_true", help="print the metrics as JSON on the last line")
+    p.add_argument("--diff", metavar="OUT.png", help="write a false-colour error map")
+    p.set_defaults(run=_compare, mode="whitted")
 
     p = sub.add_parser("gallery", help="render scenes small for the README gallery")
     p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")

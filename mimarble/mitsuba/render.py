@@ -44,8 +44,21 @@ def write_image(path, image: np.ndarray) -> None:
         clamped = np.clip(np.nan_to_num(image, nan=0.0), 0.0, 1.0).astype(np.float32)
         bitmap = mi.Bitmap(np.ascontiguousarray(clamped)).convert(
             mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True)
+    write_atomically(path, bitmap)
+
+
+def write_rgb8(path, pixels: np.ndarray) -> None:
+    """Write 8-bit RGB ``pixels`` (H, W, 3) to a .png as they are (no transfer curve)."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ValueError(f"{path}: 8-bit images are written as .png")
+    write_atomically(path, mi.Bitmap(np.ascontiguousarray(pixels, dtype=np.uint8)))
+
+
+def write_atomically(path: Path, bitmap) -> None:
+    """Write under a temporary name in the same folder, then rename: whole or not at all."""
     folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=suffix, dir=folder)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=folder)
     os.close(fd)
     try:
         bitmap.write(tmp)

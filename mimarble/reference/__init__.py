@@ -1,0 +1,71 @@
+"""The reference tracer: the paper's ray tracer rebuilt in float64 NumPy.
+
+The project's ground truth for the Mitsuba path. It shares nothing with it but
+the parsed scene model (:mod:`mimarble.scene`): its own Perlin noise (Shirley's
+sum-of-ω form, :mod:`.noise`), its own marble (:mod:`.marble`), its own
+camera, sphere intersection, ``shadowHit`` and shading (:mod:`.tracer`). Its
+modules import only NumPy, the standard library and ``mimarble.scene``.
+
+    >>> from mimarble import scene, reference
+    >>> img = reference.render(scene.load("scenes/fig11a.scene"), spp=1)   # (500, 500, 3) float64
+
+The rendering contract both renderers follow is docs/rendering-model.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mimarble.scene import Scene, load
+
+from . import marble, noise, tracer
+from .marble import marble_color, ramp, stripe
+from .noise import fractal, fractal3, noise3
+from .tracer import (
+    EPS_REL,
+    T_MIN_REL,
+    HitRecord,
+    camera_rays,
+    closest_hit,
+    hit,
+    prepare,
+    sample_positions,
+    shade,
+    shadow_hit,
+    trace,
+)
+from .tracer import render as _render
+
+__all__ = [
+    "render",
+    "noise",
+    "marble",
+    "tracer",
+    "noise3",
+    "fractal",
+    "fractal3",
+    "stripe",
+    "ramp",
+    "marble_color",
+    "prepare",
+    "camera_rays",
+    "sample_positions",
+    "closest_hit",
+    "hit",
+    "shadow_hit",
+    "shade",
+    "trace",
+    "HitRecord",
+    "T_MIN_REL",
+    "EPS_REL",
+]
+
+
+def render(scene: Scene | str | Path, spp: int | None = None):
+    """Render a scene (model, or path to a scene file) -> float64 (H, W, 3), linear.
+
+    ``spp=None`` uses ``scene.image.samples``; spp must be a perfect square n².
+    """
+    if isinstance(scene, (str, Path)):
+        scene = load(scene)
+    return _render(scene, spp=spp)

@@ -1,0 +1,449 @@
+"""The paper's ray tracer rebuilt in float64 NumPy: the project's ground truth.
+
+The rendering contract is docs/rendering-model.md; this module follows it to
+the letter (the Mitsuba ``whitted`` integrator follows the same contract).
+In short:
+
+* **Camera**: f = normalize(lookat − eye), r = normalize(f × up), u = r × f;
+  film position (x, y) ∈ [0, 1]² (x right, y down, (0, 0) the top-left corner)
+  gives the direction normalize(f + (2x − 1)·tan(fov/2)·aspect·r + (1 − 2y)·tan(fov/2)·u)
+  from the eye; ``fov`` is the full vertical angle, aspect = W/H.
+* **Sampling**: n×n samples per pixel (spp = n²) at the stratum centres
+  x = (i + (a + ½)/n)/W, y = (j + (b + ½)/n)/H; the pixel is their plain mean.
+* **Intersection**: the closest sphere hit with t > T_MIN_REL·(1 + max_k |o_k|)
+  (:data:`T_MIN_REL` = 1e-6), by the numerically stable quadratic; miss →
+  background.
+* **Shading** (two-sided normal, all lights, no falloff)::
+
+      L = ka(p)⊙A + Σ_l V(p,l)·I_l⊙(kd(p)·max(0, n·l̂) + ks(p)·max(0, n·ĥ)^shininess)
+
+  with V(p,l) = 1 iff n·l̂ > 0 and no sphere meets the open segment from
+  p' = p + ε·n, ε = EPS_REL·(1 + max_k |p_k|) (:data:`EPS_REL` = 1e-4), to
+  the light (the paper's ``shadowHit``: any hit, early out).
+
+The **hit record** (:class:`HitRecord`) is the paper's "passing back" (§3.1):
+the hit routine returns where and what was hit, and the record carries the
+material's channel colours ka, kd, ks at the hit point back to the shader, each
+distinct channel evaluated once per batch and only where its value is used.
+
+Everything is vectorised over batches of rays; Python loops run over spheres,
+lights, channels and chunks only. Imports NumPy, the standard library,
+:mod:`mimarble.scene` (the model) and this package's own marble and noise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mimarble.scene.model import ColorChannel, MarbleChannel, Scene
+
+from .marble import marble_color
+
+__all__ = [
+    "T_MIN_REL",
+    "EPS_REL",
+    "CHUNK_RAYS",
+    "SLOTS",
+    "PreparedScene",
+    "HitRecord",
+    "prepare",
+    "camera_basis",
+    "camera_rays",
+    "sample_positions",
+    "intersect_spheres",
+    "closest_hit",
+    "shadow_hit",
+    "hit",
+    "channel_color",
+    "shade",
+    "trace",
+    "render",
+]
+
+#: Primary rays accept hits at t > T_MIN_REL·(1 + max_k |origin_k|).
+T_MIN_REL = 1e-6
+#: Shadow rays start at p + ε·n with ε = EPS_REL·(1 + max_k |p_k|).
+EPS_REL = 1e-4
+#: Rays traced per batch (rounded down to whole pixels, at least one pixel).
+CHUNK_RAYS = 65536
+#: The material components, in the order of the shading formula.
+SLOTS = ("ambient", "diffuse", "specular")
+
+
+# ---------------------------------------------------------------------------
+# Scene preparation
+
+@dataclass(frozen=True)
+class PreparedScene:
+    """The scene as arrays, with every distinct channel listed once.
+
+    ``slot_channel[m, s]`` is the index in ``channels`` of material m's
+    component ``SLOTS[s]``, or -1 when the component is absent.
+    """
+
+    scene: Scene
+    centers: np.ndarray            # (S, 3)
+    radii: np.ndarray              # (S,)
+    sphere_material: np.ndarray    # (S,) int, index into materials
+    materials: tuple               # (M,) Material
+    channels: tuple                # distinct Channel values
+    slot_channel: np.ndarray       # (M, 3) int
+    shininess: np.ndarray          # (M,)
+    light_positions: np.ndarray    # (L, 3)
+    light_colors: np.ndarray       # (L, 3)
+    ambient: np.ndarray            # (3,)
+    background: np.ndarray         # (3,)
+
+
+def prepare(scene: Scene) -> PreparedScene:
+    """Arrays for :func:`hit` and :func:`shade`; equal channels are deduplicated."""
+    names = list(scene.materials)
+    materials = tuple(scene.materials[n] for n in names)
+    index = {n: k for k, n in enumerate(names)}
+    channels: list = []
+    seen: dict = {}
+    slot_channel = np.full((len(materials), 3), -1, dtype=np.int64)
+    for m, mat in enumerate(materials):
+        for s, slot in enumerate(SLOTS):
+            ch = getattr(mat, slot)
+            if ch is None:
+                continue
+            if ch not in seen:          # frozen dataclasses: equal by value (pos excluded)
+                seen[ch] = len(channels)
+                channels.append(ch)
+            slot_channel[m, s] = seen[ch]
+    spheres = scene.spheres
+    lights = scene.lights
+    return PreparedScene(
+        scene=scene,
+        centers=np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3),
+        radii=np.array([s.radius for s in spheres], dtype=np.float64),
+        sphere_material=np.array([index[s.material] for s in spheres], dtype=np.int64),
+        materials=materials,
+        channels=tuple(channels),
+        slot_channel=slot_channel,
+        shininess=np.array([m.shininess for m in materials], dtype=np.float64),
+        light_positions=np.array([l.position for l in lights], dtype=np.float64).reshape(-1, 3),
+        light_colors=np.array([l.color for l in lights], dtype=np.float64).reshape(-1, 3),
+        ambient=np.array(scene.ambient, dtype=np.float64),
+        background=np.array(scene.image.background, dtype=np.float64),
+    )
+
+
+def _as_prepared(scene) -> PreparedScene:
+    return scene if isinstance(scene, PreparedScene) else prepare(scene)
+
+
+# ---------------------------------------------------------------------------
+# Camera and sampling
+
+def _normalize(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def camera_basis(camera, aspect: float):
+    """(eye, f, r, u, tan_half, aspect) of the pinhole camera, float64."""
+    eye = np.array(camera.eye, dtype=np.float64)
+    f = _normalize(np.array(camera.lookat, dtype=np.float64) - eye)
+    r = _normalize(np.cross(f, np.array(camera.up, dtype=np.float64)))
+    u = np.cross(r, f)
+    tan_half = math.tan(math.radians(camera.fov) / 2.0)
+    return eye, f, r, u, tan_half, float(aspect)
+
+
+def camera_rays(scene: Scene, x, y):
+    """Primary rays through film positions x, y (arrays in [0, 1], y down).
+
+    Returns (origin (3,), unit directions (N, 3)).
+    """
+    eye, f, r, u, tan_half, aspect = camera_basis(scene.camera, scene.image.aspect)
+    x = np.asarray(x, dtype=np.float64).reshape(-1, 1)
+    y = np.asarray(y, dtype=np.float64).reshape(-1, 1)
+    d = f + ((2.0 * x - 1.0) * (tan_half * aspect)) * r + ((1.0 - 2.0 * y) * tan_half) * u
+    return eye, _normalize(d)
+
+
+def sample_positions(width: int, height: int, n: int, first_pixel: int = 0, stop_pixel: int | None = None):
+    """Film positions of the n×n stratum centres of pixels [first_pixel, stop_pixel).
+
+    Pixels are numbered row-major from the top-left (pixel = row·width + column);
+    each pixel's n² samples are contiguous, sample (a, b) at index b·n + a:
+    x = (column + (a + ½)/n)/width, y = (row + (b + ½)/n)/height.
+    """
+    if stop_pixel is None:
+        stop_pixel = width * height
+    pix = np.arange(first_pixel, stop_pixel, dtype=np.int64)
+    col = (pix % width).astype(np.float64)
+    row = (pix // width).astype(np.float64)
+    sub = np.arange(n * n, dtype=np.int64)
+    a = ((sub % n) + 0.5) / n
+    b = ((sub // n) + 0.5) / n
+    x = (col[:, None] + a[None, :]) / width
+    y = (row[:, None] + b[None, :]) / height
+    return x.ravel(), y.ravel()
+
+
+# ---------------------------------------------------------------------------
+# Intersection
+
+def _roots(o, d, center, radius):
+    """Both roots t_near ≤ t_far of |o + t d − c| = r for unit d (NaN where none).
+
+    Stable form: b = (o−c)·d, disc = r² − |(o−c) − b d|² (no cancellation in
+    b² − c), c' = (|o−c| − r)(|o−c| + r), q = −(b + sign(b)√disc), roots q and c'/q.
+    """
+    oc = o - center
+    b = np.einsum("...k,...k->...", oc, d)
+    e = oc - b[..., None] * d
+    disc = radius * radius - np.einsum("...k,...k->...", e, e)
+    lo = np.sqrt(np.einsum("...k,...k->...", oc, oc))
+    c = (lo - radius) * (lo + radius)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sq = np.sqrt(disc)                       # NaN where the ray misses
+        q = -(b + np.copysign(sq, b))
+        t1 = q
+        t2 = np.where(q != 0.0, c / q, -b)       # q == 0 only for a tangent ray at b = 0
+    return np.minimum(t1, t2), np.maximum(t1, t2)
+
+
+def intersect_spheres(centers, radii, o, d, t_min):
+    """Closest hit over all spheres with t > t_min: (t (N,), sphere index (N,), -1 / inf on a miss)."""
+    d = np.asarray(d, dtype=np.float64)
+    n = d.shape[0]
+    best_t = np.full(n, np.inf)
+    best_i = np.full(n, -1, dtype=np.int64)
+    t_min = np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,))
+    for s in range(len(radii)):
+        tn, tf = _roots(o, d, centers[s], radii[s])
+        t = np.where(tn > t_min, tn, np.where(tf > t_min, tf, np.inf))   # NaN compares False
+        closer = t < best_t
+        best_t = np.where(closer, t, best_t)
+        best_i = np.where(closer, s, best_i)
+    return best_t, best_i
+
+
+def shadow_hit(centers, radii, o, d, t_max):
+    """The paper's ``shadowHit``: does any sphere meet the ray at t in (0, t_max)?
+
+    o, d: (N, 3) origins and unit directions; t_max: (N,). Any hit, early out:
+    once a ray is blocked, the remaining spheres are not tested for it.
+    Returns a bool (N,).
+    """
+    o = np.asarray(o, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    t_max = np.asarray(t_max, dtype=np.float64)
+    blocked = np.zeros(d.shape[0], dtype=bool)
+    live = np.arange(d.shape[0])
+    for s in range(len(radii)):
+        if live.size == 0:
+            break
+        tn, tf = _roots(o[live], d[live], centers[s], radii[s])
+        tm = t_max[live]
+        hit_s = ((tn > 0.0) & (tn < tm)) | ((tf > 0.0) & (tf < tm))
+        blocked[live[hit_s]] = True
+        live = live[~hit_s]
+    return blocked
+
+
+@dataclass
+class HitRecord:
+    """What :func:`hit` passes back for a batch of rays (the paper's hit record).
+
+    Arrays over the rays that hit (``index`` gives their positions in the
+    batch): distance ``t``, point ``p``, unit normal ``n`` facing the viewer
+    (two-sided), view vector ``v`` = −d, the sphere and material hit, and, once
+    :func:`fill_channels` has run, the channel colours ``colors[slot]``
+    ((k, 3), or None when no hit material has that component).
+    """
+
+    count: int                      # rays in the batch
+    index: np.ndarray               # (k,) positions of the hitting rays
+    t: np.ndarray                   # (k,)
+    p: np.ndarray                   # (k, 3)
+    n: np.ndarray                   # (k, 3)
+    v: np.ndarray                   # (k, 3)
+    sphere: np.ndarray              # (k,)
+    material: np.ndarray            # (k,)
+    colors: dict = field(default_factory=dict)
+
+
+def closest_hit(prep: PreparedScene, o, d) -> HitRecord:
+    """Geometry of the closest hit of each ray (no colours yet)."""
+    o = np.asarray(o, dtype=np.float64)
+    d = np.asarray(d, dtype=np.float64)
+    t_min = T_MIN_REL * (1.0 + np.max(np.abs(o), axis=-1))
+    t, s = intersect_spheres(prep.centers, prep.radii, o, d, t_min)
+    idx = np.nonzero(s >= 0)[0]
+    t, s = t[idx], s[idx]
+    dd = d[idx]
+    oo = o[idx] if o.ndim == 2 else o
+    p = oo + t[:, None] * dd
+    n = (p - prep.centers[s]) / prep.radii[s][:, None]
+    v = -dd
+    flip = np.einsum("ij,ij->i", n, v) < 0.0
+    n[flip] = -n[flip]
+    return HitRecord(count=d.shape[0], index=idx, t=t, p=p, n=n, v=v, sphere=s,
+                     material=prep.sphere_material[s])
+
+
+def channel_color(channel, points) -> np.ndarray:
+    """A channel's colour at (k, 3) world-space points -> (k, 3)."""
+    points = np.asarray(points, dtype=np.float64)
+    if isinstance(channel, ColorChannel):
+        return np.broadcast_to(np.array(channel.rgb, dtype=np.float64), points.shape).copy()
+    if isinstance(channel, MarbleChannel):
+        return marble_color(points, channel)
+    raise TypeError(f"unknown channel type {type(channel).__name__}")
+
+
+def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecord:
+    """Evaluate the channel colours into ``rec.colors`` ("passing back").
+
+    ``needed[slot]`` is a bool (k,) mask of the hits where that component's
+    value is used (elsewhere it is left 0). Each distinct channel is evaluated
+    once, on the union of the points where any slot of any material uses it.
+    """
+    k = rec.index.size
+    slot_ch = prep.slot_channel[rec.material] if k else np.empty((0, 3), dtype=np.int64)
+    want = {}                                   # channel index -> bool mask (k,)
+    for s, slot in enumerate(SLOTS):
+        mask = needed.get(slot)
+        if mask is None:
+            continue
+        for c in np.unique(slot_ch[mask, s]):
+            if c < 0:
+                continue
+            m = mask & (slot_ch[:, s] == c)
+            want[c] = want[c] | m if c in want else m
+    values = {}
+    for c, m in want.items():
+        full = np.zeros((k, 3))
+        full[m] = channel_color(prep.channels[c], rec.p[m])
+        values[c] = full
+    for s, slot in enumerate(SLOTS):
+        mask = needed.get(slot)
+        if mask is None or not any(c in values for c in np.unique(slot_ch[mask, s])):
+            rec.colors[slot] = None
+            continue
+        out = np.zeros((k, 3))
+        for c in np.unique(slot_ch[mask, s]):
+            if c >= 0:
+                m = mask & (slot_ch[:, s] == c)
+                out[m] = values[c][m]
+        rec.colors[slot] = out
+    return rec
+
+
+def hit(prep: PreparedScene, o, d) -> HitRecord:
+    """Closest hit with every present channel's colour at every hit point."""
+    prep = _as_prepared(prep)
+    rec = closest_hit(prep, o, d)
+    everywhere = np.ones(rec.index.size, dtype=bool)
+    return fill_channels(prep, rec, {slot: everywhere for slot in SLOTS})
+
+
+# ---------------------------------------------------------------------------
+# Shading
+
+def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
+    """Radiance of every ray of the batch (N, 3): background on a miss, else the formula.
+
+    Computes visibility first, so that channels are evaluated only where used:
+    ka where A ≠ 0, kd and ks where at least one light is visible.
+    """
+    out = np.broadcast_to(prep.background, (rec.count, 3)).copy()
+    k = rec.index.size
+    if k == 0:
+        return out
+    p, n, v = rec.p, rec.n, rec.v
+    eps = EPS_REL * (1.0 + np.max(np.abs(p), axis=1))
+    p_shadow = p + eps[:, None] * n
+
+    lights = []                                 # (l_index, visible mask, n·l, n·h)
+    any_visible = np.zeros(k, dtype=bool)
+    for li in range(len(prep.light_positions)):
+        lp = prep.light_positions[li]
+        l_hat = _normalize(lp - p)
+        ndotl = np.einsum("ij,ij->i", n, l_hat)
+        front = np.nonzero(ndotl > 0.0)[0]
+        visible = np.zeros(k, dtype=bool)
+        if front.size:
+            seg = lp - p_shadow[front]
+            dist = np.linalg.norm(seg, axis=1)
+            blocked = shadow_hit(prep.centers, prep.radii, p_shadow[front], seg / dist[:, None], dist)
+            visible[front[~blocked]] = True
+        if not visible.any():
+            continue
+        h_hat = _normalize(l_hat + v)
+        ndoth = np.einsum("ij,ij->i", n, h_hat)
+        lights.append((li, visible, ndotl, ndoth))
+        any_visible |= visible
+
+    needed = {}
+    if np.any(prep.ambient != 0.0):
+        needed["ambient"] = np.ones(k, dtype=bool)
+    if lights:
+        needed["diffuse"] = any_visible
+        needed["specular"] = any_visible
+    fill_channels(prep, rec, needed)
+    ka, kd, ks = (rec.colors.get(s) for s in SLOTS)
+
+    L = np.zeros((k, 3))
+    if ka is not None:
+        L += ka * prep.ambient
+    if kd is not None or ks is not None:
+        shin = prep.shininess[rec.material]
+        for li, visible, ndotl, ndoth in lights:
+            term = np.zeros((k, 3))
+            if kd is not None:
+                term += kd * np.maximum(0.0, ndotl)[:, None]
+            if ks is not None:
+                term += ks * (np.maximum(0.0, ndoth) ** shin)[:, None]
+            L += np.where(visible[:, None], prep.light_colors[li] * term, 0.0)
+    out[rec.index] = L
+    return out
+
+
+def trace(scene, o, d) -> np.ndarray:
+    """Radiance along rays (o (3,) or (N, 3), unit d (N, 3)) -> (N, 3)."""
+    prep = _as_prepared(scene)
+    d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
+    return shade(prep, closest_hit(prep, o, d))
+
+
+# ---------------------------------------------------------------------------
+# The image
+
+def _samples_per_axis(spp: int) -> int:
+    spp_i = int(spp)
+    n = math.isqrt(spp_i) if spp_i >= 1 else 0
+    if spp_i != spp or n < 1 or n * n != spp_i:
+        raise ValueError(f"spp must be a perfect square n*n >= 1 (an n x n grid), got {spp!r}")
+    return n
+
+
+def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS) -> np.ndarray:
+    """Render ``scene`` -> float64 (H, W, 3) linear RGB, not clamped.
+
+    ``spp`` (default ``scene.image.samples``) must be a perfect square n²:
+    n×n stratum centres per pixel, averaged. Rays are traced in batches of
+    about ``chunk_rays`` (whole pixels), so memory stays bounded.
+    """
+    prep = prepare(scene)
+    img = scene.image
+    n = _samples_per_axis(img.samples if spp is None else spp)
+    W, H = int(img.width), int(img.height)
+    ns = n * n
+    pixels_per_chunk = max(1, int(chunk_rays) // ns)
+    out = np.empty((H * W, 3), dtype=np.float64)
+    eye, f, r, u, tan_half, aspect = camera_basis(scene.camera, img.aspect)
+    for p0 in range(0, H * W, pixels_per_chunk):
+        p1 = min(H * W, p0 + pixels_per_chunk)
+        x, y = sample_positions(W, H, n, p0, p1)
+        _, d = camera_rays(scene, x, y)
+        rad = shade(prep, closest_hit(prep, eye, d))
+        out[p0:p1] = rad.reshape(p1 - p0, ns, 3).mean(axis=1)
+    return out.reshape(H, W, 3)
