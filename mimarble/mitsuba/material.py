@@ -68,6 +68,10 @@ class ChannelMaterial:
     def has_channel(self, name: str) -> bool:
         return getattr(self, name) is not None
 
+    def needs_differentials(self) -> bool:
+        """Some channel is a band-limited marble: the integrator must provide footprints."""
+        return any(getattr(getattr(self, name), "bandlimit", False) for name in CHANNELS)
+
     # -- a Lambertian BSDF for every other integrator -------------------------
 
     def _albedo(self, si, active):

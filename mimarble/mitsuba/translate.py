@@ -45,6 +45,7 @@ def texture_dict(channel: model.ColorChannel | model.MarbleChannel) -> dict:
         "function": channel.function,
         "axis": channel.axis,
         "turbulence": channel.turbulence,
+        "bandlimit": channel.bandlimit,
         "ramp": ", ".join(" ".join(repr(float(x)) for x in c) for c in channel.ramp),
     }
 

@@ -118,11 +118,15 @@ class Whitted:
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         # Static facts about the scene decide which code is traced at all.
-        any_specular = any(m.has_channel("specular") for m in self._materials(scene))
+        materials = self._materials(scene)
+        any_specular = any(m.has_channel("specular") for m in materials)
+        footprints = any(m.needs_differentials() for m in materials)
         lights = self._lights(scene)
 
         si = scene.ray_intersect(ray, active)
         hit = mi.Bool(active) & si.is_valid()
+        if footprints:
+            si.compute_uv_partials(ray)   # pixel footprints for band-limited marble
         ka, kd, ks, shininess = self._channels(si, ray, hit)
 
         v = -mi.Vector3f(ray.d)

@@ -173,8 +173,11 @@ class MarbleChannel:
         sine:     t = 0.5 * (sin(period * v_axis + distortion * F(v)) + 1)
         cosine:   t = 0.5 * (cos(v_axis + distortion * F(v)) + 1)   (period unused)
 
-    The colour is ``ramp`` at ``t``: K >= 2 colours at keys ``k / (K - 1)``,
-    piecewise linear, ``t`` clamped to [0, 1].
+    The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)``,
+    piecewise linear, ``t`` clamped to [0, 1] (one colour: a constant).
+
+    ``bandlimit`` is a rendering option for Mitsuba (octaves finer than the pixel
+    footprint are left out); the reference tracer always renders the full marble.
     """
 
     scale: float = 1.0
@@ -184,6 +187,7 @@ class MarbleChannel:
     function: MarbleFunction = "abs_sine"
     axis: Axis = "x"
     turbulence: bool = False
+    bandlimit: bool = False
     ramp: tuple[RGB, ...] = FIG5_RAMP
     pos: Pos | None = _pos()
 

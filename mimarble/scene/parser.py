@@ -59,7 +59,8 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "ambient": ("color", "marble"),
     "diffuse": ("color", "marble"),
     "specular": ("color", "marble"),
-    "marble": ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence", "ramp"),
+    "marble": ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
+               "bandlimit", "ramp"),
     "sphere": ("center", "radius", "material"),
 }
 
@@ -345,6 +346,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str) -> SceneError:
             "function": "a function name: abs_sine, sine or cosine",
             "axis": "an axis: x, y or z",
             "turbulence": "true or false",
+            "bandlimit": "true or false",
         }.get(str(prev), "a name")
         return at(line, col, f"expected {choices}{after}, found {found}")
     return at(line, col, f"unexpected {found}; expected {_expected_list(expected)}")
@@ -583,13 +585,15 @@ class _Builder:
         if "octaves" in f:
             lo, hi = LIMITS["octaves"]
             kw["octaves"] = self.integer(f["octaves"].children[0], "octaves", lo, hi)
-        for key, choices in (("function", MARBLE_FUNCTIONS), ("axis", AXES), ("turbulence", ("true", "false"))):
+        booleans = ("turbulence", "bandlimit")
+        for key, choices in (("function", MARBLE_FUNCTIONS), ("axis", AXES),
+                             ("turbulence", ("true", "false")), ("bandlimit", ("true", "false"))):
             if key in f:
                 tok = f[key].children[0]
                 if str(tok) not in choices:
                     listed = ", ".join(choices[:-1]) + " or " + choices[-1]
                     raise self.error(tok, f"unknown {key} '{tok}'; expected {listed}")
-                kw[key] = str(tok) == "true" if key == "turbulence" else str(tok)
+                kw[key] = str(tok) == "true" if key in booleans else str(tok)
         if "ramp" in f:
             ramp_tree = f["ramp"]
             vecs = [c for c in ramp_tree.children if isinstance(c, Tree)]
