@@ -118,6 +118,41 @@ def _compare(args) -> int:
     return 0
 
 
+def _bench(args) -> int:
+    from . import bench
+    scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
+    if not scenes:
+        raise UsageError("no scenes given and none in ./scenes")
+    for path in (args.json, args.plot):
+        if path and not (Path(path).parent if str(Path(path).parent) else Path(".")).is_dir():
+            raise UsageError(f"{path}: folder {Path(path).parent} does not exist")
+    results = bench.run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
+                              converged_spp=args.converged_spp, targets=not args.no_targets,
+                              paper=not args.no_paper)
+    print(bench.format_report(results))
+    if args.json:
+        bench.write_json(results, args.json)
+    if args.plot:
+        bench.plot(results, args.plot)
+    return 0
+
+
+def _stress(args) -> int:
+    import json
+
+    from .stress import format_report, run_stress
+    if args.points < 1:
+        raise UsageError(f"--points {args.points}: must be at least 1")
+    data = run_stress(points=args.points)
+    print(format_report(data))
+    if args.json:
+        out = Path(args.json)
+        if not (out.parent if str(out.parent) else Path(".")).is_dir():
+            raise UsageError(f"{out}: folder {out.parent} does not exist")
+        out.write_text(json.dumps(data, indent=1))
+    return 0
+
+
 def _gallery(args) -> int:
     from .gallery import make_gallery
     scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
@@ -157,6 +192,24 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the metrics as JSON on the last line")
     p.add_argument("--diff", metavar="OUT.png", help="write a false-colour error map")
     p.set_defaults(run=_compare, mode="whitted")
+
+    p = sub.add_parser("bench", help="run time against error against the converged reference")
+    p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")
+    p.add_argument("--json", metavar="OUT", help="write all measurements as JSON")
+    p.add_argument("--plot", metavar="OUT.png", help="write the error-against-time plot")
+    p.add_argument("--size", type=int, default=256, help="image size for the sweeps (default 256)")
+    p.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16], help="spp values swept")
+    p.add_argument("--repeats", type=int, default=5, help="warm runs per timing (median)")
+    p.add_argument("--converged-spp", type=int, default=64, help="reference spp (default 64)")
+    p.add_argument("--no-targets", action="store_true", help="skip the issue's target measurements")
+    p.add_argument("--no-paper", action="store_true", help="skip the comparison with the paper")
+    p.set_defaults(run=_bench)
+
+    p = sub.add_parser("stress", help="float32 error of noise and marble against float64, "
+                                      "beside the derived bound")
+    p.add_argument("--points", type=int, default=2048, help="random points per table cell")
+    p.add_argument("--json", metavar="OUT", help="write the measurements as JSON")
+    p.set_defaults(run=_stress)
 
     p = sub.add_parser("gallery", help="render scenes small for the README gallery")
     p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")

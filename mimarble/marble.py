@@ -312,10 +312,12 @@ class Marble:
             phase_noise = self.distortion * fractal3_band_limited(v, self.octaves, footprint,
                                                                   self.turbulence)
         if self.function == "abs_sine":
-            return dr.abs(dr.sin(dr.pi * (self.period * along + phase_noise)))
+            # |sin(πφ)| has period 1 in φ, and φ − ⌊φ⌋ is exact: any φ works.
+            phase = self.period * along + phase_noise
+            return dr.abs(dr.sin(dr.pi * (phase - dr.floor(phase))))
         if self.function == "sine":
-            return 0.5 * (dr.sin(self.period * along + phase_noise) + 1.0)
-        return 0.5 * (dr.cos(along + phase_noise) + 1.0)
+            return 0.5 * (dr.sin(_reduce_angle(self.period * along + phase_noise)) + 1.0)
+        return 0.5 * (dr.cos(_reduce_angle(along + phase_noise)) + 1.0)
 
     def ramp_at(self, t):
         """Piecewise-linear ramp at t (clamped to [0, 1]), colours at keys k/(K−1)."""
@@ -337,6 +339,22 @@ class Marble:
         if isinstance(self.ramp, list):
             return np.array([[c[0], c[1], c[2]] for c in self.ramp], dtype=np.float64)
         return np.array(self.ramp, dtype=np.float64).T   # Color3f converts as (3, K)
+
+
+_TWO_PI = 2.0 * math.pi
+_LARGEST_MEANINGFUL_ANGLE = float(2 ** 24)
+
+
+def _reduce_angle(x):
+    """x mod 2π, for sin/cos that misbehave on huge arguments (Dr.Jit's float32
+    sin leaves [−1, 1] past ~1e9 and gives NaN past ~1.8e19).
+
+    Below 2^24 the reduction is as accurate as x itself. Beyond, a float32 angle
+    has no fractional digits at all — the stripe is meaningless there — and the
+    angle is taken as 0, so the colour stays finite and deterministic.
+    """
+    x = dr.select(dr.abs(x) < _LARGEST_MEANINGFUL_ANGLE, x, 0.0)
+    return x - _TWO_PI * dr.floor(x * (1.0 / _TWO_PI))
 
 
 def _first(value) -> float:

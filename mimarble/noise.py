@@ -196,10 +196,13 @@ def band_limit(footprint, octaves: int):
     pbrt-v4's FBm clamp, n = clamp(−1 − log2(footprint), 0, K), moved up by
     ``BAND_LIMIT_MARGIN`` octaves; the octave ⌊n⌋ fades in with smoothstep(0.3, 0.7)
     of the fraction, so the count changes without seams. A zero footprint (no ray
-    differentials) keeps every octave.
+    differentials) keeps every octave, and so does a NaN one.
     """
-    n = dr.clip(BAND_LIMIT_MARGIN - 1.0 - dr.log2(footprint), 0.0,
-                float(octaves_evaluated(octaves)))
+    most = float(octaves_evaluated(octaves))
+    n = BAND_LIMIT_MARGIN - 1.0 - dr.log2(footprint)
+    # NaN (a lane without a valid footprint) and +inf both fail `n < most`: all octaves.
+    # The loop count must never come from a NaN: its integer conversion is unbounded.
+    n = dr.maximum(dr.select(n < most, n, most), 0.0)
     whole = dr.floor(n)
     return whole, _smoothstep(0.3, 0.7, n - whole)
 

@@ -74,3 +74,13 @@ def test_band_limited_marble_still_differentiates(llvm):
     params.update()
     dr.backward(dr.mean(mi.render(scene, params, spp=2), axis=None))
     assert np.isfinite(dr.grad(params[key])[0]) and dr.grad(params[key])[0] != 0
+
+
+def test_invalid_footprints_terminate_with_a_defined_octave_count(jit_variant):
+    p = points(seed=4)
+    full = np.array(noise.fractal3(p, 8))
+    for bad in (float("nan"), -1.0):                  # no usable footprint: every octave
+        footprint = dr.full(mi.Float, bad, dr.width(p))
+        np.testing.assert_array_equal(np.array(noise.fractal3_band_limited(p, 8, footprint)), full)
+    infinite = dr.full(mi.Float, float("inf"), dr.width(p))   # all detail sub-pixel: none
+    assert np.all(np.array(noise.fractal3_band_limited(p, 8, infinite)) == 0)

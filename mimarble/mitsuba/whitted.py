@@ -127,7 +127,10 @@ class Whitted:
         hit = mi.Bool(active) & si.is_valid()
         if footprints:
             si.compute_uv_partials(ray)   # pixel footprints for band-limited marble
-        ka, kd, ks, shininess = self._channels(si, ray, hit)
+        if len({id(m) for m in materials}) == 1:
+            ka, kd, ks, shininess = materials[0].channels(si, hit)
+        else:
+            ka, kd, ks, shininess = self._channels(si, ray, hit)
 
         v = -mi.Vector3f(ray.d)
         n = mi.Vector3f(si.n)

@@ -1,0 +1,351 @@
+"""``mimarble bench``: run time against error, and what skipping saves.
+
+Every timing is a median of warm runs taken after a sync (LLVM kernel launches
+are asynchronous; converting the image to NumPy waits for it), with the first
+render's compile time reported apart from Dr.Jit's kernel history. Errors are
+against a *converged* image: the float64 reference tracer at many samples per
+pixel, cached on disk (``~/.cache/mimarble``) because it takes seconds to minutes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from . import environment, reference
+from . import scene as scene_language
+from .compare import image_metrics
+from .gallery import resized
+from .mitsuba import to_mitsuba
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+MODES = ("plain", "bandlimit")
+# The paper's "render" column (seconds on a 2 GHz Pentium 4, 500×500) for Figs. 7–11.
+PAPER_SECONDS = {
+    "fig07a": 2.0, "fig07b": 2.0, "fig07c": 2.0, "fig07d": 2.0,
+    "fig08a": 2.0, "fig08b": 2.0, "fig08c": 2.0, "fig08d": 2.0,
+    "fig09a": 2.0, "fig09b": 2.0, "fig09c": 2.0, "fig09d": 2.0,
+    "fig10a": 0.8, "fig10b": 1.0, "fig10c": 1.4, "fig10d": 2.0,
+    "fig11a": 2.8, "fig11b": 6.3, "fig11c": 2.1, "fig11d": 2.1,
+}
+
+
+# ---------------------------------------------------------------------------
+# Scene variations
+
+def with_marbles(scene, **changes):
+    """The scene with ``changes`` applied to every marble channel of every material."""
+    materials = {}
+    for name, material in scene.materials.items():
+        channels = {k: dataclasses.replace(c, **changes)
+                    for k, c in material.channels().items()
+                    if isinstance(c, scene_language.MarbleChannel)}
+        materials[name] = dataclasses.replace(material, **channels)
+    return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
+
+
+def with_constant_colours(scene):
+    """Every marble channel replaced by its ramp's mean colour: same shading, no texture."""
+    materials = {}
+    for name, material in scene.materials.items():
+        channels = {k: scene_language.ColorChannel(tuple(np.mean(c.ramp, axis=0).tolist()))
+                    for k, c in material.channels().items()
+                    if isinstance(c, scene_language.MarbleChannel)}
+        materials[name] = dataclasses.replace(material, **channels)
+    return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
+
+
+def filling_the_view(scene):
+    """The camera's fov narrowed until the first sphere just fills the frame."""
+    sphere = scene.spheres[0]
+    distance = float(np.linalg.norm(np.subtract(scene.camera.eye, sphere.center)))
+    fov = 2 * np.degrees(np.arcsin(min(sphere.radius / distance, 1.0)))
+    return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, fov=float(fov)))
+
+
+# ---------------------------------------------------------------------------
+# Measurements
+
+@dataclasses.dataclass
+class Timing:
+    run_ms: float                 # median of the warm runs
+    runs_ms: list
+    compile_ms: float             # codegen + backend of the first render's kernels
+    kernels_compiled: int         # kernels of the first render not found in any cache
+    image: np.ndarray = dataclasses.field(repr=False)
+
+
+def time_render(scene, spp: int, repeats: int) -> Timing:
+    """Load once, render once (compile), then ``repeats`` warm renders after a sync."""
+    mitsuba_scene = mi.load_dict(to_mitsuba(scene, spp=spp))
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+        image = np.array(mi.render(mitsuba_scene))[..., :3]
+        first = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+    runs = []
+    for _ in range(repeats):
+        dr.sync_thread()
+        start = time.perf_counter()
+        image = np.array(mi.render(mitsuba_scene))[..., :3]
+        runs.append(1000 * (time.perf_counter() - start))
+    return Timing(run_ms=statistics.median(runs), runs_ms=runs,
+                  compile_ms=sum(k["codegen_time"] + k["backend_time"] for k in first),
+                  kernels_compiled=sum(1 for k in first if not k["cache_hit"]), image=image)
+
+
+def converged(scene, spp: int, cache_dir: Path) -> np.ndarray:
+    """The reference tracer's image at ``spp``, cached by scene and spp."""
+    key = hashlib.sha256(repr((scene, spp)).encode()).hexdigest()[:20]
+    path = cache_dir / f"converged-{key}.npy"
+    if path.exists():
+        return np.load(path)
+    image = reference.render(scene, spp=spp)
+    cache_dir.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}.npy")
+    np.save(tmp, image)
+    os.replace(tmp, path)
+    return image
+
+
+def hit_fraction(image_alpha_free: np.ndarray, background) -> float:
+    return float(np.mean(np.any(image_alpha_free != np.asarray(background, np.float32), axis=-1)))
+
+
+class Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, total: int, enabled: bool = True):
+        self.total, self.done, self.enabled, self.start = total, 0, enabled, time.perf_counter()
+
+    def step(self, label: str):
+        self.done += 1
+        if not self.enabled:
+            return
+        width = 30
+        filled = int(width * self.done / self.total)
+        elapsed = time.perf_counter() - self.start
+        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
+                         f"{elapsed:5.0f} s  {label:<40.40}")
+        sys.stderr.flush()
+        if self.done == self.total:
+            sys.stderr.write("\n")
+
+
+# ---------------------------------------------------------------------------
+# The benchmark
+
+def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=5,
+              targets=True, paper=True, cache_dir=None, progress=True) -> dict:
+    cache_dir = Path(cache_dir or Path.home() / ".cache" / "mimarble")
+    scenes = [(Path(p).stem, scene_language.load(p)) for p in scene_paths]
+    steps = len(scenes) * (1 + len(MODES) * len(spps))
+    steps += sum(1 for name, _ in scenes if name in PAPER_SECONDS) if paper else 0
+    steps += 8 if targets else 0
+    bar = Progress(steps, progress)
+    results = {"machine": machine_facts(), "size": size, "converged_spp": converged_spp,
+               "repeats": repeats, "runs": [], "paper": [], "targets": {}}
+
+    for name, scene in scenes:
+        small = resized(scene, size)
+        truth = converged(small, converged_spp, cache_dir)
+        bar.step(f"{name}: converged reference")
+        for mode in MODES:
+            variant = with_marbles(small, bandlimit=(mode == "bandlimit"))
+            for spp in spps:
+                timing = time_render(variant, spp, repeats)
+                metrics = image_metrics(timing.image, truth)
+                results["runs"].append({
+                    "scene": name, "mode": mode, "spp": spp, "run_ms": timing.run_ms,
+                    "compile_ms": timing.compile_ms, "kernels_compiled": timing.kernels_compiled,
+                    "rmse": metrics["rmse"], "psnr": metrics["psnr"]})
+                bar.step(f"{name}: {mode} {spp} spp")
+
+    if paper:
+        for name, scene in scenes:
+            if name not in PAPER_SECONDS:
+                continue
+            ours = time_render(scene, scene.image.samples, repeats)
+            start = time.perf_counter()
+            reference.render(scene)
+            ref_s = time.perf_counter() - start
+            results["paper"].append({
+                "scene": name, "spp": scene.image.samples, "ours_s": ours.run_ms / 1000,
+                "paper_s": PAPER_SECONDS[name], "ratio": ours.run_ms / 1000 / PAPER_SECONDS[name],
+                "reference_s": ref_s})
+            bar.step(f"{name}: paper comparison")
+
+    if targets:
+        results["targets"] = measure_targets(scene_paths, repeats, cache_dir, bar)
+    return results
+
+
+def measure_targets(scene_paths, repeats, cache_dir, bar) -> dict:
+    """The issue's four targets on fig11a at 500×500, the sphere filling the view."""
+    base_path = next((p for p in scene_paths if Path(p).stem == "fig11a"), "scenes/fig11a.scene")
+    base = filling_the_view(resized(scene_language.load(base_path), 500))
+    t = {}
+
+    def run(scene, spp=1):
+        return time_render(scene, spp, repeats)
+
+    for mode in MODES:
+        bl = mode == "bandlimit"
+        t8 = run(with_marbles(base, octaves=8, bandlimit=bl)).run_ms
+        t32 = run(with_marbles(base, octaves=32, bandlimit=bl)).run_ms
+        bar.step(f"targets: octaves 32 vs 8 ({mode})")
+        t[f"octaves32_over_8_{mode}"] = {"t8_ms": t8, "t32_ms": t32, "ratio": t32 / t8}
+
+    marble8 = run(with_marbles(base, octaves=8))
+    constant = run(with_constant_colours(base))
+    bar.step("targets: marble vs constant")
+    t["marble8_over_constant"] = {"marble_ms": marble8.run_ms, "constant_ms": constant.run_ms,
+                                  "ratio": marble8.run_ms / constant.run_ms}
+
+    # Octave evaluations per second per core: the marginal cost of 24 octaves over
+    # none, per evaluated octave (one texture evaluation per hit: the paper scenes'
+    # ambient and diffuse marble is one shared texture).
+    no_noise = run(with_marbles(base, octaves=0)).run_ms
+    many = run(with_marbles(base, octaves=24)).run_ms
+    hits = hit_fraction(constant.image, base.image.background) * 500 * 500
+    cores = os.cpu_count() or 1
+    rate = hits * 24 / ((many - no_noise) / 1000) / cores
+    bar.step("targets: octave evaluations per second")
+    t["octave_evals_per_s_per_core"] = {"rate": rate, "hits": hits, "cores": cores,
+                                        "t24_ms": many, "t0_ms": no_noise}
+
+    # Time to RMSE ≤ 0.01 against the converged image, per mode.
+    truth = converged(base, 64, cache_dir)
+    bar.step("targets: converged reference at 500x500")
+    reach = {}
+    for mode in MODES:
+        curve = []
+        for spp in (1, 4, 9, 16, 25, 36, 64):
+            timing = run(with_marbles(base, bandlimit=(mode == "bandlimit")), spp)
+            rmse = image_metrics(timing.image, truth)["rmse"]
+            curve.append({"spp": spp, "run_ms": timing.run_ms, "rmse": rmse})
+            if rmse <= 0.01:
+                break
+        first = next((c for c in curve if c["rmse"] <= 0.01), None)
+        reach[mode] = {"curve": curve, "ms_to_rmse_0.01": first["run_ms"] if first else None}
+        bar.step(f"targets: time to RMSE 0.01 ({mode})")
+    plain, limited = reach["plain"]["ms_to_rmse_0.01"], reach["bandlimit"]["ms_to_rmse_0.01"]
+    t["rmse_0.01"] = {"by_mode": reach,
+                      "speedup": plain / limited if plain and limited else None}
+    return t
+
+
+def machine_facts() -> dict:
+    import platform
+    return {"variant": mi.variant(), "cores": os.cpu_count(), "python": platform.python_version(),
+            "mitsuba": mi.__version__, "drjit": dr.__version__, "machine": platform.machine(),
+            "processor": _cpu_name()}
+
+
+def _cpu_name() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return "unknown"
+
+
+# ---------------------------------------------------------------------------
+# Reports
+
+def format_report(results: dict) -> str:
+    lines = [f"mimarble bench — {results['machine']['variant']}, {results['machine']['cores']} cores, "
+             f"{results['size']}², error against the float64 reference at "
+             f"{results['converged_spp']} spp; times are medians of {results['repeats']} warm runs", ""]
+    lines.append(f"{'scene':8} {'mode':9} {'spp':>4} {'run ms':>8} {'compile ms':>10} "
+                 f"{'new kernels':>11} {'RMSE':>8} {'PSNR dB':>8}")
+    for r in results["runs"]:
+        lines.append(f"{r['scene']:8} {r['mode']:9} {r['spp']:>4} {r['run_ms']:>8.1f} "
+                     f"{r['compile_ms']:>10.1f} {r['kernels_compiled']:>11} {r['rmse']:>8.4f} "
+                     f"{r['psnr']:>8.1f}")
+    if results["paper"]:
+        lines += ["", "Against the paper's render column (500×500, the scene's own spp):",
+                  f"{'scene':8} {'spp':>4} {'ours s':>8} {'paper s':>8} {'ours/paper':>10} "
+                  f"{'reference s':>11}"]
+        for r in results["paper"]:
+            lines.append(f"{r['scene']:8} {r['spp']:>4} {r['ours_s']:>8.3f} {r['paper_s']:>8.1f} "
+                         f"{r['ratio']:>10.4f} {r['reference_s']:>11.2f}")
+    t = results.get("targets")
+    if t:
+        lines += ["", "Targets (fig11a, 500×500, sphere filling the view, 1 spp):"]
+        for mode in MODES:
+            r = t[f"octaves32_over_8_{mode}"]
+            lines.append(f"  time(octaves 32)/time(octaves 8), {mode:9}: {r['ratio']:.2f} "
+                         f"({r['t32_ms']:.1f} / {r['t8_ms']:.1f} ms)   target ≤ 1.3")
+        r = t["marble8_over_constant"]
+        lines.append(f"  time(marble, 8 octaves)/time(constant colour): {r['ratio']:.2f} "
+                     f"({r['marble_ms']:.1f} / {r['constant_ms']:.1f} ms)   target ≤ 3.0, stretch 2.0")
+        r = t["octave_evals_per_s_per_core"]
+        lines.append(f"  octave evaluations per second per core in the render: {r['rate'] / 1e6:.0f} M "
+                     f"(24 octaves vs none: {r['t24_ms']:.1f} - {r['t0_ms']:.1f} ms over "
+                     f"{r['hits']:.0f} hits, {r['cores']} cores)   target ≥ 100 M, stretch 200 M")
+        r = t["rmse_0.01"]
+        for mode in MODES:
+            curve = ", ".join(f"{c['spp']} spp {c['run_ms']:.0f} ms RMSE {c['rmse']:.4f}"
+                              for c in r["by_mode"][mode]["curve"])
+            lines.append(f"  RMSE ≤ 0.01, {mode:9}: {curve}")
+        speedup = r["speedup"]
+        lines.append("  band-limited speed-up to RMSE ≤ 0.01: "
+                     + (f"{speedup:.2f}×" if speedup else "not reached by both modes")
+                     + "   target ≥ 4×")
+    return "\n".join(lines)
+
+
+def plot(results: dict, path) -> None:
+    """Error against run time, one curve per mode (mean over scenes per spp), Pareto front."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 5))
+    runs = results["runs"]
+    colours = {"plain": "tab:blue", "bandlimit": "tab:orange"}
+    for mode in MODES:
+        mine = [r for r in runs if r["mode"] == mode]
+        ax.scatter([r["run_ms"] for r in mine], [r["rmse"] for r in mine], s=8, alpha=0.3,
+                   color=colours[mode])
+        spps = sorted({r["spp"] for r in mine})
+        xs = [np.mean([r["run_ms"] for r in mine if r["spp"] == s]) for s in spps]
+        ys = [np.mean([r["rmse"] for r in mine if r["spp"] == s]) for s in spps]
+        ax.plot(xs, ys, "-o", color=colours[mode], label=f"{mode} (mean over scenes)")
+        for x, y, s in zip(xs, ys, spps):
+            ax.annotate(f"{s} spp", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    points = sorted((r["run_ms"], r["rmse"]) for r in runs)
+    front, best = [], float("inf")
+    for x, y in points:
+        if y < best:
+            front.append((x, y))
+            best = y
+    ax.step(*zip(*front), where="post", color="black", lw=1, label="Pareto front (all runs)")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("render time per image (ms, median)")
+    ax.set_ylabel("RMSE against converged float64 reference")
+    ax.set_title(f"mimarble: error against time ({results['size']}², {results['machine']['variant']})")
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_json(results: dict, path) -> None:
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_text(json.dumps(results, indent=1, default=float))
+    os.replace(tmp, path)
