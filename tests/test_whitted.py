@@ -225,3 +225,27 @@ def test_every_paper_scene_renders_in_both_modes(llvm, path, mode):
     image = mimarble.render(small, mode=mode)
     assert image.shape == (24, 24, 3) and np.all(np.isfinite(image))
     assert image[12, 12].max() > 0.05
+
+
+def test_whitted_render_differentiates_like_finite_differences(llvm):
+    text = """image { width 24 height 24 } camera { eye < 0 0 5 > lookat < 0 0 0 > up < 0 1 0 > fov 30 }
+              ambient < 0.3 0.3 0.3 > light { position < 3 4 5 > color < 1 1 1 > }
+              material "m" { ambient { marble { octaves 4 period 0.8 } }
+                             diffuse { marble { octaves 4 period 0.8 } } }
+              sphere { center < 0 0 0 > radius 1 material "m" }"""
+    scene = mi.load_dict(to_mitsuba(sl.parse(text)))
+    params = mi.traverse(scene)
+    key = "texture_0.period"
+
+    def mean_image(value, grad=False):
+        params[key] = mi.Float(value)
+        if grad:
+            dr.enable_grad(params[key])
+        params.update()
+        return dr.mean(mi.render(scene, params, seed=1, seed_grad=2), axis=None)
+
+    dr.backward(mean_image(0.8, grad=True))
+    ad = float(dr.grad(params[key])[0])
+    h = 1e-3
+    fd = (float(np.array(mean_image(0.8 + h))) - float(np.array(mean_image(0.8 - h)))) / (2 * h)
+    assert abs(fd) > 1e-3 and abs(ad - fd) <= 0.01 * abs(fd) + 1e-5, (ad, fd)
