@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-NOTEBOOKS = ("01_tour", "02_inverse_marble")
+NOTEBOOKS = ("01_tour", "02_inverse_marble", "03_benchmark")
 MAX_COMMITTED_OUTPUT_BYTES = 200_000
 
 
