@@ -93,3 +93,11 @@ def test_path_mode_renders(tmp_path, small_scene):
     result = mimarble_cli("render", small_scene, "--mode", "path", "--spp", "2", "-o", out)
     assert result.returncode == 0, result.stderr
     assert np.isfinite(np.array(mimarble.mi.Bitmap(str(out)))).all()
+
+
+def test_written_image_has_the_usual_file_mode(tmp_path, small_scene):
+    out = tmp_path / "mode.png"
+    assert mimarble_cli("render", small_scene, "-o", out).returncode == 0
+    mask = os.umask(0)
+    os.umask(mask)
+    assert (out.stat().st_mode & 0o777) == (0o666 & ~mask)

@@ -55,6 +55,12 @@ def write_rgb8(path, pixels: np.ndarray) -> None:
     write_atomically(path, mi.Bitmap(np.ascontiguousarray(pixels, dtype=np.uint8)))
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_atomically(path: Path, bitmap) -> None:
     """Write under a temporary name in the same folder, then rename: whole or not at all."""
     folder = path.parent if str(path.parent) else Path(".")
@@ -62,6 +68,7 @@ def write_atomically(path: Path, bitmap) -> None:
     os.close(fd)
     try:
         bitmap.write(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes 0600; a new image gets the usual mode
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
