@@ -85,7 +85,6 @@ AXES = ("x", "y", "z")
 PAPER_RAMP = tuple((1.0, k / 8.0, 0.0) for k in range(8))
 # A luminance for mean(): Rec. 709 weights, as Mitsuba's luminance().
 _LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
-_DIFFERENTIABLE = ("scale", "period", "distortion", "ramp")
 
 
 class MarbleParameterError(ValueError):
@@ -93,7 +92,7 @@ class MarbleParameterError(ValueError):
 
 
 # ---------------------------------------------------------------------------
-# Parameter parsing and validation (plain Python: shared with the scene layer)
+# Parameter parsing and validation (plain Python)
 
 def parse_ramp(value) -> tuple[tuple[float, float, float], ...]:
     """Colours from ``"r g b, r g b, …"``, ``"#rrggbb, …"`` or a sequence of triples."""
@@ -142,6 +141,12 @@ def check_octaves(octaves) -> int:
     return octaves
 
 
+def check_boolean(name: str, value) -> bool:
+    if not isinstance(value, bool):
+        raise MarbleParameterError(f"marble: {name}={value!r} must be a boolean (true or false)")
+    return value
+
+
 def check_choice(name: str, value, choices) -> str:
     if value not in choices:
         raise MarbleParameterError(f"marble: {name}={value!r} must be one of {', '.join(choices)}")
@@ -184,8 +189,8 @@ class Marble:
         self.octaves = check_octaves(props.get("octaves", 8))
         self.function = check_choice("function", props.get("function", "abs_sine"), FUNCTIONS)
         self.axis = check_choice("axis", props.get("axis", "x"), AXES)
-        self.turbulence = bool(props.get("turbulence", False))
-        self.bandlimit = bool(props.get("bandlimit", False))
+        self.turbulence = check_boolean("turbulence", props.get("turbulence", False))
+        self.bandlimit = check_boolean("bandlimit", props.get("bandlimit", False))
         colours = parse_ramp(props.get("ramp", PAPER_RAMP))
 
         self.scale = mi.Float(scale)
@@ -293,34 +298,46 @@ class Marble:
     def colour_at(self, p_world, footprint=None):
         """The marble colour at world-space points (any Dr.Jit array of points)."""
         if self.ramp_size == 1:   # a constant: no noise, no ramp interpolation
-            zero = dr.zeros(mi.UInt32, dr.width(p_world)) if dr.is_jit_v(mi.Float) else 0
-            return self._ramp_colour(zero)
+            return self.ramp_at(p_world.x)
         p = p_world if self.to_texture is None else self.to_texture @ p_world
-        return self.ramp_at(self.stripe(p * self.scale, footprint))
+        return self.ramp_at(self.stripe(_product(p, self.scale), footprint))
 
     def stripe(self, v, footprint=None):
-        """t ∈ [0, 1] at texture-space points v (already scaled)."""
+        """t ∈ [0, 1] at texture-space points v (already scaled).
+
+        A product or sum of finite terms that overflows float32 (a huge but finite
+        scale, period or distortion) is taken as 0, like any angle past float32's
+        resolution, so finite input always gives a finite colour; NaN and ±Inf
+        input still give NaN.
+        """
         along = v[AXES.index(self.axis)]
         if not self.needs_noise:
             phase_noise = 0.0
         elif footprint is None:
-            phase_noise = self.distortion * fractal3(v, self.octaves, self.turbulence)
-        elif any(dr.grad_enabled(getattr(self, k)) for k in _DIFFERENTIABLE):
-            phase_noise = self.distortion * fractal3_weighted(v, self.octaves, footprint,
-                                                              self.turbulence)
+            phase_noise = _product(self.distortion, fractal3(v, self.octaves, self.turbulence))
+        elif dr.grad_enabled(v):   # reverse mode cannot go through the symbolic loop
+            phase_noise = _product(self.distortion, fractal3_weighted(
+                v, self.octaves, footprint, self.turbulence))
         else:
-            phase_noise = self.distortion * fractal3_band_limited(v, self.octaves, footprint,
-                                                                  self.turbulence)
+            phase_noise = _product(self.distortion, fractal3_band_limited(
+                v, self.octaves, footprint, self.turbulence))
         if self.function == "abs_sine":
             # |sin(πφ)| has period 1 in φ, and φ − ⌊φ⌋ is exact: any φ works.
-            phase = self.period * along + phase_noise
+            phase = _sum(_product(self.period, along), phase_noise)
             return dr.abs(dr.sin(dr.pi * (phase - dr.floor(phase))))
         if self.function == "sine":
-            return 0.5 * (dr.sin(_reduce_angle(self.period * along + phase_noise)) + 1.0)
-        return 0.5 * (dr.cos(_reduce_angle(along + phase_noise)) + 1.0)
+            return 0.5 * (dr.sin(_reduce_angle(_sum(_product(self.period, along), phase_noise)))
+                          + 1.0)
+        return 0.5 * (dr.cos(_reduce_angle(_sum(along, phase_noise))) + 1.0)
 
     def ramp_at(self, t):
-        """Piecewise-linear ramp at t (clamped to [0, 1]), colours at keys k/(K−1)."""
+        """Piecewise-linear ramp at t (clamped to [0, 1]), colours at keys k/(K−1).
+
+        One colour is a constant (the index must not come from ⌊t·0⌋ − 1).
+        """
+        if self.ramp_size == 1:
+            zero = dr.zeros(mi.UInt32, dr.width(t)) if dr.is_jit_v(mi.Float) else 0
+            return self._ramp_colour(zero)
         last = self.ramp_size - 1
         x = dr.clip(t, 0.0, 1.0) * last
         i = dr.minimum(dr.floor(x), last - 1)
@@ -345,15 +362,28 @@ _TWO_PI = 2.0 * math.pi
 _LARGEST_MEANINGFUL_ANGLE = float(2 ** 24)
 
 
+def _overflowed(result, a, b):
+    """``result`` of finite ``a`` and ``b`` that overflowed to ±inf → 0; else as it is."""
+    return dr.select(dr.isinf(result) & dr.isfinite(a) & dr.isfinite(b), 0.0, result)
+
+
+def _product(a, b):
+    return _overflowed(a * b, a, b)
+
+
+def _sum(a, b):
+    return _overflowed(a + b, a, b)
+
+
 def _reduce_angle(x):
     """x mod 2π, for sin/cos that misbehave on huge arguments (Dr.Jit's float32
     sin leaves [−1, 1] past ~1e9 and gives NaN past ~1.8e19).
 
     Below 2^24 the reduction is as accurate as x itself. Beyond, a float32 angle
     has no fractional digits at all — the stripe is meaningless there — and the
-    angle is taken as 0, so the colour stays finite and deterministic.
+    angle is taken as 0, so the colour stays finite and deterministic. NaN stays NaN.
     """
-    x = dr.select(dr.abs(x) < _LARGEST_MEANINGFUL_ANGLE, x, 0.0)
+    x = dr.select(dr.abs(x) < _LARGEST_MEANINGFUL_ANGLE, x, dr.select(dr.isnan(x), x, 0.0))
     return x - _TWO_PI * dr.floor(x * (1.0 / _TWO_PI))
 
 

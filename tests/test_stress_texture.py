@@ -201,3 +201,13 @@ def test_scalar_variant_texture_agrees_to_float32_rounding(llvm):
     assert np.all(np.isfinite(scalar))
     assert np.abs(np.array(scalar) - ref).max() <= bound
     assert np.abs(ours - np.array(scalar)).max() <= 2 * bound
+
+
+@pytest.mark.parametrize("function", ["abs_sine", "sine", "cosine"])
+@pytest.mark.parametrize("huge", [{"scale": 3e38}, {"period": 3e38}, {"distortion": -3e38},
+                                  {"period": 3e38, "distortion": 3e38}])
+def test_overflowing_but_finite_parameters_give_finite_colours_and_nan_stays_nan(llvm, function, huge):
+    tex = texture(MarbleChannel(function=function, octaves=4, **huge))
+    colours = eval_at(tex, np.float32([[2.0, 1.0, 1.0], [0.5, -3.0, 7.0], [np.nan, 1.0, 1.0]]))
+    assert np.all(np.isfinite(colours[:2]))
+    assert np.all(np.isnan(colours[2]))
