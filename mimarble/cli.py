@@ -29,31 +29,51 @@ class UsageError(Exception):
     """A user mistake on the command line (exit status 2)."""
 
 
+def _check_folder(path) -> Path:
+    """``path``, if the folder it would be written into exists."""
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise UsageError(f"{path}: folder {path.parent} does not exist")
+    return path
+
+
+def _check_suffix(path: Path, suffixes, what: str) -> Path:
+    if path.suffix.lower() not in suffixes:
+        raise UsageError(f"{path}: unsupported {what} format {path.suffix or '(none)'!r}; "
+                         f"use {' or '.join(suffixes)}")
+    return path
+
+
 def _output_path(args, default_suffix=".png") -> Path:
     from .mitsuba.render import IMAGE_FORMATS
     out = Path(args.output) if args.output else Path(Path(args.scene).stem + default_suffix)
-    if out.suffix.lower() not in IMAGE_FORMATS:
-        raise UsageError(f"{out}: unsupported image format {out.suffix or '(none)'!r}; "
-                         f"use {' or '.join(IMAGE_FORMATS)}")
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise UsageError(f"{out}: folder {out.parent} does not exist")
-    return out
+    return _check_folder(_check_suffix(out, IMAGE_FORMATS, "image"))
+
+
+def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
+    if spp < 1:
+        raise UsageError(f"{option} {spp}: must be at least 1")
+    if whitted and math.isqrt(spp) ** 2 != spp:
+        raise UsageError(f"{option} {spp}: whitted mode samples an n×n grid, so it must be a "
+                         f"perfect square (1, 4, 9, 16, …)")
+    return spp
 
 
 def _spp(args, scene) -> int:
+    from .scene import LIMITS
     spp = scene.image.samples if args.spp is None else args.spp
-    if spp < 1:
-        raise UsageError(f"--spp {spp}: must be at least 1")
-    if getattr(args, "mode", "whitted") == "whitted" and math.isqrt(spp) ** 2 != spp:
-        raise UsageError(f"--spp {spp}: whitted mode samples an n×n grid, so spp must be a "
-                         f"perfect square (1, 4, 9, 16, …)")
+    _check_spp(spp, getattr(args, "mode", "whitted") == "whitted")
+    samples = scene.image.width * scene.image.height * spp
+    if samples > LIMITS["max_image_samples"]:
+        raise UsageError(f"--spp {spp}: {scene.image.width}x{scene.image.height} pixels at {spp} "
+                         f"spp is {samples} samples, more than the {LIMITS['max_image_samples']} "
+                         f"allowed")
     return spp
 
 
 def _write(out: Path, image, eight_bit: bool = False) -> None:
     from .mitsuba.render import write_image, write_rgb8
-    if not (out.parent if str(out.parent) else Path(".")).is_dir():
-        raise UsageError(f"{out}: folder {out.parent} does not exist")
+    _check_folder(out)
     try:
         (write_rgb8 if eight_bit else write_image)(out, image)
     except (OSError, RuntimeError) as e:
@@ -93,10 +113,14 @@ def _compare(args) -> int:
     import mimarble
     from . import reference
     from .compare import error_map, image_metrics
-    if args.diff and Path(args.diff).suffix.lower() != ".png":
-        raise UsageError(f"--diff {args.diff}: the error map is written as .png")
+    if args.diff:
+        _check_folder(_check_suffix(Path(args.diff), (".png",), "error map"))
     scene = mimarble.scene.load(args.scene)
     spp = _spp(args, scene)
+    if any(getattr(channel, "bandlimit", False) for material in scene.materials.values()
+           for channel in material.channels().values()):
+        print("mimarble: note: the scene has band-limited marble, which the reference tracer "
+              "renders in full detail: expect them to differ", file=sys.stderr)
     start = time.perf_counter()
     ours = mimarble.render(scene, spp=spp)
     mitsuba_seconds = time.perf_counter() - start
@@ -120,46 +144,77 @@ def _compare(args) -> int:
 
 def _bench(args) -> int:
     from . import bench
+    from . import scene as mimarble_scene
+    from .scene import LIMITS
     scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
     if not scenes:
         raise UsageError("no scenes given and none in ./scenes")
-    for path in (args.json, args.plot):
-        if path and not (Path(path).parent if str(Path(path).parent) else Path(".")).is_dir():
-            raise UsageError(f"{path}: folder {Path(path).parent} does not exist")
+    lo, hi = LIMITS["image_size"]
+    if not lo <= args.size <= hi:
+        raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
+    for spp in args.spp:
+        _check_spp(spp)
+    _check_spp(args.converged_spp, option="--converged-spp")
+    if args.repeats < 1:
+        raise UsageError(f"--repeats {args.repeats}: must be at least 1")
+    if args.json:
+        _check_folder(args.json)
+    if args.plot:
+        _check_folder(_check_suffix(Path(args.plot), (".png", ".pdf", ".svg"), "plot"))
+    for path in scenes:
+        mimarble_scene.load(path)   # every scene error before minutes of measuring
+    targets_scene = None if args.no_targets else bench.targets_scene(scenes)
+    if not args.no_targets and targets_scene is None:
+        raise UsageError("the targets are measured on scenes/fig11a.scene, which is not here; "
+                         "give it among the scenes or pass --no-targets")
     results = bench.run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
-                              converged_spp=args.converged_spp, targets=not args.no_targets,
+                              converged_spp=args.converged_spp, targets=targets_scene,
                               paper=not args.no_paper)
     print(bench.format_report(results))
-    if args.json:
-        bench.write_json(results, args.json)
-    if args.plot:
-        bench.plot(results, args.plot)
+    try:
+        if args.json:
+            bench.write_json(results, args.json)
+        if args.plot:
+            bench.plot(results, args.plot)
+    except OSError as e:
+        raise UsageError(f"could not write the results: {e}") from None
     return 0
 
 
 def _stress(args) -> int:
-    import json
-
     from .stress import format_report, run_stress
+    from .bench import write_json
     if args.points < 1:
         raise UsageError(f"--points {args.points}: must be at least 1")
+    if args.json:
+        _check_folder(args.json)
     data = run_stress(points=args.points)
     print(format_report(data))
     if args.json:
-        out = Path(args.json)
-        if not (out.parent if str(out.parent) else Path(".")).is_dir():
-            raise UsageError(f"{out}: folder {out.parent} does not exist")
-        out.write_text(json.dumps(data, indent=1))
+        try:
+            write_json(data, args.json)
+        except OSError as e:
+            raise UsageError(f"{args.json}: could not write: {e}") from None
     return 0
 
 
 def _gallery(args) -> int:
     from .gallery import make_gallery
+    from .scene import LIMITS
     scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
     if not scenes:
         raise UsageError("no scenes given and none in ./scenes")
-    for out, seconds in make_gallery(scenes, args.output, args.size, args.mode):
-        print(f"{out} ({seconds:.2f} s)")
+    lo, hi = LIMITS["image_size"]
+    if not lo <= args.size <= hi:
+        raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
+    folder = Path(args.output)
+    if folder.exists() and not folder.is_dir():
+        raise UsageError(f"{folder}: exists and is not a folder")
+    try:
+        for out, seconds in make_gallery(scenes, folder, args.size, args.mode):
+            print(f"{out} ({seconds:.2f} s)")
+    except (OSError, RuntimeError) as e:
+        raise UsageError(f"{folder}: could not write the gallery: {e}") from None
     return 0
 
 

@@ -230,6 +230,14 @@ def import_drjit_and_mitsuba():
     return dr, mi
 
 
+def _llvm_backend_up() -> bool:
+    dr, _ = import_drjit_and_mitsuba()
+    try:
+        return bool(dr.has_backend(dr.JitBackend.LLVM))
+    except Exception:
+        return False
+
+
 def cuda_usable() -> bool:
     dr, _ = import_drjit_and_mitsuba()
     try:
@@ -245,7 +253,11 @@ def variant_problem(variant: str) -> str | None:
         return (f"Unknown Mitsuba variant {variant!r}: this Mitsuba has "
                 f"{', '.join(mi.variants())}.")
     if variant.startswith("llvm_"):
-        return prepare_llvm().problem
+        problem = prepare_llvm().problem
+        if problem is None and not _llvm_backend_up():
+            problem = (f"Dr.Jit could not start its LLVM backend with {prepare_llvm().path}: "
+                       f"{INSTALL_HINT}, or point DRJIT_LIBLLVM_PATH at a working libLLVM.")
+        return problem
     if variant.startswith("cuda_") and not cuda_usable():
         return f"Variant {variant} needs a CUDA GPU and driver, and none is usable here."
     return None

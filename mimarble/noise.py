@@ -256,7 +256,7 @@ def _array_types():
     variant = mi.variant() or ""
     if variant.startswith("cuda_"):
         return dr.cuda.Array3f, dr.cuda.Float
-    if variant.startswith("llvm_") or environment.prepare_llvm().usable:
+    if variant.startswith("llvm_") or environment.variant_problem("llvm_ad_rgb") is None:
         return dr.llvm.Array3f, dr.llvm.Float
     return None, None
 

@@ -371,8 +371,8 @@ def format_report(data: dict) -> str:
         lines.append(f"{row['magnitude']:8.1e} | {_e(row['measured'])} | {_e(row['bound'])} | "
                      f"{_e(row['measured_f64'])}")
     if any(not math.isfinite(row["measured"]) for row in data["colour"]):
-        lines.append("  nan: the float32 texture returned NaN at finite points: dr.sin/dr.cos of a "
-                     "float32 phase beyond ~1.8e19 give NaN (and values outside [-1, 1] beyond ~1e9)")
+        lines.append("  nan: the float32 texture returned NaN at finite points — a bug: finite "
+                     "input must give a finite colour (see docs/numerical-stability.md)")
     lim = data["limits"]
     lines += [
         "",

@@ -101,3 +101,49 @@ def test_written_image_has_the_usual_file_mode(tmp_path, small_scene):
     mask = os.umask(0)
     os.umask(mask)
     assert (out.stat().st_mode & 0o777) == (0o666 & ~mask)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["bench", "--spp", "2"], "perfect square"),
+    (["bench", "--converged-spp", "8"], "perfect square"),
+    (["bench", "--repeats", "0"], "at least 1"),
+    (["bench", "--size", "0"], "--size 0"),
+    (["bench", "--plot", "out.foo"], "unsupported plot format"),
+    (["bench", "--json", "missing/b.json"], "does not exist"),
+    (["stress", "--points", "0"], "at least 1"),
+    (["stress", "--json", "missing/s.json"], "does not exist"),
+    (["gallery", "--size", "-3"], "--size -3"),
+])
+def test_command_arguments_are_checked_before_any_work(tmp_path, args, words):
+    result = mimarble_cli(*args, cwd=ROOT if args[0] != "stress" else tmp_path)
+    assert result.returncode == 2 and words in result.stderr, result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_bench_reports_a_bad_scene_before_measuring(tmp_path, small_scene):
+    bad = tmp_path / "bad.scene"
+    bad.write_text(SMALL.replace("radius 1", "radius 0"))
+    result = mimarble_cli("bench", small_scene, bad, "--no-targets", "--no-paper")
+    assert result.returncode == 2 and str(bad) + ":5:" in result.stderr
+    assert "Traceback" not in result.stderr and "[" not in result.stdout
+
+
+def test_gallery_into_a_file_is_a_clear_error(tmp_path, small_scene):
+    target = tmp_path / "not-a-folder"
+    target.write_text("")
+    result = mimarble_cli("gallery", small_scene, "-o", target)
+    assert result.returncode == 2 and "not a folder" in result.stderr
+
+
+def test_too_many_samples_are_refused(small_scene):
+    result = mimarble_cli("render", small_scene, "--spp", str(2 ** 40))
+    assert result.returncode == 2 and "samples" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_reference_command_writes_an_exr(tmp_path, small_scene):
+    out = tmp_path / "ref.exr"
+    result = mimarble_cli("reference", small_scene, "-o", out)
+    assert result.returncode == 0, result.stderr
+    ours = np.array(mimarble.mi.Bitmap(str(out)))
+    assert ours.shape == (6, 8, 3) and np.isfinite(ours).all()
