@@ -76,13 +76,10 @@ import numpy as np
 from . import environment
 from .noise import MAX_OCTAVES, fractal3, fractal3_band_limited, fractal3_weighted
 from .plugins import plugin
+from .scene.model import AXES, FIG5_RAMP, MARBLE_FUNCTIONS
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-FUNCTIONS = ("abs_sine", "sine", "cosine")
-AXES = ("x", "y", "z")
-# The paper's Fig. 5 ramp: red to orange in eight steps.
-PAPER_RAMP = tuple((1.0, k / 8.0, 0.0) for k in range(8))
 # A luminance for mean(): Rec. 709 weights, as Mitsuba's luminance().
 _LUMINANCE = np.array([0.212671, 0.715160, 0.072169])
 
@@ -187,11 +184,12 @@ class Marble:
         period = check_number("period", props.get("period", 1.0))
         distortion = check_number("distortion", props.get("distortion", 1.0))
         self.octaves = check_octaves(props.get("octaves", 8))
-        self.function = check_choice("function", props.get("function", "abs_sine"), FUNCTIONS)
+        self.function = check_choice("function", props.get("function", "abs_sine"),
+                                     MARBLE_FUNCTIONS)
         self.axis = check_choice("axis", props.get("axis", "x"), AXES)
         self.turbulence = check_boolean("turbulence", props.get("turbulence", False))
         self.bandlimit = check_boolean("bandlimit", props.get("bandlimit", False))
-        colours = parse_ramp(props.get("ramp", PAPER_RAMP))
+        colours = parse_ramp(props.get("ramp", FIG5_RAMP))   # default: the paper's Fig. 5 ramp
 
         self.scale = mi.Float(scale)
         self.period = mi.Float(period)

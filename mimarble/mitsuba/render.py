@@ -39,11 +39,12 @@ def write_image(path, image: np.ndarray) -> None:
     if suffix not in IMAGE_FORMATS:
         raise ValueError(f"{path}: unsupported image format {suffix or '(none)'!r}; "
                          f"use {' or '.join(IMAGE_FORMATS)}")
-    bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32))
     if suffix == ".png":
         clamped = np.clip(np.nan_to_num(image, nan=0.0), 0.0, 1.0).astype(np.float32)
         bitmap = mi.Bitmap(np.ascontiguousarray(clamped)).convert(
             mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True)
+    else:
+        bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32))
     write_atomically(path, bitmap)
 
 
