@@ -214,17 +214,35 @@ class Marble:
         cb.put("ramp", self.ramp, flags)
         cb.put("octaves", self.octaves_param, mi.ParamFlags.NonDifferentiable)
 
+    _EDITABLE = ("scale", "period", "distortion", "ramp", "octaves_param")
+
     def parameters_changed(self, keys=[]):
-        """Re-validate after ``mi.traverse`` edits; keep the values opaque."""
-        for name in ("scale", "period", "distortion"):
-            check_number(name, _first(getattr(self, name)))
+        """Re-validate after ``mi.traverse`` edits; keep the values opaque.
+
+        An invalid edit raises and puts the last valid values back, so the
+        texture never renders with them.
+        """
+        try:
+            for name in ("scale", "period", "distortion"):
+                check_number(name, _first(getattr(self, name)))
+            octaves = check_octaves(int(_first(self.octaves_param)))
+            colours = self._ramp_numpy()
+            if colours.size == 0 or not np.isfinite(colours).all():
+                raise MarbleParameterError("marble: ramp must hold one or more finite colours")
+        except MarbleParameterError:
+            # In place: mi.traverse keeps references to these very objects.
+            for name, value in getattr(self, "_last_valid", {}).items():
+                if dr.is_jit_v(mi.Float):
+                    mi.set_property(getattr(self, name), value)
+                else:
+                    setattr(self, name, value)
+            raise
+        # Copies: mi.traverse writes new values into these very objects.
+        self._last_valid = {name: type(getattr(self, name))(getattr(self, name))
+                            for name in self._EDITABLE}
+        for name in ("scale", "period", "distortion", "ramp"):
             dr.make_opaque(getattr(self, name))
-        dr.make_opaque(self.ramp)
-        # Structural: a new count traces a new kernel at the next eval.
-        self.octaves = check_octaves(int(_first(self.octaves_param)))
-        colours = self._ramp_numpy()
-        if colours.size == 0 or not np.isfinite(colours).all():
-            raise MarbleParameterError("marble: ramp must hold one or more finite colours")
+        self.octaves = octaves   # structural: a new count traces a new kernel at the next eval
         self.ramp_size = len(colours)
         self._mean = float(ramp_mean(colours, self.function) @ _LUMINANCE)
         self._max = float(colours.max())

@@ -273,8 +273,15 @@ def test_invalid_parameters_name_the_parameter_and_value(variant, bad, words):
 
 
 def test_parameters_checked_after_traverse_updates(llvm):
-    tex = texture()
+    tex = texture(octaves=5)
     params = mi.traverse(tex)
+    before = eval_at(tex, random_points(50, seed=15))
     params["octaves"] = 70
     with pytest.raises(marble_module.MarbleParameterError, match="octaves=70"):
         params.update()
+    params["period"] = float("nan")
+    with pytest.raises(marble_module.MarbleParameterError, match="period=nan"):
+        params.update()
+    # the texture went back to its last valid values
+    assert tex.octaves == 5 and float(tex.period[0]) == 1.0
+    np.testing.assert_array_equal(eval_at(tex, random_points(50, seed=15)), before)
