@@ -8,7 +8,6 @@ message and no traceback.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
@@ -52,11 +51,15 @@ def _output_path(args, default_suffix=".png") -> Path:
 
 
 def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
+    from .scene.model import samples_per_axis
     if spp < 1:
         raise UsageError(f"{option} {spp}: must be at least 1")
-    if whitted and math.isqrt(spp) ** 2 != spp:
-        raise UsageError(f"{option} {spp}: whitted mode samples an n×n grid, so it must be a "
-                         f"perfect square (1, 4, 9, 16, …)")
+    if whitted:
+        try:
+            samples_per_axis(spp)
+        except ValueError:
+            raise UsageError(f"{option} {spp}: whitted mode samples an n×n grid, so it must be a "
+                             f"perfect square (1, 4, 9, 16, …)") from None
     return spp
 
 

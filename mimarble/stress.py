@@ -346,7 +346,7 @@ def format_report(data: dict) -> str:
         f"seed {data['seed']})",
         "",
         "Fractal F: max |F32 - F64|  measured / bound",
-        f"  bound = sum_(i<min(K,25)) [min(L*dv, 2B*2^-i) + E*2^-i] + (K'-1)*u*2B (+ B*u if K>25),",
+        "  bound = sum_(i<min(K,25)) [min(L*dv, 2B*2^-i) + E*2^-i] + (K'-1)*u*2B (+ B*u if K>25),",
         f"  dv = {c['input_factor']}*u*|p|*scale, u = 2^-24, L = {c['L1']}, "
         f"B = {c['B']}, E = {c['E']:g}",
         "",

@@ -78,9 +78,10 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     if mode not in MODES:
         raise ValueError(f"mode={mode!r} must be one of {', '.join(MODES)}")
     spp = scene.image.samples if spp is None else spp
-    if spp < 1 or (mode == "whitted" and math.isqrt(spp) ** 2 != spp):
-        raise ValueError(f"spp={spp} must be a positive perfect square (1, 4, 9, …) in whitted mode"
-                         if mode == "whitted" else f"spp={spp} must be positive")
+    if mode == "whitted":
+        model.samples_per_axis(spp)
+    elif spp < 1:
+        raise ValueError(f"spp={spp} must be positive")
 
     out: dict = {"type": "scene"}
     textures: dict = {}            # channel value -> texture id (dedupes equal channels)

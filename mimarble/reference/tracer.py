@@ -38,7 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mimarble.scene.model import ColorChannel, MarbleChannel, Scene
+from mimarble.scene.model import ColorChannel, MarbleChannel, Scene, samples_per_axis
 
 from .marble import marble_color
 
@@ -417,14 +417,6 @@ def trace(scene, o, d) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # The image
 
-def _samples_per_axis(spp: int) -> int:
-    spp_i = int(spp)
-    n = math.isqrt(spp_i) if spp_i >= 1 else 0
-    if spp_i != spp or n < 1 or n * n != spp_i:
-        raise ValueError(f"spp must be a perfect square n*n >= 1 (an n x n grid), got {spp!r}")
-    return n
-
-
 def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS) -> np.ndarray:
     """Render ``scene`` -> float64 (H, W, 3) linear RGB, not clamped.
 
@@ -434,16 +426,15 @@ def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS) -
     """
     prep = prepare(scene)
     img = scene.image
-    n = _samples_per_axis(img.samples if spp is None else spp)
+    n = samples_per_axis(img.samples if spp is None else spp)
     W, H = int(img.width), int(img.height)
     ns = n * n
     pixels_per_chunk = max(1, int(chunk_rays) // ns)
     out = np.empty((H * W, 3), dtype=np.float64)
-    eye, f, r, u, tan_half, aspect = camera_basis(scene.camera, img.aspect)
     for p0 in range(0, H * W, pixels_per_chunk):
         p1 = min(H * W, p0 + pixels_per_chunk)
         x, y = sample_positions(W, H, n, p0, p1)
-        _, d = camera_rays(scene, x, y)
+        eye, d = camera_rays(scene, x, y)
         rad = shade(prep, closest_hit(prep, eye, d))
         out[p0:p1] = rad.reshape(p1 - p0, ns, 3).mean(axis=1)
     return out.reshape(H, W, 3)

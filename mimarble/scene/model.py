@@ -104,6 +104,19 @@ class FrozenMap(Mapping):
         return f"FrozenMap({self._d!r})"
 
 
+def samples_per_axis(spp) -> int:
+    """n for spp = n² samples per pixel (an n×n grid of stratum centres).
+
+    Raises ValueError when spp is not a perfect square ≥ 1 (the one rule that
+    the scene language, the Mitsuba translator and the reference tracer share).
+    """
+    n = math.isqrt(int(spp)) if isinstance(spp, int) and spp >= 1 else 0
+    if n < 1 or n * n != spp:
+        raise ValueError(f"spp={spp!r} must be a perfect square n·n ≥ 1 (1, 4, 9, 16, …): "
+                         f"pixels are sampled on an n×n grid")
+    return n
+
+
 @dataclass(frozen=True)
 class Image:
     """``image { width W height H samples S background <r g b> }``.
