@@ -1,12 +1,12 @@
 """Band-limited marble: octaves finer than the pixel footprint are left out."""
 
-import dataclasses
 
 import numpy as np
 import pytest
 
 import mimarble
 from mimarble import noise
+from mimarble.bench import with_marbles
 from mimarble.gallery import resized
 from mimarble.mitsuba import to_mitsuba
 
@@ -45,11 +45,7 @@ def test_unrolled_weighted_form_equals_the_loop(jit_variant):
 
 
 def bandlimited(scene, flag=True):
-    mats = {name: dataclasses.replace(m, **{k: dataclasses.replace(c, bandlimit=flag)
-                                            for k, c in m.channels().items()
-                                            if isinstance(c, mimarble.scene.MarbleChannel)})
-            for name, m in scene.materials.items()}
-    return dataclasses.replace(scene, materials=mimarble.scene.FrozenMap(mats))
+    return with_marbles(scene, bandlimit=flag)
 
 
 def test_band_limited_render_stays_close_to_the_full_one(llvm):
