@@ -312,11 +312,19 @@ class Marble:
         return dr.abs(self.scale) * dr.maximum(dr.norm(dp_dx), dr.norm(dp_dy))
 
     def colour_at(self, p_world, footprint=None):
-        """The marble colour at world-space points (any Dr.Jit array of points)."""
+        """The marble colour at world-space points (any Dr.Jit array of points).
+
+        A point with a NaN or infinite coordinate gets a NaN colour, decided here
+        once rather than left to how each backend's min/max and float→int
+        conversions treat NaN (they differ: LLVM's vector min keeps a NaN,
+        constant folding of a one-lane array drops it).
+        """
         if self.ramp_size == 1:   # a constant: no noise, no ramp interpolation
             return self.ramp_at(p_world.x)
         p = p_world if self.to_texture is None else self.to_texture @ p_world
-        return self.ramp_at(self.stripe(_product(p, self.scale), footprint))
+        colour = self.ramp_at(self.stripe(_product(p, self.scale), footprint))
+        finite = dr.isfinite(p_world.x) & dr.isfinite(p_world.y) & dr.isfinite(p_world.z)
+        return dr.select(finite, colour, dr.nan)
 
     def stripe(self, v, footprint=None):
         """t ∈ [0, 1] at texture-space points v (already scaled).
@@ -349,14 +357,19 @@ class Marble:
     def ramp_at(self, t):
         """Piecewise-linear ramp at t (clamped to [0, 1]), colours at keys k/(K−1).
 
-        One colour is a constant (the index must not come from ⌊t·0⌋ − 1).
+        The gather index is in 0..K−2 by construction, whatever t is: a NaN t
+        (for which ⌊x⌋ is NaN and its uint32 conversion is 2^31 on x86, an
+        out-of-bounds read that kills the process on AVX2 machines) reads key 0,
+        and the NaN then reaches the colour through f. One colour is a constant
+        (the index must not come from ⌊t·0⌋ − 1).
         """
         if self.ramp_size == 1:
             zero = dr.zeros(mi.UInt32, dr.width(t)) if dr.is_jit_v(mi.Float) else 0
             return self._ramp_colour(zero)
         last = self.ramp_size - 1
         x = dr.clip(t, 0.0, 1.0) * last
-        i = dr.minimum(dr.floor(x), last - 1)
+        i = dr.floor(x)
+        i = dr.select((i >= 0.0) & (i <= last - 1), i, dr.select(i > 0.0, last - 1, 0.0))
         f = x - i
         index = dr.uint32_array_t(type(x))(i)
         return dr.lerp(self._ramp_colour(index), self._ramp_colour(index + 1), f)
