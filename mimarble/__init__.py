@@ -6,11 +6,18 @@ with a usable GPU, else ``llvm_ad_rgb``, else ``scalar_rgb``; ``$MIMARBLE_VARIAN
 overrides), and registers the ``marble`` texture for every variant.
 """
 
+import os
+
 from . import environment
 from .environment import EnvironmentProblem, use_variant
 
 environment.prepare_llvm()
 dr, mi = environment.import_drjit_and_mitsuba()
+
+# MIMARBLE_JIT_DEBUG=1: Dr.Jit bounds-checks every gather, scatter and symbolic call,
+# masks the bad lanes and reports them on stderr (slower; `./go test --jit-debug`).
+if os.environ.get("MIMARBLE_JIT_DEBUG") == "1":
+    dr.set_flag(dr.JitFlag.Debug, True)
 
 # A variant problem at import (a bad $MIMARBLE_VARIANT) must not break the
 # import: it is kept here, and raised again by whatever needs the variant.

@@ -252,6 +252,10 @@ def variant_problem(variant: str) -> str | None:
     if variant not in mi.variants():
         return (f"Unknown Mitsuba variant {variant!r}: this Mitsuba has "
                 f"{', '.join(mi.variants())}.")
+    if not variant.endswith("_rgb"):
+        rgb = [v for v in mi.variants() if v.endswith("_rgb")]
+        return (f"Variant {variant} is not an RGB variant: mimarble's colours, ramps and "
+                f"images are RGB, so use one of {', '.join(rgb)}.")
     if variant.startswith("llvm_"):
         problem = prepare_llvm().problem
         if problem is None and not _llvm_backend_up():

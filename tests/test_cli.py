@@ -21,8 +21,10 @@ sphere { center < 0 0 0 > radius 1 material "m" }
 def mimarble_cli(*args, cwd=ROOT):
     env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb",
                PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
-    return subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=300)
+    result = subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=cwd, env=env,
+                            capture_output=True, text=True, timeout=300)
+    sys.stderr.write(result.stderr)   # where the conftest check sees Dr.Jit's bounds reports
+    return result
 
 
 @pytest.fixture
