@@ -16,8 +16,8 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 # MIMARBLE_JIT_DEBUG=1: Dr.Jit bounds-checks every gather, scatter and symbolic call,
 # masks the bad lanes and reports them on stderr (slower; `./go test --jit-debug`).
-if os.environ.get("MIMARBLE_JIT_DEBUG") == "1":
-    dr.set_flag(dr.JitFlag.Debug, True)
+if os.environ.get(environment.JIT_DEBUG_ENV) == "1":
+    environment.enable_bounds_checks()
 
 # A variant problem at import (a bad $MIMARBLE_VARIANT) must not break the
 # import: it is kept here, and raised again by whatever needs the variant.

@@ -238,6 +238,23 @@ def _llvm_backend_up() -> bool:
         return False
 
 
+JIT_DEBUG_ENV = "MIMARBLE_JIT_DEBUG"
+
+
+def enable_bounds_checks() -> None:
+    """Dr.Jit's ``JitFlag.Debug``: every gather, scatter and symbolic call bounds-checked.
+
+    Out-of-range lanes are masked and reported on stderr. Packet operations are
+    turned off with it: Dr.Jit 1.5 checks a packet ``scatter_reduce`` (Mitsuba's
+    image block) against the wrong positions, reporting false out-of-bounds
+    writes and dropping them (a plain Mitsuba ``direct`` render at 96², 4 spp:
+    mean 0.84 → 0.60); separate scatters are checked correctly, same values.
+    """
+    dr, _ = import_drjit_and_mitsuba()
+    dr.set_flag(dr.JitFlag.Debug, True)
+    dr.set_flag(dr.JitFlag.PacketOps, False)
+
+
 def cuda_usable() -> bool:
     dr, _ = import_drjit_and_mitsuba()
     try:

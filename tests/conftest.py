@@ -58,9 +58,8 @@ def pytest_addoption(parser):
 
 def pytest_configure(config):
     if config.getoption("--jit-debug"):
-        os.environ["MIMARBLE_JIT_DEBUG"] = "1"   # child processes (CLI tests) check too
-    if os.environ.get("MIMARBLE_JIT_DEBUG") == "1":
-        dr.set_flag(dr.JitFlag.Debug, True)
+        os.environ[environment.JIT_DEBUG_ENV] = "1"   # child processes (CLI tests) check too
+        environment.enable_bounds_checks()
 
 
 def pytest_report_header(config):

@@ -78,3 +78,33 @@ def test_noise_lattice_index_stays_in_bounds_for_any_coordinate(jit_variant, oct
     finite = np.isfinite(points).all(axis=1)
     assert np.isnan(values[~finite]).all()
     assert np.isfinite(values[finite]).all()
+
+
+def test_bounds_checked_renders_equal_plain_ones(tmp_path):
+    """MIMARBLE_JIT_DEBUG=1 checks without changing the image.
+
+    It would not on its own: Dr.Jit 1.5's check of packet scatters (Mitsuba's
+    image block) drops good writes, hence packet ops off (environment.enable_bounds_checks).
+    """
+    import os
+    import subprocess
+    import sys
+    scene = tmp_path / "small.scene"
+    scene.write_text('image { width 24 height 16 samples 4 }\n'
+                     'camera { eye < 0 0 5 > lookat < 0 0 0 > up < 0 1 0 > fov 30 }\n'
+                     'light { position < 5 5 5 > color < 1 1 1 > }\n'
+                     'material "m" { diffuse { marble { octaves 3 } } }\n'
+                     'sphere { center < 0 0 0 > radius 1 material "m" }\n')
+    code = ("import sys, numpy as np, mimarble; "
+            f"np.save(sys.argv[1], mimarble.render({str(scene)!r}))")
+    images = []
+    for debug in ("0", "1"):
+        out = tmp_path / f"image{debug}.npy"
+        env = dict(os.environ, MIMARBLE_JIT_DEBUG=debug, MIMARBLE_VARIANT="llvm_ad_rgb")
+        result = subprocess.run([sys.executable, "-c", code, str(out)], env=env,
+                                capture_output=True, text=True, timeout=300)
+        sys.stderr.write(result.stderr)
+        assert result.returncode == 0, result.stderr
+        images.append(np.load(out))
+    assert images[0].mean() > 0.05
+    np.testing.assert_allclose(images[1], images[0], atol=1e-6)
