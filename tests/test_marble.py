@@ -81,7 +81,7 @@ def test_zero_distortion_skips_the_noise(llvm):
         si.p = mi.Point3f(dr.linspace(mi.Float, 0, 1, 64), 0.5, 0.25)
         with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
             dr.eval(tex.eval(si))
-            return sum(k["operation_count"] for k in dr.kernel_history())
+            return sum(k.get("operation_count", 0) for k in dr.kernel_history())   # debug mode adds non-kernel entries
 
     plain, noisy = texture(distortion=0.0, octaves=8), texture(distortion=1.0, octaves=8)
     assert not plain.needs_noise and noisy.needs_noise
