@@ -8,11 +8,15 @@ overrides), and registers the ``marble`` texture for every variant.
 
 import os
 
-from . import environment
+from . import environment, llvm_target
 from .environment import EnvironmentProblem, use_variant
 
 environment.prepare_llvm()
 dr, mi = environment.import_drjit_and_mitsuba()
+
+# The CPU kernels' LLVM target, before any kernel is compiled (mimarble/llvm_target.py).
+if environment.llvm_backend_up():
+    llvm_target.configure()
 
 # MIMARBLE_JIT_DEBUG=1: Dr.Jit bounds-checks every gather, scatter and symbolic call,
 # masks the bad lanes and reports them on stderr (slower; `./go test --jit-debug`).

@@ -230,7 +230,7 @@ def import_drjit_and_mitsuba():
     return dr, mi
 
 
-def _llvm_backend_up() -> bool:
+def llvm_backend_up() -> bool:
     dr, _ = import_drjit_and_mitsuba()
     try:
         return bool(dr.has_backend(dr.JitBackend.LLVM))
@@ -275,7 +275,7 @@ def variant_problem(variant: str) -> str | None:
                 f"images are RGB, so use one of {', '.join(rgb)}.")
     if variant.startswith("llvm_"):
         problem = prepare_llvm().problem
-        if problem is None and not _llvm_backend_up():
+        if problem is None and not llvm_backend_up():
             problem = (f"Dr.Jit could not start its LLVM backend with {prepare_llvm().path}: "
                        f"{INSTALL_HINT}, or point DRJIT_LIBLLVM_PATH at a working libLLVM.")
         return problem
@@ -337,6 +337,11 @@ def doctor(requested: str | None = None) -> tuple[list[tuple[str, str]], bool]:
                                 f"chosen by {choice.source})"))
     else:
         rows.append(("libLLVM", "none loaded"))
+    if llvm_backend_up():
+        from . import llvm_target
+        outcome = llvm_target.configure()
+        rows.append(("llvm target", f"{outcome.target.summary()} ({outcome.how})"
+                     if outcome.target else outcome.how))
     rows.append(("cuda", "usable" if cuda_usable() else "not usable"))
     try:
         with warnings.catch_warnings():
