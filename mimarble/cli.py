@@ -282,7 +282,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    """Warnings are sentences for the user, not source locations of ours."""
+    print(f"mimarble: warning: {message}", file=sys.stderr if file is None else file)
+
+
 def main(argv=None) -> int:
+    import warnings
+    warnings.showwarning = _show_warning
     parser = build_parser()
     args = parser.parse_args(argv)
     # The package import chose the libLLVM before Dr.Jit loaded; it never raises.

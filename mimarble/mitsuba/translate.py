@@ -26,6 +26,7 @@ Constant channels are plain ``rgb`` textures: no noise code is generated for the
 from __future__ import annotations
 
 import math
+import warnings
 
 from ..scene import model
 
@@ -54,13 +55,72 @@ def _distance(a, b) -> float:
     return math.dist(a, b)
 
 
+# The reference tracer accepts hits from t = 1e-6·(1 + max|eye_k|) on (T_MIN_REL).
+_NEAREST_HIT_REL = 1e-6
+
+
+def clip_planes(scene: model.Scene) -> tuple[float, float]:
+    """(near_clip, far_clip) that keep every sphere in view.
+
+    Mitsuba's defaults (0.01, 10 000) drop geometry the scene language allows.
+    A sphere of centre c and radius r lies between ||c − e| − r| and |c − e| + r
+    of the eye e (inside it too), so: far just past the farthest of these, near
+    half the nearest — never below the reference tracer's smallest hit distance,
+    so an eye on a surface still sees what the reference sees. The perspective
+    sensor starts rays on the near plane and inverts its float32 projection
+    matrix, which stays accurate however large far/near is: near only scales
+    the camera-space point that is then normalised.
+    """
+    eye = scene.camera.eye
+    if not scene.spheres:
+        return 0.01, 1e4   # Mitsuba's defaults: nothing to see either way
+    distances = [math.dist(s.center, eye) for s in scene.spheres]
+    farthest = max(d + s.radius for d, s in zip(distances, scene.spheres))
+    nearest = min(abs(d - s.radius) for d, s in zip(distances, scene.spheres))
+    near = max(0.5 * nearest, _NEAREST_HIT_REL * (1.0 + max(map(abs, eye))))
+    far = max(farthest * (1.0 + 1e-3), 2.0 * near)
+    return near, far
+
+
+class Float32RangeWarning(UserWarning):
+    """A sphere Mitsuba's float32 intersection cannot place precisely enough from this eye."""
+
+
+# float32's unit roundoff·2: the scale of Mitsuba's intersection error on a sphere is
+# 2⁻²³·(max|c_k| + r). Measured (docs/rendering-model.md, "Large spheres"): a ground sphere
+# agrees with the reference while that error is up to 1.6× the eye's distance to the
+# surface, and fails from 3.2× on; the warning comes from 1×.
+_FLOAT32_ERROR_SCALE = 2.0 ** -23
+
+
+def float32_range_problems(scene: model.Scene) -> list[str]:
+    """One message per sphere whose float32 intersection error reaches the eye's distance to it."""
+    problems = []
+    eye = scene.camera.eye
+    for sphere in scene.spheres:
+        error = _FLOAT32_ERROR_SCALE * (max(map(abs, sphere.center)) + sphere.radius)
+        distance = abs(math.dist(sphere.center, eye) - sphere.radius)
+        if error > distance:
+            where = f"{scene.source or '<scene>'}:{sphere.pos or '?'}"
+            problems.append(
+                f"{where}: sphere of radius {sphere.radius:g} at {max(map(abs, sphere.center)):g} "
+                f"from the origin is beyond float32's reach from this eye: Mitsuba's intersection "
+                f"error (~{error:.3g}) exceeds the eye's distance to its surface ({distance:.3g}), "
+                f"so the Mitsuba image may be wrong there (the reference tracer is float64; "
+                f"docs/rendering-model.md)")
+    return problems
+
+
 def _sensor(scene: model.Scene, sampler: dict) -> dict:
     import mitsuba as mi   # imported here: the module itself stays importable without it
     cam, img = scene.camera, scene.image
+    near, far = clip_planes(scene)
     return {
         "type": "perspective",
         "fov": cam.fov,
         "fov_axis": "y",
+        "near_clip": near,
+        "far_clip": far,
         "to_world": mi.ScalarTransform4f().look_at(origin=list(cam.eye), target=list(cam.lookat),
                                                    up=list(cam.up)),
         "film": {"type": "hdrfilm", "width": img.width, "height": img.height,
@@ -78,6 +138,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     if mode not in MODES:
         raise ValueError(f"mode={mode!r} must be one of {', '.join(MODES)}")
     spp = scene.image.samples if spp is None else spp
+    for problem in float32_range_problems(scene):
+        warnings.warn(problem, Float32RangeWarning, stacklevel=2)
     if mode == "whitted":
         model.samples_per_axis(spp)
     elif spp < 1:

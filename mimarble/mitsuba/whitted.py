@@ -41,6 +41,7 @@ from __future__ import annotations
 
 from .. import environment
 from ..plugins import plugin
+from . import sphere_hit
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -125,6 +126,10 @@ class Whitted:
 
         si = scene.ray_intersect(ray, active)
         hit = mi.Bool(active) & si.is_valid()
+        # Mitsuba's hit, refined in float64 on the sphere it found (sphere_hit.py).
+        spheres = sphere_hit.SphereTable(scene)
+        p, n, on_sphere = sphere_hit.refine(spheres, ray, si, hit)
+        si.p = p
         if footprints:
             si.compute_uv_partials(ray)   # pixel footprints for band-limited marble
         if len({id(m) for m in materials}) == 1 and dr.is_jit_v(mi.Float):
@@ -137,7 +142,6 @@ class Whitted:
             ka, kd, ks, shininess = self._channels(si, ray, hit)
 
         v = -mi.Vector3f(ray.d)
-        n = mi.Vector3f(si.n)
         n = dr.select(dr.dot(n, v) < 0, -n, n)      # two-sided
 
         radiance = ka * self.ambient
@@ -147,7 +151,7 @@ class Whitted:
             n_dot_l = dr.dot(n, ds.d)
             lit = hit & (n_dot_l > 0)
             if self.shadows:
-                lit &= ~scene.ray_test(si.spawn_ray_to(ds.p), lit)
+                lit &= ~sphere_hit.occluded(scene, spheres, si, p, n, on_sphere, ds.p, lit)
             shade = kd * n_dot_l
             if any_specular:
                 h = dr.normalize(ds.d + v)

@@ -1,0 +1,101 @@
+"""Scenes at the edges of what the language allows agree with the float64 reference (issue 11).
+
+Each was silently wrong once: Mitsuba's default clip planes dropped a huge far sphere
+and a tiny near one; a large "ground sphere" got shadow acne and false shadows from
+float32 hit points (mimarble/mitsuba/sphere_hit.py). Targets: ≥ 50 dB PSNR and
+≤ 0.2 % of pixels off by more than 1/255, as for the paper's scenes.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble import reference
+from mimarble.compare import image_metrics
+from mimarble.mitsuba.translate import Float32RangeWarning, clip_planes
+
+MIN_PSNR_DB, MAX_PIXELS_OFF = 50.0, 0.002
+MARBLE = 'material "m" { diffuse { marble { scale SCALE octaves 4 } } specular { color < 0.3 0.3 0.3 > } }\n'
+
+
+def scene(camera, light, spheres, size=64, scale=1.0, background="0.1 0.2 0.4"):
+    text = (f"image {{ width {size} height {size} samples 1 background < {background} > }}\n"
+            f"camera {{ {camera} up < 0 1 0 > fov 40 }}\nambient < 0.2 0.2 0.2 >\n"
+            f"light {{ position < {light} > color < 1 1 1 > }}\n"
+            + MARBLE.replace("SCALE", repr(scale)) +
+            'material "g" { ambient { color < 0.5 0.5 0.5 > } diffuse { color < 0.6 0.6 0.6 > } }\n'
+            + "".join(f"sphere {{ center < {c} > radius {r!r} material \"{m}\" }}\n"
+                      for c, r, m in spheres))
+    return mimarble.scene.parse(text, "extreme.scene")
+
+
+def ground(radius, light="5 8 5"):
+    """A unit marble sphere resting on a ground sphere of the given radius."""
+    return scene("eye < 0 1.5 6 > lookat < 0 0 0 >", light,
+                 [("0 0 0", 1.0, "m"), (f"0 {-1.0 - radius!r} 0", radius, "g")])
+
+
+def assert_agrees(model):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Float32RangeWarning)   # none of these is out of range
+        ours = mimarble.render(model)
+    metrics = image_metrics(ours, reference.render(model))
+    assert metrics["psnr"] >= MIN_PSNR_DB and metrics["frac_over_1_255"] <= MAX_PIXELS_OFF, metrics
+    return ours
+
+
+def test_a_huge_sphere_seen_from_far_away_is_not_clipped(llvm):
+    image = assert_agrees(scene("eye < 0 0 40000 > lookat < 0 0 0 >", "0 0 50000",
+                                [("0 0 0", 2.0e4, "m")], size=48, scale=1e-4))
+    assert image.mean() > 0.1
+
+
+def test_a_tiny_sphere_just_before_the_eye_is_not_clipped(llvm):
+    image = assert_agrees(scene("eye < 0 0 0.008 > lookat < 0 0 0 >", "0 0.01 0.01",
+                                [("0 0 0", 0.004, "m")], size=48, scale=1000.0))
+    assert image.mean() > 0.1
+
+
+def test_the_eye_inside_a_sphere_sees_its_inside(llvm):
+    assert_agrees(scene("eye < 0 0 3 > lookat < 0 0 0 >", "1 2 4",
+                        [("0 0 0", 1.0, "m"), ("0 0 0", 10.0, "g")], size=48))
+
+
+@pytest.mark.parametrize("radius", [1e2, 1e4, 1e5, 1e7])
+def test_a_ground_sphere_casts_no_acne_and_no_false_shadow(variant, radius):
+    if variant == "scalar_rgb" and radius != 1e4:
+        pytest.skip("the scalar variant is slow: one radius is enough")
+    assert_agrees(ground(radius) if variant != "scalar_rgb" else _small(ground(radius)))
+
+
+def _small(model):
+    from mimarble.gallery import resized
+    return resized(model, 24)
+
+
+@pytest.mark.parametrize("light", ["30 3 -4", "-2 1.2 20"])
+def test_a_ground_sphere_under_grazing_light(llvm, light):
+    assert_agrees(ground(1e4, light))
+
+
+def test_clip_planes_enclose_every_sphere():
+    model = scene("eye < 0 0 3 > lookat < 0 0 0 >", "1 2 4",
+                  [("0 0 0", 1.0, "m"), ("0 0 0", 10.0, "g"), ("100 0 0", 5.0, "m")])
+    near, far = clip_planes(model)
+    assert 0 < near <= 0.5 * 2.0               # the unit sphere's surface is 2 away
+    assert far >= (100 ** 2 + 3 ** 2) ** 0.5 + 5   # the far side of the sphere at x = 100
+    on_surface = scene("eye < 0 0 1 > lookat < 0 0 0 >", "1 2 4", [("0 0 0", 1.0, "m")])
+    assert clip_planes(on_surface)[0] > 0
+
+
+def test_a_sphere_beyond_float32s_reach_is_warned_about_at_its_position():
+    far_below = scene("eye < 0 2.5 6 > lookat < 0 1 0 >", "5 9 5",
+                      [("0 1 0", 1.0, "m"), (f"0 {-2.0 ** 26!r} 0", 2.0 ** 26, "g")])
+    with pytest.warns(Float32RangeWarning, match=r"extreme\.scene:8:1: sphere of radius 6\.71"):
+        mimarble.to_mitsuba(far_below)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", Float32RangeWarning)
+        mimarble.to_mitsuba(ground(1e7))
+        mimarble.to_mitsuba(mimarble.scene.load("scenes/fig11a.scene"))
