@@ -101,14 +101,16 @@ def _render_to_file(args, renderer, description: str) -> int:
 
 def _render(args) -> int:
     import mimarble
-    return _render_to_file(args, lambda scene, spp: mimarble.render(scene, spp=spp, mode=args.mode),
+    return _render_to_file(args, lambda scene, spp: mimarble.render(scene, spp=spp, mode=args.mode,
+                                                                    progress=True),
                            f"{args.mode} mode, {mimarble.mi.variant()}")
 
 
 def _reference(args) -> int:
     from . import reference
-    return _render_to_file(args, lambda scene, spp: reference.render(scene, spp=spp),
-                           "reference tracer (NumPy float64)")
+    from .progress import report
+    return _render_to_file(args, lambda scene, spp: reference.render(
+        scene, spp=spp, progress=report(True, "reference")), "reference tracer (NumPy float64)")
 
 
 def _compare(args) -> int:
@@ -125,11 +127,12 @@ def _compare(args) -> int:
            for channel in material.channels().values()):
         print("mimarble: note: the scene has band-limited marble, which the reference tracer "
               "renders in full detail: expect them to differ", file=sys.stderr)
+    from .progress import report
     start = time.perf_counter()
-    ours = mimarble.render(scene, spp=spp)
+    ours = mimarble.render(scene, spp=spp, progress=True)
     mitsuba_seconds = time.perf_counter() - start
     start = time.perf_counter()
-    ref = reference.render(scene, spp=spp)
+    ref = reference.render(scene, spp=spp, progress=report(True, "reference"))
     reference_seconds = time.perf_counter() - start
     metrics = image_metrics(ours, ref)
     metrics.update(scene=str(args.scene), spp=spp, variant=mimarble.mi.variant(),

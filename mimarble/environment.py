@@ -307,6 +307,15 @@ def choose_variant(requested: str | None = None) -> str:
     raise EnvironmentProblem("No Mitsuba variant can render here.")  # scalar always can
 
 
+def require_rgb_variant() -> None:
+    """Raise :class:`EnvironmentProblem` (one sentence) unless the Mitsuba variant is RGB."""
+    _, mi = import_drjit_and_mitsuba()
+    variant = mi.variant()
+    problem = variant_problem(variant) if variant and not variant.endswith("_rgb") else None
+    if problem:
+        raise EnvironmentProblem(problem)
+
+
 def use_variant(requested: str | None = None) -> str:
     """Set the Mitsuba variant, keeping one the user already set unless another is requested."""
     _, mi = import_drjit_and_mitsuba()

@@ -10,6 +10,7 @@ import numpy as np
 
 from .. import environment
 from .. import scene as scene_language
+from ..progress import report
 from .translate import to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -17,14 +18,106 @@ dr, mi = environment.import_drjit_and_mitsuba()
 IMAGE_FORMATS = (".png", ".exr")
 
 
-def render(scene_or_path, spp: int | None = None, mode: str = "whitted") -> np.ndarray:
-    """Render a scene (model, or path of a scene file) → linear float32 (H, W, 3)."""
+#: Samples traced at once. A whitted lane of fig11a holds about 200 bytes while its
+#: kernel runs, so a pass of 2²² samples stays under 1 GiB; larger images are
+#: rendered in passes of whole pixels (docs/design-decisions.md, "Rendering").
+PASS_SAMPLES = 1 << 22
+
+
+def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
+           progress=False) -> np.ndarray:
+    """Render a scene (model, or path of a scene file) → linear float32 (H, W, 3).
+
+    Memory is the image plus a bounded working set whatever the size and spp:
+    up to :data:`PASS_SAMPLES` samples go through ``mi.render`` at once; larger
+    renders go in passes (:func:`render_in_passes`). ``progress``: True for a
+    progress bar on stderr (shown once the render has taken 1.5 s), or a
+    callable ``progress(samples_done, samples_total)``.
+    """
+    environment.require_rgb_variant()
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
     mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp))
-    image = mi.render(mitsuba_scene)
-    return np.array(image, dtype=np.float32)[..., :3]
+    spp = scene.image.samples if spp is None else spp
+    total = scene.image.width * scene.image.height * spp
+    if total <= PASS_SAMPLES or not dr.is_jit_v(mi.Float):
+        image = np.array(mi.render(mitsuba_scene), dtype=np.float32)[..., :3]
+        report(progress, "render")(total, total)
+        return image
+    return render_in_passes(mitsuba_scene, spp, mode, progress)
+
+
+def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=False,
+                     pass_samples: int | None = None) -> np.ndarray:
+    """What ``mi.render`` computes, in passes of at most ``pass_samples`` samples.
+
+    Each pass takes a run of whole pixels (or, when one pixel has more samples
+    than a pass, a run of one pixel's samples) and does what Mitsuba's
+    ``SamplingIntegrator.render`` does for them: film position → the sensor's
+    ``sample_ray_differential`` (differentials scaled by 1/√spp) → the
+    integrator's ``sample``; with the translator's ``box`` filter a pixel is
+    the plain mean of its samples. Sample positions: whitted mode takes the
+    n×n stratum centres (what the non-jittered ``stratified`` sampler gives, in
+    another order), path mode the scene's sampler, seeded per pass. The pass
+    offsets are opaque, so every full pass reuses one compiled kernel.
+    """
+    pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
+    sensor = mitsuba_scene.sensors()[0]
+    integrator = mitsuba_scene.integrator()
+    width, height = (int(x) for x in sensor.film().crop_size())
+    pixels = width * height
+    whitted = mode == "whitted"
+    n = int(round(spp ** 0.5))
+    sampler = sensor.sampler().clone()
+    image = np.empty((pixels, 3), dtype=np.float32)   # the only full-size array
+    partial = np.zeros(3)                              # a pixel split over passes, so far
+    done = report(progress, "render")
+    samples_done, samples_total = 0, pixels * spp
+    pixels_per_pass = max(1, pass_samples // spp)
+    samples_per_pass = min(spp, pass_samples)
+    for index, (p0, q0, n_pixels, n_samples) in enumerate(
+            _passes(pixels, spp, pixels_per_pass, samples_per_pass)):
+        lanes = n_pixels * n_samples
+        lane = dr.arange(mi.UInt32, lanes)
+        pixel = dr.opaque(mi.UInt32, p0) + lane // n_samples
+        sub = dr.opaque(mi.UInt32, q0) + lane % n_samples
+        y = pixel // width
+        x = pixel - y * width
+        if whitted:
+            offset = mi.Point2f((mi.Float(sub % n) + 0.5) / n, (mi.Float(sub // n) + 0.5) / n)
+        else:
+            sampler.seed(dr.opaque(mi.UInt32, index), lanes)
+            offset = sampler.next_2d()
+        position = (mi.Point2f(mi.Float(x), mi.Float(y)) + offset) / mi.ScalarVector2f(width, height)
+        ray, weight = sensor.sample_ray_differential(mi.Float(sensor.shutter_open()), 0.0,
+                                                     position, mi.Point2f(0.5))
+        if ray.has_differentials:
+            ray.scale_differential(1.0 / spp ** 0.5)
+        radiance = integrator.sample(mitsuba_scene, sampler, ray, None, True)[0]
+        values = np.array(weight * radiance, dtype=np.float32).T.reshape(n_pixels, n_samples, 3)
+        sums = values.sum(axis=1, dtype=np.float64)
+        if n_samples == spp:
+            image[p0:p0 + n_pixels] = sums / spp
+        else:
+            partial += sums[0]
+            if q0 + n_samples == spp:
+                image[p0] = partial / spp
+                partial[:] = 0.0
+        samples_done += lanes
+        done(samples_done, samples_total)
+    return image.reshape(height, width, 3)
+
+
+def _passes(pixels: int, spp: int, pixels_per_pass: int, samples_per_pass: int):
+    """(first pixel, first sample, pixel count, samples per pixel) of each pass."""
+    if samples_per_pass >= spp:
+        for p0 in range(0, pixels, pixels_per_pass):
+            yield p0, 0, min(pixels_per_pass, pixels - p0), spp
+    else:
+        for p0 in range(pixels):
+            for q0 in range(0, spp, samples_per_pass):
+                yield p0, q0, 1, min(samples_per_pass, spp - q0)
 
 
 def write_image(path, image: np.ndarray) -> None:
@@ -40,12 +133,29 @@ def write_image(path, image: np.ndarray) -> None:
         raise ValueError(f"{path}: unsupported image format {suffix or '(none)'!r}; "
                          f"use {' or '.join(IMAGE_FORMATS)}")
     if suffix == ".png":
-        clamped = np.clip(np.nan_to_num(image, nan=0.0), 0.0, 1.0).astype(np.float32)
-        bitmap = mi.Bitmap(np.ascontiguousarray(clamped)).convert(
-            mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True)
+        bitmap = mi.Bitmap(srgb8(image))
     else:
         bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32))
     write_atomically(path, bitmap)
+
+
+def srgb8(image: np.ndarray, rows_per_chunk: int = 256) -> np.ndarray:
+    """Linear RGB → 8-bit sRGB (IEC 61966-2-1), NaN as 0, clamped to [0, 1].
+
+    What Mitsuba's ``Bitmap.convert(..., UInt8, srgb_gamma=True)`` computes
+    (checked in tests), a band of rows at a time, so the only full-size
+    array made is the 8-bit result.
+    """
+    height = image.shape[0]
+    out = np.empty(image.shape[:2] + (3,), dtype=np.uint8)
+    for y0 in range(0, height, rows_per_chunk):
+        x = np.nan_to_num(np.asarray(image[y0:y0 + rows_per_chunk, :, :3], dtype=np.float32),
+                          nan=0.0)
+        np.clip(x, 0.0, 1.0, out=x)
+        curve = np.where(x <= 0.0031308, 12.92 * x,
+                         1.055 * np.power(x, np.float32(1 / 2.4)) - 0.055)
+        out[y0:y0 + rows_per_chunk] = np.clip(np.rint(curve * 255.0), 0, 255)
+    return out
 
 
 def write_rgb8(path, pixels: np.ndarray) -> None:

@@ -61,11 +61,12 @@ __all__ = [
 ]
 
 
-def render(scene: Scene | str | Path, spp: int | None = None):
+def render(scene: Scene | str | Path, spp: int | None = None, progress=None):
     """Render a scene (model, or path to a scene file) -> float64 (H, W, 3), linear.
 
     ``spp=None`` uses ``scene.image.samples``; spp must be a perfect square n².
+    ``progress``: a callable ``progress(samples_done, samples_total)``, or None.
     """
     if isinstance(scene, (str, Path)):
         scene = load(scene)
-    return _render(scene, spp=spp)
+    return _render(scene, spp=spp, progress=progress)

@@ -417,12 +417,15 @@ def trace(scene, o, d) -> np.ndarray:
 # ---------------------------------------------------------------------------
 # The image
 
-def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS) -> np.ndarray:
+def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS,
+           progress=None) -> np.ndarray:
     """Render ``scene`` -> float64 (H, W, 3) linear RGB, not clamped.
 
     ``spp`` (default ``scene.image.samples``) must be a perfect square n²:
     n×n stratum centres per pixel, averaged. Rays are traced in batches of
     about ``chunk_rays`` (whole pixels), so memory stays bounded.
+    ``progress``, if given, is called as ``progress(samples_done, samples_total)``
+    after each batch.
     """
     prep = prepare(scene)
     img = scene.image
@@ -437,4 +440,6 @@ def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS) -
         eye, d = camera_rays(scene, x, y)
         rad = shade(prep, closest_hit(prep, eye, d))
         out[p0:p1] = rad.reshape(p1 - p0, ns, 3).mean(axis=1)
+        if progress is not None:
+            progress(p1 * ns, H * W * ns)
     return out.reshape(H, W, 3)

@@ -1,0 +1,33 @@
+"""Progress of long renders: a tqdm bar on stderr, or the caller's own callback."""
+
+from __future__ import annotations
+
+import sys
+
+#: A bar appears only once the work has taken this long (seconds): quick renders stay quiet.
+DELAY_S = 1.5
+
+
+def report(progress, description: str):
+    """``progress`` as a callable ``(done, total)``.
+
+    True: a tqdm bar on stderr that shows itself after :data:`DELAY_S` and
+    disappears when done — only when stderr is a terminal (logs and pipes get
+    no carriage-return noise); a callable: itself; False or None: nothing.
+    """
+    if callable(progress):
+        return progress
+    if not progress:
+        return lambda done, total: None
+    from tqdm import tqdm
+    bar = None
+
+    def update(done, total):
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=total, desc=description, unit="sample", unit_scale=True,
+                       delay=DELAY_S, leave=False, file=sys.stderr, disable=None)
+        bar.update(done - bar.n)
+        if done >= total:
+            bar.close()
+    return update
