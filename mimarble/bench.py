@@ -263,10 +263,30 @@ def measure_targets(scene_path, repeats, cache_dir, bar) -> dict:
 
 
 def machine_facts() -> dict:
+    """The machine every figure belongs to: CPU, cores, and what LLVM compiles for."""
     import platform
-    return {"variant": mi.variant(), "cores": os.cpu_count(), "python": platform.python_version(),
-            "mitsuba": mi.__version__, "drjit": dr.__version__, "machine": platform.machine(),
-            "processor": _cpu_name()}
+    facts = {"variant": mi.variant(), "cores": os.cpu_count(), "python": platform.python_version(),
+             "mitsuba": mi.__version__, "drjit": dr.__version__, "machine": platform.machine(),
+             "processor": _cpu_name()}
+    if mi.variant().startswith("llvm_"):
+        from . import llvm_target
+        outcome = llvm_target.configure()
+        target = outcome.target
+        facts["llvm_target"] = None if target is None else {
+            "cpu": target.cpu, "vector_width": target.vector_width, "how": outcome.how,
+            "features": [f for f in target.features.split(",")
+                         if f.lstrip("+-") in ("avx2", "avx512f", "fast-gather", "fma")]}
+    return facts
+
+
+def machine_line(facts: dict) -> str:
+    """One line naming the machine, for every printed table."""
+    line = f"{facts.get('processor', 'unknown CPU')}, {facts['cores']} cores, {facts['variant']}"
+    target = facts.get("llvm_target")
+    if target:
+        line += (f"; LLVM target {target['cpu']}, vector width {target['vector_width']}, "
+                 f"{' '.join(target['features'])}")
+    return line
 
 
 def _cpu_name() -> str:
@@ -284,7 +304,7 @@ def _cpu_name() -> str:
 # Reports
 
 def format_report(results: dict) -> str:
-    lines = [f"mimarble bench — {results['machine']['variant']}, {results['machine']['cores']} cores, "
+    lines = [f"mimarble bench — {machine_line(results['machine'])}",
              f"{results['size']}², error against the float64 reference at "
              f"{results['converged_spp']} spp; times are medians of {results['repeats']} warm runs", ""]
     lines.append(f"{'scene':8} {'mode':9} {'spp':>4} {'run ms':>8} {'compile ms':>10} "

@@ -80,3 +80,14 @@ def test_images_are_bit_identical_whatever_the_target(tmp_path):
     assert "vector width 4" in str(narrow["target"])
     assert np.array_equal(narrow["noise"], first["noise"])
     assert np.abs(narrow["image"] - first["image"]).max() <= 1e-4
+
+
+def test_benchmark_figures_name_the_machine_and_target(llvm):
+    from mimarble import bench
+    facts = bench.machine_facts()
+    line = bench.machine_line(facts)
+    assert facts["processor"] in line and f"{facts['cores']} cores" in line
+    outcome = llvm_target.configure()
+    if outcome.target is not None:
+        assert facts["llvm_target"]["cpu"] == outcome.target.cpu
+        assert f"LLVM target {outcome.target.cpu}, vector width {outcome.target.vector_width}" in line
