@@ -3,19 +3,22 @@
 # (libLLVM >= 16 via apt when run as root, then a virtual environment .venv with
 # the package and its test tools); every run then does what was asked.
 #
-#   ./go test [PYTEST ARGS]     run the test suite (pytest)
+#   ./go test [PYTEST ARGS]     run the test suite (pytest), in the checkout
 #   ./go COMMAND [ARGS]         run `mimarble COMMAND`, e.g. ./go render scenes/fig11a.scene -o m.png
 #   ./go python [ARGS]          the environment's Python
+# Paths in COMMAND's and python's arguments are relative to where you stand, as usual.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-cd "$here"
 venv="$here/.venv"
 python="${PYTHON:-python3}"
 
 # 1. A libLLVM Dr.Jit 1.5 can use (>= 16; Debian's 15 aborts the process, 14 is refused).
 #    mimarble.environment finds it; it imports nothing beyond the standard library.
 have_llvm() {
-    "$python" -c 'import runpy, sys; env = runpy.run_path("mimarble/environment.py"); sys.exit(0 if env["search_libllvm"]() else 1)'
+    "$python" - "$here/mimarble/environment.py" <<'PY'
+import runpy, sys
+sys.exit(0 if runpy.run_path(sys.argv[1])["search_libllvm"]() else 1)
+PY
 }
 if ! have_llvm; then
     if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
@@ -31,16 +34,16 @@ fi
 
 # 2. The package, editable, with its test tools, in .venv (redone when pyproject.toml changes).
 stamp="$venv/.installed-pyproject"
-if [ ! -x "$venv/bin/python" ] || ! cmp -s pyproject.toml "$stamp"; then
+if [ ! -x "$venv/bin/python" ] || ! cmp -s "$here/pyproject.toml" "$stamp"; then
     echo "go: setting up $venv" >&2
     [ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
     "$venv/bin/python" -m pip install -q --upgrade pip >&2
-    "$venv/bin/python" -m pip install -q -e ".[test]" >&2
-    cp pyproject.toml "$stamp"
+    "$venv/bin/python" -m pip install -q -e "$here[test]" >&2
+    cp "$here/pyproject.toml" "$stamp"
 fi
 
 case "${1:-}" in
-    test) shift; exec "$venv/bin/python" -m pytest -q "$@" ;;
+    test) shift; cd "$here"; exec "$venv/bin/python" -m pytest -q "$@" ;;
     python) shift; exec "$venv/bin/python" "$@" ;;
     "") exec "$venv/bin/python" -m mimarble --help ;;
     *) exec "$venv/bin/python" -m mimarble "$@" ;;

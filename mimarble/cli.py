@@ -47,7 +47,36 @@ def _check_suffix(path: Path, suffixes, what: str) -> Path:
 def _output_path(args, default_suffix=".png") -> Path:
     from .mitsuba.render import IMAGE_FORMATS
     out = Path(args.output) if args.output else Path(Path(args.scene).stem + default_suffix)
+    if out.is_dir():
+        raise UsageError(f"{out}: is a folder; name the image file, e.g. "
+                         f"{out / (Path(args.scene).stem + default_suffix)}")
     return _check_folder(_check_suffix(out, IMAGE_FORMATS, "image"))
+
+
+def _load_scene(args):
+    """The scene file, with ``--width``/``--height`` applied, and warnings for an empty scene."""
+    import dataclasses
+    import warnings
+
+    import mimarble
+    from .scene import LIMITS
+    scene = mimarble.scene.load(args.scene)
+    lo, hi = LIMITS["image_size"]
+    size = {}
+    for option in ("width", "height"):
+        value = getattr(args, option, None)
+        if value is not None:
+            if not lo <= value <= hi:
+                raise UsageError(f"--{option} {value}: must be in {lo}..{hi}")
+            size[option] = value
+    if size:
+        scene = dataclasses.replace(scene, image=dataclasses.replace(scene.image, **size))
+    if not scene.spheres:
+        warnings.warn(f"{args.scene}: the scene has no spheres: the image is the background")
+    elif not scene.lights and not any(scene.ambient):
+        warnings.warn(f"{args.scene}: the scene has no lights and no ambient light: "
+                      f"the spheres are black")
+    return scene
 
 
 def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
@@ -88,7 +117,7 @@ def _render_to_file(args, renderer, description: str) -> int:
     """Load, check arguments, render, write whole, report: shared by render and reference."""
     import mimarble
     out = _output_path(args)
-    scene = mimarble.scene.load(args.scene)
+    scene = _load_scene(args)
     spp = _spp(args, scene)
     start = time.perf_counter()
     image = renderer(scene, spp)
@@ -121,7 +150,7 @@ def _compare(args) -> int:
     from .compare import error_map, image_metrics
     if args.diff:
         _check_folder(_check_suffix(Path(args.diff), (".png",), "error map"))
-    scene = mimarble.scene.load(args.scene)
+    scene = _load_scene(args)
     spp = _spp(args, scene)
     if any(getattr(channel, "bandlimit", False) for material in scene.materials.values()
            for channel in material.channels().values()):
@@ -233,6 +262,13 @@ def build_parser() -> argparse.ArgumentParser:
                                           "else cuda_ad_rgb, llvm_ad_rgb, scalar_rgb)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
+    def add_size(p):
+        p.add_argument("--width", type=int, help="image width in pixels (default: the scene's)")
+        p.add_argument("--height", type=int, help="image height in pixels (default: the scene's)")
+
+    def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
+        p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
+
     p = sub.add_parser("render", help="render a scene file through Mitsuba")
     p.add_argument("scene", help="scene file (see docs/scene-language.md)")
     p.add_argument("-o", "--output", help="OUT.png (8-bit sRGB) or OUT.exr (linear float); "
@@ -240,12 +276,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
                    help="whitted: the paper's shading (default); path: physically based")
+    add_size(p)
+    add_variant(p)
     p.set_defaults(run=_render)
 
     p = sub.add_parser("reference", help="render a scene with the float64 reference tracer")
     p.add_argument("scene", help="scene file")
     p.add_argument("-o", "--output", help="OUT.png or OUT.exr (default: the scene's name with .png)")
     p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
+    add_size(p)
+    add_variant(p)
     p.set_defaults(run=_reference, mode="whitted")
 
     p = sub.add_parser("compare", help="Mitsuba (whitted) against the reference tracer")
@@ -253,6 +293,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON on the last line")
     p.add_argument("--diff", metavar="OUT.png", help="write a false-colour error map")
+    add_size(p)
+    add_variant(p)
     p.set_defaults(run=_compare, mode="whitted")
 
     p = sub.add_parser("bench", help="run time against error against the converged reference")
@@ -265,12 +307,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--converged-spp", type=int, default=64, help="reference spp (default 64)")
     p.add_argument("--no-targets", action="store_true", help="skip the issue's target measurements")
     p.add_argument("--no-paper", action="store_true", help="skip the comparison with the paper")
+    add_variant(p)
     p.set_defaults(run=_bench)
 
     p = sub.add_parser("stress", help="float32 error of noise and marble against float64, "
                                       "beside the derived bound")
     p.add_argument("--points", type=int, default=2048, help="random points per table cell")
     p.add_argument("--json", metavar="OUT", help="write the measurements as JSON")
+    add_variant(p)
     p.set_defaults(run=_stress)
 
     p = sub.add_parser("gallery", help="render scenes small for the README gallery")
@@ -278,9 +322,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="docs/gallery", help="folder (default: docs/gallery)")
     p.add_argument("--size", type=int, default=160, help="image width and height (default: 160)")
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted")
+    add_variant(p)
     p.set_defaults(run=_gallery)
 
     p = sub.add_parser("doctor", help="show the libLLVM, variant and versions in use")
+    add_variant(p)
     p.set_defaults(run=_doctor, needs_variant=False)
     return parser
 

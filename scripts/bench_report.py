@@ -135,10 +135,11 @@ rows = "\n".join(
                         ("fig11b", "32 octaves")) if name in paper_by)
 section = f"""## Benchmark
 
-`./go bench --json docs/bench/bench.json --plot docs/bench/error-vs-time.png` on the project's
-2-core machine ({m['variant']}; medians of {b['repeats']} warm runs after a sync; error = RMSE against the
-float64 reference tracer at {b['converged_spp']} spp). Full tables, the targets and what they say:
-[docs/benchmarks.md](docs/benchmarks.md).
+`./go bench --json docs/bench/bench.json --plot docs/bench/error-vs-time.png` on an
+{m.get('processor', 'unknown CPU')} with {m['cores']} cores ({m['variant']}; medians of {b['repeats']} warm runs after a
+sync; error = RMSE against the float64 reference tracer at {b['converged_spp']} spp). Timings depend on
+the CPU: the project's other machine kind, AMD EPYC (AVX2), is slower (docs/benchmarks.md has both).
+Full tables, the targets and what they say: [docs/benchmarks.md](docs/benchmarks.md).
 
 | every paper scene, {b['size']}², mean of {len(compiled)} | {' | '.join(f'{s} spp' for s in spps)} |
 |---|{'---|' * len(spps)}

@@ -149,3 +149,59 @@ def test_reference_command_writes_an_exr(tmp_path, small_scene):
     assert result.returncode == 0, result.stderr
     ours = np.array(mimarble.mi.Bitmap(str(out)))
     assert ours.shape == (6, 8, 3) and np.isfinite(ours).all()
+
+
+@pytest.mark.parametrize("name", ["folder", "looks-like.png"])
+def test_output_naming_a_folder_says_so(tmp_path, small_scene, name):
+    (tmp_path / name).mkdir()
+    result = mimarble_cli("render", small_scene, "-o", tmp_path / name)
+    assert result.returncode == 2 and "is a folder" in result.stderr
+    assert "Traceback" not in result.stderr and ".tmp" not in result.stderr
+    assert list((tmp_path / name).iterdir()) == []
+
+
+def test_missing_scene_file_says_where_it_looked(tmp_path):
+    result = mimarble_cli("render", "nowhere.scene", cwd=tmp_path)
+    assert str(tmp_path / "nowhere.scene") in result.stderr
+
+
+def test_a_binary_file_as_scene_is_not_echoed(tmp_path):
+    binary = tmp_path / "binary.scene"
+    binary.write_bytes(b"\x7fELF\x02\x01\x01\x00\x00\x00\xd0\xff\x00\x01garbage\n")
+    result = mimarble_cli("render", binary, "-o", tmp_path / "b.png")
+    assert result.returncode == 2 and "UTF-8" in result.stderr
+    assert "ELF" not in result.stderr and "\x00" not in result.stderr
+
+
+def test_variant_width_and_height_also_after_the_command(tmp_path, small_scene):
+    out = tmp_path / "sized.exr"
+    result = mimarble_cli("render", small_scene, "--variant", "llvm_ad_rgb", "--width", "12",
+                          "--height", "7", "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert "12x7" in result.stdout
+    assert np.array(mimarble.mi.Bitmap(str(out))).shape[:2] == (7, 12)
+    result = mimarble_cli("reference", small_scene, "--width", "0", "-o", tmp_path / "r.exr")
+    assert result.returncode == 2 and "--width 0" in result.stderr
+
+
+def test_an_empty_scene_renders_with_a_warning(tmp_path):
+    empty = tmp_path / "empty.scene"
+    empty.write_text("image { width 4 height 4 }\n")
+    result = mimarble_cli("render", empty, "-o", tmp_path / "e.png")
+    assert result.returncode == 0 and "warning" in result.stderr and "no spheres" in result.stderr
+    unlit = tmp_path / "unlit.scene"
+    unlit.write_text(SMALL.replace("light { position < 5 5 5 > color < 1 1 1 > }\n", ""))
+    result = mimarble_cli("render", unlit, "-o", tmp_path / "u.png")
+    assert result.returncode == 0 and "no lights" in result.stderr
+
+
+def test_go_keeps_paths_relative_to_where_the_user_stands(tmp_path, small_scene):
+    """`path/to/go render my.scene` from any folder: the scene and the image are here."""
+    (tmp_path / "my.scene").write_text(SMALL)
+    result = subprocess.run([os.path.join(ROOT, "go"), "render", "my.scene", "--spp", "1"],
+                            cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                            env=dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb"))
+    sys.stderr.write(result.stderr)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "my.png").exists()
+    assert not os.path.exists(os.path.join(ROOT, "my.png"))

@@ -126,7 +126,8 @@ def load(path: str | os.PathLike) -> Scene:
         with open(path, "rb") as f:
             data = f.read()
     except FileNotFoundError:
-        raise SceneError("cannot read scene file: no such file", filename=filename) from None
+        raise SceneError(f"cannot read scene file: no such file (looked for "
+                         f"{os.path.abspath(filename)})", filename=filename) from None
     except IsADirectoryError:
         raise SceneError("cannot read scene file: it is a directory", filename=filename) from None
     except PermissionError:
@@ -167,6 +168,8 @@ def _decode(data: bytes, filename: str) -> str:
             line_end = len(data)
         column = len(data[line_start:start].decode("utf-8", "replace")) + 1
         src = data[line_start:line_end].decode("utf-8", "replace").rstrip("\r")
+        if any(ch == "\ufffd" or (ord(ch) < 32 and ch != "\t") for ch in src):
+            src = None   # a binary file: its bytes would only garble the terminal
         raise SceneError(
             f"invalid UTF-8 byte 0x{data[start]:02x}: scene files must be UTF-8 text",
             filename=filename,
