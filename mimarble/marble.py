@@ -24,7 +24,8 @@ evenly spaced keys k/(K−1), interpolated linearly.
      - Description
    * - ``scale``
      - float (1.0)
-     - Texture-space scale applied to the point before anything else. Differentiable.
+     - Texture-space scale applied to the point before anything else, > 0 (as in the
+       scene language). Differentiable.
    * - ``period``
      - float (1.0)
      - Stripe frequency along ``axis`` (unused by ``cosine``, whose paper formula has none).
@@ -47,7 +48,9 @@ evenly spaced keys k/(K−1), interpolated linearly.
      - Sum |N| instead of N (Perlin's turbulence).
    * - ``ramp``
      - string (the paper's Fig. 5 ramp)
-     - Colours ``"r g b, r g b, …"`` (one or more; ``#rrggbb`` also accepted).
+     - Colours ``"r g b, r g b, …"`` (one or more; ``#rrggbb`` also accepted). In XML also
+       ``<rgb name="ramp" …/>`` (one colour: a constant) or ``<rgb name="ramp_0" …/>``,
+       ``<rgb name="ramp_1" …/>``, … (XML cannot repeat a name).
        Differentiable (key ``ramp``, a Color3f of K entries).
    * - ``bandlimit``
      - boolean (false)
@@ -57,7 +60,9 @@ evenly spaced keys k/(K−1), interpolated linearly.
        the image is then the band-limited marble, not the full one.
    * - ``to_world``
      - transform (identity)
-     - Places the texture in the world; the point is mapped by its inverse.
+     - Places the texture in the world; the point is mapped by its inverse. Must be
+       invertible (a singular one is refused). In ``mi.traverse`` as ``to_world``
+       (not differentiable).
 
 Parameters a sweep changes (``scale``, ``period``, ``distortion``, ``ramp``) are
 opaque Dr.Jit values: changing them reuses the compiled kernel.
@@ -70,6 +75,7 @@ when none was given, and a constant when the ramp has one colour.
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
@@ -112,6 +118,8 @@ def parse_ramp(value) -> tuple[tuple[float, float, float], ...]:
                     f"marble: ramp colour {item!r} in ramp={value!r} is not three numbers "
                     f"'r g b' (colours are separated by commas)")
             colours.append(numbers)
+    elif _is_colour(value):             # <rgb name="ramp" …/>: one colour, a constant
+        colours = [tuple(float(value[i]) for i in range(3))]
     else:
         try:
             colours = [tuple(float(x) for x in c) for c in value]
@@ -124,6 +132,41 @@ def parse_ramp(value) -> tuple[tuple[float, float, float], ...]:
     if not all(math.isfinite(x) for c in colours for x in c):
         raise MarbleParameterError(f"marble: ramp={value!r} has a non-finite component")
     return tuple(colours)
+
+
+def _is_colour(value) -> bool:
+    """An RGB triple of numbers (a Mitsuba colour property), not a list of colours."""
+    try:
+        return len(value) == 3 and all(isinstance(float(value[i]), float) for i in range(3)) \
+            and not isinstance(value[0], (tuple, list))
+    except (TypeError, ValueError, IndexError):
+        return False
+
+
+_NUMBERED_RAMP = re.compile(r"ramp_(\d+)$")
+
+
+def ramp_property(props):
+    """The ramp as given: ``ramp`` (a string, a list, or one ``rgb``), or ``ramp_0``,
+    ``ramp_1``, … (one ``<rgb>`` each, as Mitsuba XML cannot repeat a name)."""
+    numbered = sorted((int(m.group(1)), key) for key in props.keys()
+                      if (m := _NUMBERED_RAMP.match(key)))
+    if not numbered:
+        return props.get("ramp", FIG5_RAMP)   # default: the paper's Fig. 5 ramp
+    if "ramp" in props:
+        raise MarbleParameterError("marble: give either ramp or ramp_0, ramp_1, …, not both")
+    if [k for k, _ in numbered] != list(range(len(numbered))):
+        raise MarbleParameterError(f"marble: numbered ramp colours must be ramp_0 … "
+                                   f"ramp_{len(numbered) - 1} without gaps, got "
+                                   f"{', '.join(key for _, key in numbered)}")
+    return [props[key] for _, key in numbered]
+
+
+def check_positive(name: str, x) -> float:
+    x = check_number(name, x)
+    if not x > 0:
+        raise MarbleParameterError(f"marble: {name}={x!r} must be > 0")
+    return x
 
 
 def check_number(name: str, x) -> float:
@@ -180,7 +223,7 @@ class Marble:
         if not mi.variant().endswith("_rgb"):
             raise MarbleParameterError(f"marble: variant {mi.variant()} is not supported; "
                                        f"use an RGB variant (llvm_ad_rgb, cuda_ad_rgb, scalar_rgb)")
-        scale = check_number("scale", props.get("scale", 1.0))
+        scale = check_positive("scale", props.get("scale", 1.0))
         period = check_number("period", props.get("period", 1.0))
         distortion = check_number("distortion", props.get("distortion", 1.0))
         self.octaves = check_octaves(props.get("octaves", 8))
@@ -189,7 +232,7 @@ class Marble:
         self.axis = check_choice("axis", props.get("axis", "x"), AXES)
         self.turbulence = check_boolean("turbulence", props.get("turbulence", False))
         self.bandlimit = check_boolean("bandlimit", props.get("bandlimit", False))
-        colours = parse_ramp(props.get("ramp", FIG5_RAMP))   # default: the paper's Fig. 5 ramp
+        colours = parse_ramp(ramp_property(props))
 
         self.scale = mi.Float(scale)
         self.period = mi.Float(period)
@@ -199,9 +242,11 @@ class Marble:
         self.octaves_param = mi.UInt32(self.octaves)
         if "to_world" in props:
             # Properties hold transforms in double precision; the kernel uses float.
-            self.to_texture = mi.Transform4f(mi.Matrix4f(props["to_world"].inverse().matrix))
+            matrix = np.array(props["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+            _check_invertible(matrix)
+            self.to_world = mi.Transform4f(mi.Matrix4f(matrix.tolist()))
         else:
-            self.to_texture = None
+            self.to_world = None
         self.parameters_changed([])
 
     # -- Mitsuba object protocol -------------------------------------------
@@ -213,8 +258,10 @@ class Marble:
         cb.put("distortion", self.distortion, flags)
         cb.put("ramp", self.ramp, flags)
         cb.put("octaves", self.octaves_param, mi.ParamFlags.NonDifferentiable)
+        if self.to_world is not None:
+            cb.put("to_world", self.to_world, mi.ParamFlags.NonDifferentiable)
 
-    _EDITABLE = ("scale", "period", "distortion", "ramp", "octaves_param")
+    _EDITABLE = ("scale", "period", "distortion", "ramp", "octaves_param", "to_world")
 
     def parameters_changed(self, keys=[]):
         """Re-validate after ``mi.traverse`` edits; keep the values opaque.
@@ -223,8 +270,11 @@ class Marble:
         texture never renders with them.
         """
         try:
-            for name in ("scale", "period", "distortion"):
+            check_positive("scale", _first(self.scale))
+            for name in ("period", "distortion"):
                 check_number(name, _first(getattr(self, name)))
+            if self.to_world is not None:
+                _check_invertible(_matrix_numpy(self.to_world))
             octaves = check_octaves(int(_first(self.octaves_param)))
             colours = self._ramp_numpy()
             if colours.size == 0 or not np.isfinite(colours).all():
@@ -239,7 +289,9 @@ class Marble:
             raise
         # Copies: mi.traverse writes new values into these very objects.
         self._last_valid = {name: type(getattr(self, name))(getattr(self, name))
-                            for name in self._EDITABLE}
+                            for name in self._EDITABLE if getattr(self, name) is not None}
+        # p = to_world⁻¹·p_world, from the matrix as it is now (None: the identity).
+        self.to_texture = None if self.to_world is None else self.to_world.inverse()
         for name in ("scale", "period", "distortion", "ramp"):
             dr.make_opaque(getattr(self, name))
         self.octaves = octaves   # structural: a new count traces a new kernel at the next eval
@@ -414,6 +466,25 @@ def _reduce_angle(x):
     """
     x = dr.select(dr.abs(x) < _LARGEST_MEANINGFUL_ANGLE, x, dr.select(dr.isnan(x), x, 0.0))
     return x - _TWO_PI * dr.floor(x * (1.0 / _TWO_PI))
+
+
+def _matrix_numpy(transform) -> np.ndarray:
+    m = transform.matrix
+    return np.array([[float(dr.ravel(m[i][j])[0]) if dr.is_jit_v(mi.Float) else float(m[i][j])
+                      for j in range(4)] for i in range(4)])
+
+
+def _check_invertible(matrix: np.ndarray) -> None:
+    """A to_world whose linear part cannot be inverted (in float32) would put every point at
+    one phase: the first ramp colour everywhere. Refused instead."""
+    linear = matrix[:3, :3]
+    if not np.isfinite(matrix).all():
+        raise MarbleParameterError("marble: to_world has a non-finite entry")
+    scale = np.abs(linear).max()
+    det = np.linalg.det(linear)
+    if scale == 0 or not abs(det) > (1e-6 * scale) ** 3:
+        raise MarbleParameterError(f"marble: to_world is singular (determinant {det:.3g} of its "
+                                   f"3×3 part): texture space would collapse")
 
 
 def _first(value) -> float:

@@ -264,8 +264,13 @@ def test_sweeping_period_and_distortion_reuses_the_compiled_kernel(jit_variant):
     ({"period": math.nan}, ["period", "nan"]),
     ({"function": "tan"}, ["function", "tan"]),
     ({"axis": "w"}, ["axis", "w"]),
+    ({"scale": 0.0}, ["scale", "> 0"]),
+    ({"scale": -1.0}, ["scale", "-1"]),
+    ({"to_world": "singular"}, ["to_world", "singular"]),
 ])
 def test_invalid_parameters_name_the_parameter_and_value(variant, bad, words):
+    if bad.get("to_world") == "singular":
+        bad = {"to_world": mi.ScalarTransform4f().scale([1.0, 0.0, 1.0])}
     with pytest.raises(Exception) as err:
         texture(**bad)
     for word in words:
@@ -285,3 +290,32 @@ def test_parameters_checked_after_traverse_updates(llvm):
     # the texture went back to its last valid values
     assert tex.octaves == 5 and float(tex.period[0]) == 1.0
     np.testing.assert_array_equal(eval_at(tex, random_points(50, seed=15)), before)
+
+
+def test_xml_ramps_as_rgb_colours(variant):
+    one = mi.load_string('<texture version="3.0.0" type="marble">'
+                         '<rgb name="ramp" value="0.2 0.4 0.6"/></texture>')
+    np.testing.assert_allclose(eval_at(one, random_points(5)), [[0.2, 0.4, 0.6]] * 5, atol=1e-6)
+    two = mi.load_string('<texture version="3.0.0" type="marble"><rgb name="ramp_0" value="1 0 0"/>'
+                         '<rgb name="ramp_1" value="0 0 1"/></texture>')
+    same = texture(ramp="1 0 0, 0 0 1")
+    np.testing.assert_allclose(eval_at(two, random_points(50)), eval_at(same, random_points(50)),
+                               atol=1e-6)
+    with pytest.raises(Exception, match="without gaps"):
+        mi.load_string('<texture version="3.0.0" type="marble"><rgb name="ramp_0" value="1 0 0"/>'
+                       '<rgb name="ramp_2" value="0 0 1"/></texture>')
+
+
+def test_to_world_is_in_traverse_and_edits_apply(llvm):
+    moved = mi.load_dict({"type": "marble", "to_world": mi.ScalarTransform4f().translate([0.3, 0, 0])})
+    plain = texture()
+    pts = random_points(200)
+    assert np.abs(eval_at(moved, pts) - eval_at(plain, pts)).max() > 0.05
+    params = mi.traverse(moved)
+    params["to_world"] = mi.Transform4f()
+    params.update()
+    np.testing.assert_allclose(eval_at(moved, pts), eval_at(plain, pts), atol=1e-6)
+    params["to_world"] = mi.Transform4f().scale([1.0, 0.0, 1.0])
+    with pytest.raises(marble_module.MarbleParameterError, match="singular"):
+        params.update()
+    np.testing.assert_allclose(eval_at(moved, pts), eval_at(plain, pts), atol=1e-6)   # restored
