@@ -94,8 +94,18 @@ def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
 
 def _spp(args, scene) -> int:
     from .scene import LIMITS
+    from .scene.model import samples_per_axis
     spp = scene.image.samples if args.spp is None else args.spp
-    _check_spp(spp, getattr(args, "mode", "whitted") == "whitted")
+    whitted = getattr(args, "mode", "whitted") == "whitted"
+    if args.spp is None and whitted:
+        try:
+            samples_per_axis(spp)
+        except ValueError:
+            where = f"{scene.source or args.scene}:{scene.image.pos or '?'}"
+            raise UsageError(f"{where}: samples {spp}: whitted mode (and the reference tracer) "
+                             f"sample an n×n grid, so it must be a perfect square (1, 4, 9, 16, …); "
+                             f"path mode takes any count (--mode path), or override it with --spp")
+    _check_spp(spp, whitted)
     samples = scene.image.width * scene.image.height * spp
     if samples > LIMITS["max_image_samples"]:
         raise UsageError(f"--spp {spp}: {scene.image.width}x{scene.image.height} pixels at {spp} "

@@ -205,3 +205,15 @@ def test_go_keeps_paths_relative_to_where_the_user_stands(tmp_path, small_scene)
     assert result.returncode == 0, result.stderr
     assert (tmp_path / "my.png").exists()
     assert not os.path.exists(os.path.join(ROOT, "my.png"))
+
+
+def test_a_non_square_sample_count_renders_in_path_mode_only(tmp_path):
+    scene = tmp_path / "three.scene"
+    scene.write_text(SMALL.replace("samples 4", "samples 3"))
+    whitted = mimarble_cli("render", scene, "-o", tmp_path / "w.png")
+    assert whitted.returncode == 2 and f"{scene}:1:1: samples 3" in whitted.stderr
+    assert "--mode path" in whitted.stderr and "Traceback" not in whitted.stderr
+    path = mimarble_cli("render", scene, "--mode", "path", "-o", tmp_path / "p.png")
+    assert path.returncode == 0, path.stderr and "3 spp" in path.stdout
+    reference = mimarble_cli("reference", scene, "-o", tmp_path / "r.png")
+    assert reference.returncode == 2 and "perfect square" in reference.stderr

@@ -247,7 +247,7 @@ def test_missing_file_is_a_scene_error(tmp_path):
     path = tmp_path / "nope.scene"
     with pytest.raises(SceneError) as info:
         load(path)
-    assert str(info.value) == f"{path}: cannot read scene file: no such file"
+    assert str(info.value) == f"{path}: cannot read scene file: no such file (looked for {path})"
     assert info.value.line is None
 
 

@@ -57,7 +57,6 @@ def check(text: str, line: int, column: int, fragment: str) -> SceneError:
         ("image { height 16385 }", 1, 16, "height must be in 1..16384"),
         ("image { width 10.5 }", 1, 15, "width must be an integer"),
         ("image { samples 0 }", 1, 17, "samples must be in 1.."),
-        ("image { samples 8 }", 1, 17, "samples must be a perfect square"),
         ("image { width 16384 height 16384 samples 4 }", 1, 34, "image too large"),
         ("image { width 16384\n height 16385 }", 2, 9, "height must be in 1..16384"),
         # camera

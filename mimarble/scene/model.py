@@ -121,9 +121,10 @@ def samples_per_axis(spp) -> int:
 class Image:
     """``image { width W height H samples S background <r g b> }``.
 
-    ``samples`` is the number of samples per pixel, a perfect square n*n:
-    pixels are sampled at the centres of an n x n stratified grid (the pixel
-    centre when ``samples == 1``). ``samples_per_axis`` is n.
+    ``samples`` is the number of samples per pixel. Whitted mode and the
+    reference tracer need a perfect square n*n: pixels are sampled at the
+    centres of an n x n stratified grid (the pixel centre when ``samples == 1``),
+    ``samples_per_axis`` is n; path mode takes any count.
     """
 
     width: int = 500

@@ -168,8 +168,8 @@ def _decode(data: bytes, filename: str) -> str:
             line_end = len(data)
         column = len(data[line_start:start].decode("utf-8", "replace")) + 1
         src = data[line_start:line_end].decode("utf-8", "replace").rstrip("\r")
-        if any(ch == "\ufffd" or (ord(ch) < 32 and ch != "\t") for ch in src):
-            src = None   # a binary file: its bytes would only garble the terminal
+        if any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in src):
+            src = None   # control characters: a binary file, whose bytes would garble the terminal
         raise SceneError(
             f"invalid UTF-8 byte 0x{data[start]:02x}: scene files must be UTF-8 text",
             filename=filename,
@@ -497,14 +497,9 @@ class _Builder:
         samples = d.samples
         if "samples" in f:
             tok = f["samples"].children[0]
+            # Any count: path mode takes any; whitted mode and the reference tracer need a
+            # perfect square (their n×n grid) and say so when asked to render it.
             samples = self.integer(tok, "samples", 1, LIMITS["max_image_samples"])
-            n = math.isqrt(samples)
-            if n * n != samples:
-                raise self.error(
-                    tok,
-                    f"samples must be a perfect square (1, 4, 9, 16, ...) for the n x n pixel grid, "
-                    f"found {tok}",
-                )
         total = width * height * samples
         if total > LIMITS["max_image_samples"]:
             where = f.get("samples") or f.get("width") or f.get("height") or st
