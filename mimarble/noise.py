@@ -92,8 +92,9 @@ def _pair_table(uint_type):
     """P[k] | P[k+1] << 8 for k in 0..511 (P doubled, and doubled again at the end).
 
     Perlin's code always reads P[k] together with P[k+1] (the two corners
-    along one axis), so one gather of a packed pair replaces two: 7 gathers per
-    noise instead of 14, bit for bit the same hashes. A tuple in scalar mode.
+    along one axis), so one gather of a packed pair replaces two (the last four
+    of the 5 gathers per noise; :func:`_corner_table` does the first two levels),
+    bit for bit the same hashes. A tuple in scalar mode.
     """
     p = PERMUTATION * 3
     pairs = tuple(p[k] | (p[k + 1] << 8) for k in range(512))
