@@ -285,7 +285,10 @@ def build_parser() -> argparse.ArgumentParser:
                                           "default: the scene's name with .png, here")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
-                   help="whitted: the paper's shading (default); path: physically based")
+                   help="whitted: the paper's shading (default); path: physically based — "
+                        "marble as a dielectric (a highlight of a few percent, not the paper's "
+                        "Phong highlight), black background, noisy at few samples (use --spp 256); "
+                        "see docs/rendering-model.md")
     add_size(p)
     add_variant(p)
     p.set_defaults(run=_render)

@@ -180,6 +180,7 @@ def test_translator_path_mode_uses_standard_bsdfs_and_converts_light_power():
     scene = sl.load("scenes/fig11a.scene")
     d = to_mitsuba(scene, mode="path", spp=16)
     assert d["sphere_0"]["bsdf"]["type"] == "roughplastic"
+    assert d["sphere_0"]["bsdf"]["int_ior"] == 1.6          # calcite: a deliberate choice
     light = scene.lights[0]
     d2 = math.dist(light.position, scene.camera.lookat) ** 2
     assert d["light_0"]["intensity"]["value"][0] == pytest.approx(light.color[0] * math.pi * d2)
