@@ -389,7 +389,7 @@ def format_report(data: dict) -> str:
         lines.append(f"  (colour bound > 1/255 from |p| = {first_bad:.1e} in this table)")
     t = data.get("timing")
     if t:
-        lines += ["", f"Cost of float64: fractal3, {t['points']:,} points, {t['octaves']} octaves, "
+        lines += ["", f"Cost of float64 ({_cpu()}): fractal3, {t['points']:,} points, {t['octaves']} octaves, "
                       f"median of {t['repeats']} after warm-up: float32 {t['float32_s'] * 1e3:.1f} ms, "
                       f"float64 {t['float64_s'] * 1e3:.1f} ms ({t['ratio']:.2f}x)"]
     lines.append(f"({data['seconds']:.1f} s)")
@@ -398,3 +398,10 @@ def format_report(data: dict) -> str:
 
 if __name__ == "__main__":   # python -m mimarble.stress
     print(format_report(run_stress()))
+
+
+def _cpu() -> str:
+    """The machine a timing belongs to (CPU model and cores)."""
+    from .bench import machine_facts
+    facts = machine_facts()
+    return f"{facts['processor']}, {facts['cores']} cores"
