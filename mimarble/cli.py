@@ -215,7 +215,7 @@ def _bench(args) -> int:
                          "give it among the scenes or pass --no-targets")
     results = bench.run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
                               converged_spp=args.converged_spp, targets=targets_scene,
-                              paper=not args.no_paper)
+                              paper=not args.no_paper, povray=not args.no_povray)
     print(bench.format_report(results))
     try:
         if args.json:
@@ -320,6 +320,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--converged-spp", type=int, default=64, help="reference spp (default 64)")
     p.add_argument("--no-targets", action="store_true", help="skip the issue's target measurements")
     p.add_argument("--no-paper", action="store_true", help="skip the comparison with the paper")
+    p.add_argument("--no-povray", action="store_true",
+                   help="skip timing POV-Ray 3.7 on a comparable marble sphere (done with the "
+                        "targets when `povray` is installed)")
     add_variant(p)
     p.set_defaults(run=_bench)
 
