@@ -2,7 +2,8 @@
 
 Each was silently wrong once: Mitsuba's default clip planes dropped a huge far sphere
 and a tiny near one; a large "ground sphere" got shadow acne and false shadows from
-float32 hit points (mimarble/mitsuba/sphere_hit.py). Targets: ≥ 50 dB PSNR and
+float32 hit points (mimarble/mitsuba/sphere_hit.py); shadow rays stopped short of a light
+enclosed by a tiny sphere. Targets: ≥ 50 dB PSNR and
 ≤ 0.2 % of pixels off by more than 1/255, as for the paper's scenes.
 """
 
@@ -80,6 +81,15 @@ def test_a_ground_sphere_under_grazing_light(llvm, light):
     assert_agrees(ground(1e4, light))
 
 
+def test_a_light_inside_a_tiny_sphere_lights_nothing_outside_it(variant):
+    # Mitsuba's spawn_ray_to stops shadow rays 8.9e-4 of the distance short of the light,
+    # which let this light (enclosed to 3.5e-4 of its distance) through.
+    model = scene("eye < 0 0 6 > lookat < 0 0 0 >", "0 10 10",
+                  [("0 0 0", 1.0, "g"), ("0 10 10", 0.005, "g")], size=24)
+    image = assert_agrees(model)
+    assert np.allclose(image[12, 12], 0.1 * np.ones(3), atol=1e-6)   # ambient only: 0.5 · 0.2
+
+
 def test_clip_planes_enclose_every_sphere():
     model = scene("eye < 0 0 3 > lookat < 0 0 0 >", "1 2 4",
                   [("0 0 0", 1.0, "m"), ("0 0 0", 10.0, "g"), ("100 0 0", 5.0, "m")])
@@ -88,6 +98,8 @@ def test_clip_planes_enclose_every_sphere():
     assert far >= (100 ** 2 + 3 ** 2) ** 0.5 + 5   # the far side of the sphere at x = 100
     on_surface = scene("eye < 0 0 1 > lookat < 0 0 0 >", "1 2 4", [("0 0 0", 1.0, "m")])
     assert clip_planes(on_surface)[0] > 0
+    huge = scene("eye < 0 0 3 > lookat < 0 0 0 >", "1 2 4", [("0 0 -3e38", 3e38, "m")])
+    assert np.isfinite(np.float32(clip_planes(huge)[1]))     # an infinite far_clip makes NaN rays
 
 
 def test_a_sphere_beyond_float32s_reach_is_warned_about_at_its_position():
@@ -99,3 +111,19 @@ def test_a_sphere_beyond_float32s_reach_is_warned_about_at_its_position():
         warnings.simplefilter("error", Float32RangeWarning)
         mimarble.to_mitsuba(ground(1e7))
         mimarble.to_mitsuba(mimarble.scene.load("scenes/fig11a.scene"))
+
+
+def test_what_mitsubas_cpu_ray_tracer_cannot_reach_is_warned_about():
+    """Embree drops coordinates past ±1.844e18; a point light's 1/d² underflows past 2⁶³."""
+    beyond = scene("eye < 0 0 6 > lookat < 0 0 0 >", "0 5e18 0",
+                   [("0 0 0", 1.0, "m"), ("0 -2e18 0", 1.9e18, "g")])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        mimarble.to_mitsuba(beyond)
+    messages = [str(w.message) for w in caught if issubclass(w.category, Float32RangeWarning)]
+    assert any(m.startswith("extreme.scene:8:1: sphere of radius 1.9e+18 reaches 3.9e+18")
+               for m in messages), messages
+    assert any(m.startswith("extreme.scene:4:1: light 8.9e+18 from") for m in messages), messages
+    far_eye = scene("eye < 0 0 2e18 > lookat < 0 0 0 >", "0 5 0", [("0 0 0", 1e18, "m")])
+    with pytest.warns(Float32RangeWarning, match=r"extreme\.scene:2:1: the eye at 2e\+18"):
+        mimarble.to_mitsuba(far_eye)

@@ -3,30 +3,36 @@
 Mitsuba's ``sphere`` solves the ray's quadratic in float32 in the AD variants and
 re-projects the hit as p = c + r·n in float32, so a hit on a large sphere is off
 by about ulp(|c| + r): 1e-3 on a "ground sphere" of radius 10⁴ under a unit
-sphere. That error is far larger than Mitsuba's spawn offset (≈ 5e-6·(1 + |p|)),
-so shadow rays from such a floor start inside it and find it again: speckled
-acne and false shadows (14 dB against the reference tracer).
+sphere. That error is far larger than Mitsuba's spawn offset
+((1 + max|p_k|)·RayEpsilon, RayEpsilon = 1500·2⁻²⁴ ≈ 8.9e-5), so shadow rays from
+such a floor start inside it and find it again: speckled acne and false shadows
+(14 dB against the reference tracer).
 
 The cure keeps Mitsuba's intersection (it decides *which* sphere is hit) and
 then, on the sphere it found, in float64:
 
 * solve |o + t·d − c|² = r² by the numerically stable quadratic and take the
   root nearest Mitsuba's t, so p = o + t·d is exact to float64 and then rounded
-  once to float32; the normal is (p − c)/r;
-* start the shadow ray δ along the (viewer-facing) normal, with δ above the
-  error of Mitsuba's own float32 intersection of that ray with that sphere.
-  That error is a few ulp(|c| + r) in the ray's distance to the surface (the
-  quadratic is solved from o − c, |o'|² − r² and a projection, each rounded at
-  the scale |c| + r), and a ray leaving a convex sphere only meets it again
-  through such an error, whatever its angle (the miss margin and the error of
-  the crossing both scale with 1/cos of the angle to the normal). So
-  δ = SHADOW_OFFSET_ULPS · 2⁻²³ · (max|c_k| + r + max|p_k|), measured in
-  docs/rendering-model.md, and never below Mitsuba's own spawn offset
-  (1 + max|p_k|)·RayEpsilon, which is the larger for unit-sized spheres.
+  once to float32; the normal is (p − c)/r.
 
-Non-sphere shapes keep Mitsuba's hit and its spawn offset. The sphere table is
-indexed by the shape's registry id, clamped into the table, so the gathers are
-in bounds by construction.
+Shadow rays follow the rendering model's contract (docs/rendering-model.md,
+"Shadows"): from p′ = p + ε·n, ε = EPS_REL·(1 + max|p_k|) with the reference
+tracer's EPS_REL = 1e-4 (not Mitsuba's RayEpsilon: the 10 % difference moved
+shadow edges by a sample), to the light along the whole segment. When Mitsuba's
+float32 test says such a ray meets its *own* sphere first, the answer is
+checked again along the same line, from the point where the ray is
+δ = SHADOW_OFFSET_ULPS · 2⁻²³ · (max|c_k| + r + max|p_k|) above the surface: δ
+bounds the error of Mitsuba's own float32 intersection of that ray with that
+sphere (the quadratic is solved from o − c, a projection onto the ray and
+|o′|² − r², each rounded at the scale |c| + r, and the origin p′ at |p|), so
+past it the sphere is only met where it really is: never on the lit outside of
+a convex sphere, across the inside when the hit was seen from within. Staying
+on the reference's line (rather than moving the origin δ along the normal) keeps
+contact shadows where they are.
+
+Non-sphere shapes keep Mitsuba's hit. The sphere table is indexed by the
+shape's registry id, clamped into the table, so the gathers are in bounds by
+construction.
 """
 
 from __future__ import annotations
@@ -38,6 +44,14 @@ dr, mi = environment.import_drjit_and_mitsuba()
 #: Shadow-ray offset in units of 2⁻²³·(max|c_k| + r + max|p_k|) (≈ ulps of that scale).
 SHADOW_OFFSET_ULPS = 2.0
 _ULP = 2.0 ** -23
+#: The rendering model's shadow-ray offset ε = EPS_REL·(1 + max|p_k|) (the reference
+#: tracer's ``EPS_REL``; repeated here, as that package must not be imported by this one).
+EPS_REL = 1e-4
+#: Shadow rays stop this fraction short of the light. Mitsuba's ``spawn_ray_to`` stops
+#: ShadowEpsilon = 8.9e-4 short (meant for area lights' own shapes; point lights have
+#: none), which let a light enclosed by a sphere of radius < 8.9e-4 of its distance
+#: light everything (16 dB); 2⁻²⁰ is still 4× the float32 error of that hit.
+SHADOW_END_REL = 2.0 ** -20
 
 
 def _sphere_geometry(shape):
@@ -69,10 +83,11 @@ class SphereTable:
                         column[shape_id] = value
             self.size = size
             self.columns = [mi.Float64(c) for c in columns]
-        # Whether Mitsuba's float32 error on some sphere can exceed its spawn offset
-        # (then refine() works in float64 and occluded() looks for false hits on the own sphere).
+        # Whether Mitsuba's float32 error on some sphere can reach the shadow-ray offset
+        # ε ≥ EPS_REL (max|c_k| + r > 419): then refine() works in float64 and occluded()
+        # looks for false hits on the own sphere; below it both would change nothing.
         scales = [max(map(abs, g[0])) + g[1] for g in self.geometry if g is not None]
-        self.large = any(SHADOW_OFFSET_ULPS * _ULP * x > mi.math.RayEpsilon for x in scales)
+        self.large = any(SHADOW_OFFSET_ULPS * _ULP * x > EPS_REL for x in scales)
 
     def lookup(self, shape):
         """(centre: Point3d, radius: Float64) per lane; radius 0 where no sphere was hit."""
@@ -95,8 +110,8 @@ def refine(table: SphereTable, ray, si, hit):
     Mitsuba hit a sphere (Mitsuba's own p and n elsewhere).
 
     Scenes without a large sphere keep Mitsuba's hit as it is: its error is then
-    below its own spawn offset, and the refinement would cost ~10 % of a render
-    (fig11a 500², 1 spp, AMD EPYC: 31.5 → 34.5 ms).
+    below the shadow-ray offset, and the refinement would cost ~18 % of a render
+    (fig11a 500², 1 spp, 2-core AMD EPYC: 29.8 → 35.3 ms).
     """
     if not table.large:
         return si.p, mi.Vector3f(si.n), mi.Bool(False) & hit
@@ -123,33 +138,25 @@ def refine(table: SphereTable, ray, si, hit):
     return p, n, on_sphere
 
 
-def _largest_component(v):
-    return dr.maximum(dr.maximum(dr.abs(v.x), dr.abs(v.y)), dr.abs(v.z))
-
-
 def _ray_to(origin, target, time, wavelengths):
     to_target = target - origin
     distance = dr.norm(to_target)
-    return mi.Ray3f(origin, to_target / distance, distance * (1.0 - mi.math.ShadowEpsilon),
+    return mi.Ray3f(origin, to_target / distance, distance * (1.0 - SHADOW_END_REL),
                     time, wavelengths)
 
 
 def occluded(scene, table: SphereTable, si, p, n_facing, on_sphere, target, active):
     """The paper's ``shadowHit``: does anything lie between the hit and ``target``?
 
-    From p offset along the viewer-facing normal n by Mitsuba's own spawn rule,
-    (1 + max|p_k|)·RayEpsilon. A ray leaving a sphere on its lit side cannot meet
-    that sphere again, so when Mitsuba's float32 intersection says it does (the
-    error of a large sphere exceeds that offset), the test is repeated from
-    δ = SHADOW_OFFSET_ULPS·2⁻²³·(max|c_k| + r + max|p_k|) along n, beyond that
-    error; only those lanes pay for it, and only scenes with a sphere large
-    enough to need it trace it (:attr:`SphereTable.large`). Non-sphere hits use
-    Mitsuba's ``spawn_ray_to``.
+    From p′ = p + ε·n_facing, ε = EPS_REL·(1 + max|p_k|), as the reference tracer
+    (n_facing faces the light on every lane that asks). In scenes with a sphere
+    large enough for Mitsuba's float32 error to matter (:attr:`SphereTable.large`),
+    a ray whose first hit is its own sphere is tested again along the same line
+    from where it is δ above the surface (module docstring); only those lanes pay
+    for the second ray.
     """
-    theirs = si.spawn_ray_to(target)
-    near = dr.select(on_sphere, p + n_facing * ((1.0 + _largest_component(p)) * mi.math.RayEpsilon),
-                     theirs.o)
-    ray = _ray_to(near, target, theirs.time, theirs.wavelengths)
+    origin = p + n_facing * ((1.0 + _largest_component(p)) * EPS_REL)
+    ray = _ray_to(origin, target, si.time, si.wavelengths)
     if not table.large:
         return scene.ray_test(ray, active)
     first = scene.ray_intersect_preliminary(ray, active)
@@ -158,5 +165,8 @@ def occluded(scene, table: SphereTable, si, p, n_facing, on_sphere, target, acti
     centre, radius = table.lookup(si.shape)
     scale = _largest_component(centre) + radius + mi.Float64(_largest_component(p))
     delta = mi.Float(scale * (SHADOW_OFFSET_ULPS * _ULP))
-    retry = _ray_to(p + n_facing * delta, target, theirs.time, theirs.wavelengths)
+    # δ above the surface along a ray that leaves it at cos θ = n·d. Below cos θ = 1e-3
+    # the light grazes the surface and n·l (the diffuse term) is < 1e-3 anyway.
+    skip = dr.minimum(delta / dr.maximum(dr.dot(n_facing, ray.d), 1e-3), 0.5 * ray.maxt)
+    retry = mi.Ray3f(ray(skip), ray.d, ray.maxt - skip, ray.time, ray.wavelengths)
     return (blocked & ~own) | (own & scene.ray_test(retry, own))

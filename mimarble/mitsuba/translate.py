@@ -69,10 +69,18 @@ def clip_planes(scene: model.Scene) -> tuple[float, float]:
     A sphere of centre c and radius r lies between ||c − e| − r| and |c − e| + r
     of the eye e (inside it too), so: far just past the farthest of these, near
     half the nearest — never below the reference tracer's smallest hit distance,
-    so an eye on a surface still sees what the reference sees. The perspective
-    sensor starts rays on the near plane and inverts its float32 projection
-    matrix, which stays accurate however large far/near is: near only scales
-    the camera-space point that is then normalised.
+    so an eye on a surface still sees what the reference sees.
+
+    How ``perspective`` uses them (src/sensors/perspective.cpp): a ray starts on
+    the near plane, o = e + d·near/d_z, with maxt = (far − near)/d_z, and its
+    direction comes from the inverse projection, which Mitsuba writes down in
+    closed form (``Transform::perspective``): a film point maps to
+    (x·tan·near, y·tan·near, near), then normalised, so the ratio far/near costs
+    no precision however large it is. What float32 does not tolerate is an
+    infinite far (> 3.4e38): the inverse's term (near − far)/(far·near) becomes
+    inf/inf = NaN and so does every ray. So far is capped at 2¹²⁵ (4.3e37); only
+    a sphere beyond Embree's ±1.8e18 (warned about below) gets near it. Near is
+    at least 1e-6, far at least 2·near, both normal float32 numbers.
     """
     eye = scene.camera.eye
     if not scene.spheres:
@@ -81,12 +89,16 @@ def clip_planes(scene: model.Scene) -> tuple[float, float]:
     farthest = max(d + s.radius for d, s in zip(distances, scene.spheres))
     nearest = min(abs(d - s.radius) for d, s in zip(distances, scene.spheres))
     near = max(0.5 * nearest, _NEAREST_HIT_REL * (1.0 + max(map(abs, eye))))
-    far = max(farthest * (1.0 + 1e-3), 2.0 * near)
+    far = min(max(farthest * (1.0 + 1e-3), 2.0 * near), _FAR_CLIP_MAX)
     return near, far
 
 
+#: The largest far_clip (see clip_planes): finite in float32 with room to spare.
+_FAR_CLIP_MAX = 2.0 ** 125
+
+
 class Float32RangeWarning(UserWarning):
-    """A sphere Mitsuba's float32 intersection cannot place precisely enough from this eye."""
+    """A sphere, eye or light beyond what Mitsuba's float32 (and Embree's) arithmetic reaches."""
 
 
 # float32's unit roundoff·2: the scale of Mitsuba's intersection error on a sphere is
@@ -95,22 +107,62 @@ class Float32RangeWarning(UserWarning):
 # surface, and fails from 3.2× on; the warning comes from 1×.
 _FLOAT32_ERROR_SCALE = 2.0 ** -23
 
+# Embree, Mitsuba's ray tracer in the scalar and LLVM variants, takes coordinates only in
+# ±1.844e18 (its FLT_LARGE): a sphere whose bounding box reaches past it is dropped, and a
+# ray from beyond it meets nothing (measured: radius 1.8e18 at the origin is hit, 1.85e18
+# is not). Warned from 1.8e18.
+_EMBREE_LIMIT = 1.8e18
+
+# A point light's weight I/d² is a float32 below 2⁻¹²⁶ (flushed to zero) once d ≥ 2⁶³
+# ≈ 9.2e18: the light then lights nothing (measured: 6.1e18 right, 9.8e18 dark). Warned
+# from 2⁶² (a light's distance to the farthest point of any sphere).
+_LIGHT_DISTANCE_LIMIT = 2.0 ** 62
+
+
+def _where(scene: model.Scene, node) -> str:
+    return f"{scene.source or '<scene>'}:{node.pos or '?'}"
+
 
 def float32_range_problems(scene: model.Scene) -> list[str]:
-    """One message per sphere whose float32 intersection error reaches the eye's distance to it."""
+    """One message per sphere, eye or light that Mitsuba cannot place precisely enough.
+
+    A sphere whose float32 intersection error reaches the eye's distance to it, or
+    which reaches past Embree's coordinate range; an eye past that range; a light so
+    far from the spheres that its float32 1/d² underflows.
+    """
     problems = []
     eye = scene.camera.eye
+    if max(map(abs, eye)) > _EMBREE_LIMIT:
+        problems.append(
+            f"{_where(scene, scene.camera)}: the eye at {max(map(abs, eye)):g} from the origin is "
+            f"beyond ±{_EMBREE_LIMIT:g}, the coordinates Mitsuba's CPU ray tracer (Embree) "
+            f"accepts: its rays meet nothing there (docs/rendering-model.md)")
     for sphere in scene.spheres:
-        error = _FLOAT32_ERROR_SCALE * (max(map(abs, sphere.center)) + sphere.radius)
+        extent = max(map(abs, sphere.center)) + sphere.radius
+        error = _FLOAT32_ERROR_SCALE * extent
         distance = abs(math.dist(sphere.center, eye) - sphere.radius)
-        if error > distance:
-            where = f"{scene.source or '<scene>'}:{sphere.pos or '?'}"
+        if extent > _EMBREE_LIMIT:
             problems.append(
-                f"{where}: sphere of radius {sphere.radius:g} at {max(map(abs, sphere.center)):g} "
-                f"from the origin is beyond float32's reach from this eye: Mitsuba's intersection "
-                f"error (~{error:.3g}) exceeds the eye's distance to its surface ({distance:.3g}), "
-                f"so the Mitsuba image may be wrong there (the reference tracer is float64; "
-                f"docs/rendering-model.md)")
+                f"{_where(scene, sphere)}: sphere of radius {sphere.radius:g} reaches "
+                f"{extent:g} from the origin, beyond ±{_EMBREE_LIMIT:g}, the coordinates "
+                f"Mitsuba's CPU ray tracer (Embree) accepts: Mitsuba drops it "
+                f"(docs/rendering-model.md)")
+        elif error > distance:
+            problems.append(
+                f"{_where(scene, sphere)}: sphere of radius {sphere.radius:g} at "
+                f"{max(map(abs, sphere.center)):g} from the origin is beyond float32's reach from "
+                f"this eye: Mitsuba's intersection error (~{error:.3g}) exceeds the eye's distance "
+                f"to its surface ({distance:.3g}), so the Mitsuba image may be wrong there (the "
+                f"reference tracer is float64; docs/rendering-model.md)")
+    for light in scene.lights:
+        farthest = max((math.dist(light.position, s.center) + s.radius for s in scene.spheres),
+                       default=0.0)
+        if farthest >= _LIGHT_DISTANCE_LIMIT:
+            problems.append(
+                f"{_where(scene, light)}: light {farthest:.3g} from the farthest sphere point it "
+                f"may light: from {2 * _LIGHT_DISTANCE_LIMIT:.3g} on, Mitsuba's float32 point "
+                f"light (intensity/distance²) underflows to zero, so it may light nothing there "
+                f"(docs/rendering-model.md)")
     return problems
 
 

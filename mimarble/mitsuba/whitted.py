@@ -8,8 +8,11 @@ back), with two-sided normal n and view direction v = −d::
 
 with h = normalize(l + v), point lights of intensity I_l *without* distance
 falloff, and V the paper's ``shadowHit``: n·l > 0 and Mitsuba's any-hit
-``ray_test`` finds nothing between p and the light. Every light contributes
-(no light is picked at random). A miss returns the background colour. The
+``ray_test`` finds nothing between p + ε·n (ε = 1e-4·(1 + max|p_k|), as the
+reference tracer) and the light. On large spheres, where Mitsuba's float32 hit
+is off by more than ε, p and n are first refined in float64 and a shadow ray's
+false hit on its own sphere is checked again (``sphere_hit.py``). Every light
+contributes (no light is picked at random). A miss returns the background colour. The
 integrator draws no random numbers: with a non-jittered ``stratified`` sampler
 and a ``box`` filter the image is deterministic (docs/rendering-model.md).
 
