@@ -147,9 +147,8 @@ def _render(args) -> int:
 
 def _reference(args) -> int:
     from . import reference
-    from .progress import report
-    return _render_to_file(args, lambda scene, spp: reference.render(
-        scene, spp=spp, progress=report(True, "reference")), "reference tracer (NumPy float64)")
+    return _render_to_file(args, lambda scene, spp: reference.render(scene, spp=spp, progress=True),
+                           "reference tracer (NumPy float64)")
 
 
 def _compare(args) -> int:
@@ -166,12 +165,11 @@ def _compare(args) -> int:
            for channel in material.channels().values()):
         print("mimarble: note: the scene has band-limited marble, which the reference tracer "
               "renders in full detail: expect them to differ", file=sys.stderr)
-    from .progress import report
     start = time.perf_counter()
     ours = mimarble.render(scene, spp=spp, progress=True)
     mitsuba_seconds = time.perf_counter() - start
     start = time.perf_counter()
-    ref = reference.render(scene, spp=spp, progress=report(True, "reference"))
+    ref = reference.render(scene, spp=spp, progress=True)
     reference_seconds = time.perf_counter() - start
     metrics = image_metrics(ours, ref)
     metrics.update(scene=str(args.scene), spp=spp, variant=mimarble.mi.variant(),

@@ -14,7 +14,8 @@ import math
 
 import numpy as np
 
-__all__ = ["image_metrics", "error_map", "ERROR_MAP_RANGE", "ERROR_MAP_COLORS", "colormap"]
+__all__ = ["image_metrics", "error_map", "ERROR_MAP_RANGE", "ERROR_MAP_COLORS", "colormap",
+           "ROWS_PER_CHUNK"]
 
 #: Default error range of :func:`error_map` (log scale): 1e-6 … 1e-1.
 ERROR_MAP_RANGE = (1e-6, 1e-1)
@@ -31,9 +32,14 @@ ERROR_MAP_COLORS = np.array([
 ])
 
 
+#: Rows compared at a time: the metrics and the error map need no full-size temporaries.
+ROWS_PER_CHUNK = 256
+
+
 def _pair(test, reference):
-    a = np.asarray(test, dtype=np.float64)
-    b = np.asarray(reference, dtype=np.float64)
+    """Both images as (H, W, C) arrays (views where possible, no float64 copies yet)."""
+    a = np.asarray(test)
+    b = np.asarray(reference)
     if a.shape != b.shape:
         raise ValueError(f"images differ in shape: {a.shape} vs {b.shape}")
     if a.ndim == 2:
@@ -41,6 +47,13 @@ def _pair(test, reference):
     if a.ndim != 3:
         raise ValueError(f"expected (H, W, C) or (H, W) images, got shape {a.shape}")
     return a, b
+
+
+def _row_chunks(a, b, rows=ROWS_PER_CHUNK):
+    """(first row, float64 difference test − reference) of each band of rows."""
+    for y0 in range(0, a.shape[0], rows):
+        yield y0, (np.asarray(a[y0:y0 + rows], dtype=np.float64)
+                   - np.asarray(b[y0:y0 + rows], dtype=np.float64))
 
 
 def image_metrics(test, reference) -> dict:
@@ -55,24 +68,30 @@ def image_metrics(test, reference) -> dict:
       |difference| exceeds 1/255.
 
     Non-finite values propagate (a NaN in either image gives NaN metrics).
+    Computed in float64, :data:`ROWS_PER_CHUNK` rows at a time (memory stays
+    bounded whatever the image size).
     """
     a, b = _pair(test, reference)
-    diff = a - b
-    if diff.size == 0:
+    if a.size == 0:
         raise ValueError("empty images")
-    rmse = float(np.sqrt(np.mean(diff * diff)))
+    squares, maxima, over = 0.0, [], 0
+    for _, diff in _row_chunks(a, b):
+        squares += float(np.sum(diff * diff))
+        per_pixel = np.max(np.abs(diff), axis=-1)
+        maxima.append(np.max(per_pixel))
+        over += int(np.count_nonzero(per_pixel > 1.0 / 255.0))
+    rmse = math.sqrt(squares / a.size)
     if rmse == 0.0:
         psnr = math.inf
     elif math.isnan(rmse):
         psnr = math.nan
     else:
         psnr = float(20.0 * math.log10(1.0 / rmse))
-    per_pixel = np.max(np.abs(diff), axis=-1)
     return {
         "rmse": rmse,
         "psnr": psnr,
-        "max_abs": float(np.max(np.abs(diff))),
-        "frac_over_1_255": float(np.mean(per_pixel > 1.0 / 255.0)),
+        "max_abs": float(np.max(maxima)),
+        "frac_over_1_255": over / (a.shape[0] * a.shape[1]),
     }
 
 
@@ -98,8 +117,11 @@ def error_map(test, reference, vmax=None, vmin=None) -> np.ndarray:
     if not (0.0 < lo < hi):
         raise ValueError(f"need 0 < vmin < vmax, got vmin={lo}, vmax={hi}")
     a, b = _pair(test, reference)
-    err = np.max(np.abs(a - b), axis=-1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = (np.log10(np.maximum(err, lo)) - math.log10(lo)) / (math.log10(hi) - math.log10(lo))
-    x = np.where(np.isnan(err), 1.0, x)
-    return np.round(colormap(x) * 255.0).astype(np.uint8)
+    out = np.empty(a.shape[:2] + (3,), dtype=np.uint8)
+    for y0, diff in _row_chunks(a, b):
+        err = np.max(np.abs(diff), axis=-1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = (np.log10(np.maximum(err, lo)) - math.log10(lo)) / (math.log10(hi) - math.log10(lo))
+        x = np.where(np.isnan(err), 1.0, x)
+        out[y0:y0 + err.shape[0]] = np.round(colormap(x) * 255.0)
+    return out

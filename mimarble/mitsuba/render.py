@@ -18,8 +18,8 @@ dr, mi = environment.import_drjit_and_mitsuba()
 IMAGE_FORMATS = (".png", ".exr")
 
 
-#: Samples traced at once. A whitted lane of fig11a holds about 200 bytes while its
-#: kernel runs, so a pass of 2²² samples stays under 1 GiB; larger images are
+#: Samples traced at once. A lane of fig11a costs about 85 bytes in whitted and in
+#: path mode (measured), so a pass of 2²² samples holds ~0.35 GiB; larger images are
 #: rendered in passes of whole pixels (docs/design-decisions.md, "Rendering").
 PASS_SAMPLES = 1 << 22
 
@@ -42,8 +42,10 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
     if total <= PASS_SAMPLES or not dr.is_jit_v(mi.Float):
+        done = report(progress, "render")
+        done(0, total)
         image = np.array(mi.render(mitsuba_scene), dtype=np.float32)[..., :3]
-        report(progress, "render")(total, total)
+        done(total, total)
         return image
     return render_in_passes(mitsuba_scene, spp, mode, progress)
 
@@ -74,6 +76,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     partial = np.zeros(3)                              # a pixel split over passes, so far
     done = report(progress, "render")
     samples_done, samples_total = 0, pixels * spp
+    done(0, samples_total)                             # a bar's delay counts from here
     pixels_per_pass = max(1, pass_samples // spp)
     samples_per_pass = min(spp, pass_samples)
     for index, (p0, q0, n_pixels, n_samples) in enumerate(
@@ -95,8 +98,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
         if ray.has_differentials:
             ray.scale_differential(1.0 / spp ** 0.5)
         radiance = integrator.sample(mitsuba_scene, sampler, ray, None, True)[0]
-        values = np.array(weight * radiance, dtype=np.float32).T.reshape(n_pixels, n_samples, 3)
-        sums = values.sum(axis=1, dtype=np.float64)
+        sums = _pixel_sums(weight * radiance, lanes, n_samples)
         if n_samples == spp:
             image[p0:p0 + n_pixels] = sums / spp
         else:
@@ -107,6 +109,19 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
         samples_done += lanes
         done(samples_done, samples_total)
     return image.reshape(height, width, 3)
+
+
+def _pixel_sums(value, lanes: int, n_samples: int) -> np.ndarray:
+    """Sums of each run of ``n_samples`` lanes of a Color3f, in float64 → (lanes/n_samples, 3).
+
+    Summed by Dr.Jit (``block_sum``), so only one value per pixel comes back to
+    NumPy; in float64, whose rounding is far below float32's.
+    """
+    value = mi.Color3d(value) + dr.zeros(mi.Color3d, lanes)   # constant channels: full width
+    dr.eval(value)                                             # one kernel for all channels
+    if n_samples > 1:
+        value = dr.block_sum(value, n_samples)
+    return np.array(value, dtype=np.float64).T
 
 
 def _passes(pixels: int, spp: int, pixels_per_pass: int, samples_per_pass: int):
@@ -123,9 +138,12 @@ def _passes(pixels: int, spp: int, pixels_per_pass: int, samples_per_pass: int):
 def write_image(path, image: np.ndarray) -> None:
     """Write linear RGB ``image`` to ``path`` (.exr: float; .png: 8-bit sRGB).
 
-    PNG: the sRGB transfer curve (IEC 61966-2-1, Mitsuba's ``srgb_gamma``) after
-    clamping to [0, 1]. The file is written under a temporary name in the same
-    folder and renamed into place, so a failure never leaves half a file.
+    PNG: what Mitsuba's ``Bitmap.convert(..., UInt8, srgb_gamma=True)`` makes of
+    the image after NaN → 0 and clamping to [0, 1] (:func:`srgb8`), converted a
+    band of rows at a time straight into the bitmap that is written, so the
+    only full-size arrays are ``image`` and the 8-bit result. The file is
+    written under a temporary name in the same folder and renamed into place,
+    so a failure never leaves half a file.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -133,28 +151,42 @@ def write_image(path, image: np.ndarray) -> None:
         raise ValueError(f"{path}: unsupported image format {suffix or '(none)'!r}; "
                          f"use {' or '.join(IMAGE_FORMATS)}")
     if suffix == ".png":
-        bitmap = mi.Bitmap(srgb8(image))
+        height, width = image.shape[:2]
+        bitmap = mi.Bitmap(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, [width, height])
+        srgb8(image, out=np.asarray(bitmap))     # a view of the bitmap's own pixels
     else:
         bitmap = mi.Bitmap(np.ascontiguousarray(image, dtype=np.float32))
     write_atomically(path, bitmap)
 
 
-def srgb8(image: np.ndarray, rows_per_chunk: int = 256) -> np.ndarray:
-    """Linear RGB → 8-bit sRGB (IEC 61966-2-1), NaN as 0, clamped to [0, 1].
+#: Mitsuba's 8-bit conversion dithers with a 256×256 threshold matrix indexed by the
+#: pixel's position in the converted block: bands of a multiple of 256 rows line up with it.
+DITHER_PERIOD = 256
 
-    What Mitsuba's ``Bitmap.convert(..., UInt8, srgb_gamma=True)`` computes
-    (checked in tests), a band of rows at a time, so the only full-size
-    array made is the 8-bit result.
+
+def srgb8(image: np.ndarray, out: np.ndarray | None = None,
+          rows_per_band: int = DITHER_PERIOD) -> np.ndarray:
+    """Linear RGB → 8-bit sRGB, exactly as Mitsuba converts the whole image.
+
+    NaN becomes 0 and values are clamped to [0, 1] (as ``write_image`` always
+    did), then Mitsuba's ``Bitmap.convert(RGB, UInt8, srgb_gamma=True)`` applies
+    the sRGB curve (IEC 61966-2-1) with its blue-noise dither (offsets in
+    [−½, ½) of a code value, a 256×256 pattern), a band of ``rows_per_band``
+    rows (a multiple of :data:`DITHER_PERIOD`) at a time: the result equals
+    converting the whole image at once (tests/test_tiled_render.py), with only
+    band-sized temporaries. ``out``: a uint8 (H, W, 3) array to fill.
     """
+    if rows_per_band % DITHER_PERIOD:
+        raise ValueError(f"rows_per_band={rows_per_band} must be a multiple of {DITHER_PERIOD}")
     height = image.shape[0]
-    out = np.empty(image.shape[:2] + (3,), dtype=np.uint8)
-    for y0 in range(0, height, rows_per_chunk):
-        x = np.nan_to_num(np.asarray(image[y0:y0 + rows_per_chunk, :, :3], dtype=np.float32),
-                          nan=0.0)
-        np.clip(x, 0.0, 1.0, out=x)
-        curve = np.where(x <= 0.0031308, 12.92 * x,
-                         1.055 * np.power(x, np.float32(1 / 2.4)) - 0.055)
-        out[y0:y0 + rows_per_chunk] = np.clip(np.rint(curve * 255.0), 0, 255)
+    if out is None:
+        out = np.empty(image.shape[:2] + (3,), dtype=np.uint8)
+    for y0 in range(0, height, rows_per_band):
+        # fmax/fmin: NaN → 0, and a clamp to [0, 1] (±inf → 1, 0), in two passes over the band.
+        band = np.fmax(image[y0:y0 + rows_per_band, :, :3], 0.0, dtype=np.float32)
+        np.fmin(band, 1.0, out=band)
+        out[y0:y0 + rows_per_band] = mi.Bitmap(band).convert(
+            mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, srgb_gamma=True)
     return out
 
 
@@ -163,7 +195,10 @@ def write_rgb8(path, pixels: np.ndarray) -> None:
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ValueError(f"{path}: 8-bit images are written as .png")
-    write_atomically(path, mi.Bitmap(np.ascontiguousarray(pixels, dtype=np.uint8)))
+    height, width = pixels.shape[:2]
+    bitmap = mi.Bitmap(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, [width, height])
+    np.asarray(bitmap)[...] = pixels                   # into the bitmap's pixels: no copy
+    write_atomically(path, bitmap)
 
 
 def _umask() -> int:

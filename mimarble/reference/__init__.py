@@ -14,6 +14,7 @@ The rendering contract both renderers follow is docs/rendering-model.md.
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from mimarble.scene import Scene, load
@@ -61,12 +62,29 @@ __all__ = [
 ]
 
 
-def render(scene: Scene | str | Path, spp: int | None = None, progress=None):
+#: A progress bar appears only once the render has taken this long (seconds).
+PROGRESS_DELAY_S = 1.5
+
+
+def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
     """Render a scene (model, or path to a scene file) -> float64 (H, W, 3), linear.
 
     ``spp=None`` uses ``scene.image.samples``; spp must be a perfect square n².
-    ``progress``: a callable ``progress(samples_done, samples_total)``, or None.
+    ``progress``: False or None for none; True for a tqdm bar on stderr, shown
+    once the render has taken :data:`PROGRESS_DELAY_S` and only when stderr is a
+    terminal; or a callable ``progress(samples_done, samples_total)``, called
+    before the first batch of rays and after each one.
     """
     if isinstance(scene, (str, Path)):
         scene = load(scene)
-    return _render(scene, spp=spp, progress=progress)
+    if callable(progress):
+        return _render(scene, spp=spp, progress=progress)
+    if not progress:
+        return _render(scene, spp=spp)
+    from tqdm import tqdm   # only here: the tracer itself needs nothing but NumPy
+    with tqdm(desc="reference", unit="sample", unit_scale=True, delay=PROGRESS_DELAY_S,
+              leave=False, file=sys.stderr, disable=None) as bar:
+        def update(done, total):
+            bar.total = total
+            bar.update(done - bar.n)
+        return _render(scene, spp=spp, progress=update)

@@ -425,7 +425,7 @@ def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS,
     n×n stratum centres per pixel, averaged. Rays are traced in batches of
     about ``chunk_rays`` (whole pixels), so memory stays bounded.
     ``progress``, if given, is called as ``progress(samples_done, samples_total)``
-    after each batch.
+    before the first batch (0 done) and after each one.
     """
     prep = prepare(scene)
     img = scene.image
@@ -434,6 +434,8 @@ def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS,
     ns = n * n
     pixels_per_chunk = max(1, int(chunk_rays) // ns)
     out = np.empty((H * W, 3), dtype=np.float64)
+    if progress is not None:
+        progress(0, H * W * ns)
     for p0 in range(0, H * W, pixels_per_chunk):
         p1 = min(H * W, p0 + pixels_per_chunk)
         x, y = sample_positions(W, H, n, p0, p1)
