@@ -81,7 +81,7 @@ import numpy as np
 
 from . import environment
 from .noise import MAX_OCTAVES, fractal3, fractal3_band_limited, fractal3_weighted
-from .plugins import plugin
+from .plugins import plugin, transform_matrix
 from .scene.model import AXES, FIG5_RAMP, MARBLE_FUNCTIONS
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -274,7 +274,7 @@ class Marble:
             for name in ("period", "distortion"):
                 check_number(name, _first(getattr(self, name)))
             if self.to_world is not None:
-                _check_invertible(_matrix_numpy(self.to_world))
+                _check_invertible(transform_matrix(self.to_world))
             octaves = check_octaves(int(_first(self.octaves_param)))
             colours = self._ramp_numpy()
             if colours.size == 0 or not np.isfinite(colours).all():
@@ -466,12 +466,6 @@ def _reduce_angle(x):
     """
     x = dr.select(dr.abs(x) < _LARGEST_MEANINGFUL_ANGLE, x, dr.select(dr.isnan(x), x, 0.0))
     return x - _TWO_PI * dr.floor(x * (1.0 / _TWO_PI))
-
-
-def _matrix_numpy(transform) -> np.ndarray:
-    m = transform.matrix
-    return np.array([[float(dr.ravel(m[i][j])[0]) if dr.is_jit_v(mi.Float) else float(m[i][j])
-                      for j in range(4)] for i in range(4)])
 
 
 def _check_invertible(matrix: np.ndarray) -> None:

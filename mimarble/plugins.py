@@ -13,6 +13,15 @@ from . import environment
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
+def transform_matrix(transform):
+    """A Mitsuba transform's 4×4 matrix as float64 NumPy, in every variant (a JIT
+    transform holds one matrix as width-1 arrays; a scalar one holds floats)."""
+    import numpy as np
+    m = transform.matrix
+    return np.array([[float(dr.ravel(m[i][j])[0]) if dr.is_jit_v(type(m)) else float(m[i][j])
+                      for j in range(4)] for i in range(4)])
+
+
 # kind -> (mitsuba base class name, registration function name)
 _KINDS = {
     "texture": ("Texture", "register_texture"),

@@ -10,8 +10,8 @@ ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = sorted((ROOT / "mimarble" / "reference").glob("*.py"))
 FORBIDDEN = ("mitsuba", "drjit", "mimarble.noise", "mimarble.marble", "mimarble.mitsuba",
              "mimarble.environment", "mimarble.cli")
-ALLOWED_THIRD_PARTY = ("numpy", "tqdm")   # tqdm: the optional progress bar of render()
-ALLOWED_PROJECT = ("mimarble.scene", "mimarble.reference")
+ALLOWED_THIRD_PARTY = ("numpy",)
+ALLOWED_PROJECT = ("mimarble.scene", "mimarble.reference", "mimarble.progress")
 
 
 def imported_modules(path, package):

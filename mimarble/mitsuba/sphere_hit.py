@@ -38,6 +38,7 @@ construction.
 from __future__ import annotations
 
 from .. import environment
+from ..plugins import transform_matrix
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -58,11 +59,9 @@ def _sphere_geometry(shape):
     """(centre, radius) of a Mitsuba sphere as float64 Python numbers, else None."""
     if shape.shape_type() != mi.ShapeType.Sphere:
         return None
-    m = mi.traverse(shape)["to_world"].matrix
-    rows = [[float(dr.ravel(m[i][j])[0]) if dr.is_jit_v(mi.Float) else float(m[i][j])
-             for j in range(4)] for i in range(4)]
-    centre = (rows[0][3], rows[1][3], rows[2][3])
-    radius = (rows[0][0] ** 2 + rows[1][0] ** 2 + rows[2][0] ** 2) ** 0.5   # as Mitsuba's sphere
+    m = transform_matrix(mi.traverse(shape)["to_world"])
+    centre = (float(m[0, 3]), float(m[1, 3]), float(m[2, 3]))
+    radius = float((m[0, 0] ** 2 + m[1, 0] ** 2 + m[2, 0] ** 2) ** 0.5)   # as Mitsuba's sphere
     return centre, radius
 
 

@@ -4,7 +4,8 @@ The project's ground truth for the Mitsuba path. It shares nothing with it but
 the parsed scene model (:mod:`mimarble.scene`): its own Perlin noise (Shirley's
 sum-of-ω form, :mod:`.noise`), its own marble (:mod:`.marble`), its own
 camera, sphere intersection, ``shadowHit`` and shading (:mod:`.tracer`). Its
-modules import only NumPy, the standard library and ``mimarble.scene``.
+modules import only NumPy, the standard library, ``mimarble.scene`` and
+``mimarble.progress`` (which loads tqdm only when a bar is asked for).
 
     >>> from mimarble import scene, reference
     >>> img = reference.render(scene.load("scenes/fig11a.scene"), spp=1)   # (500, 500, 3) float64
@@ -14,9 +15,9 @@ The rendering contract both renderers follow is docs/rendering-model.md.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
+from mimarble.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
 from mimarble.scene import Scene, load
 
 from . import marble, noise, tracer
@@ -62,29 +63,15 @@ __all__ = [
 ]
 
 
-#: A progress bar appears only once the render has taken this long (seconds).
-PROGRESS_DELAY_S = 1.5
-
-
 def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
     """Render a scene (model, or path to a scene file) -> float64 (H, W, 3), linear.
 
     ``spp=None`` uses ``scene.image.samples``; spp must be a perfect square n².
     ``progress``: False or None for none; True for a tqdm bar on stderr, shown
-    once the render has taken :data:`PROGRESS_DELAY_S` and only when stderr is a
+    once the render has taken :data:`mimarble.progress.DELAY_S` and only when stderr is a
     terminal; or a callable ``progress(samples_done, samples_total)``, called
     before the first batch of rays and after each one.
     """
     if isinstance(scene, (str, Path)):
         scene = load(scene)
-    if callable(progress):
-        return _render(scene, spp=spp, progress=progress)
-    if not progress:
-        return _render(scene, spp=spp)
-    from tqdm import tqdm   # only here: the tracer itself needs nothing but NumPy
-    with tqdm(desc="reference", unit="sample", unit_scale=True, delay=PROGRESS_DELAY_S,
-              leave=False, file=sys.stderr, disable=None) as bar:
-        def update(done, total):
-            bar.total = total
-            bar.update(done - bar.n)
-        return _render(scene, spp=spp, progress=update)
+    return _render(scene, spp=spp, progress=report(progress, "reference"))
