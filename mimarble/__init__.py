@@ -4,43 +4,91 @@ Importing the package chooses a libLLVM that cannot abort the process (before
 Dr.Jit loads one), sets a Mitsuba variant if none is set yet (``cuda_ad_rgb``
 with a usable GPU, else ``llvm_ad_rgb``, else ``scalar_rgb``; ``$MIMARBLE_VARIANT``
 overrides), and registers the ``marble`` texture for every variant.
+
+The ``mimarble`` command's own process (its console script, ``python -m
+mimarble``) defers all of that to :func:`start`, which a command calls once it
+needs to render: help, usage errors and scene errors then answer before Dr.Jit
+and Mitsuba load (about 0.6 s saved; docs/design-decisions.md, "Start-up").
+Touching any of the names below that need them (``mimarble.render``,
+``mimarble.mi``, …) starts the package too.
 """
 
+import importlib
 import os
+import sys
 
-from . import environment, llvm_target
+from . import environment
 from .environment import EnvironmentProblem, use_variant
 
-environment.prepare_llvm()
-dr, mi = environment.import_drjit_and_mitsuba()
-
-# The CPU kernels' LLVM target, before any kernel is compiled (mimarble/llvm_target.py).
-if environment.llvm_backend_up():
-    llvm_target.configure()
-
-# MIMARBLE_JIT_DEBUG=1: Dr.Jit bounds-checks every gather, scatter and symbolic call,
-# masks the bad lanes and reports them on stderr (slower; `./go test --jit-debug`).
-if os.environ.get(environment.JIT_DEBUG_ENV) == "1":
-    environment.enable_bounds_checks()
-
-# A variant problem at import (a bad $MIMARBLE_VARIANT) must not break the
-# import: it is kept here, and raised again by whatever needs the variant.
-startup_problem = None
-if mi.variant() is None:
-    try:
-        use_variant()
-    except EnvironmentProblem as e:
-        startup_problem = e
-
-from . import noise  # noqa: E402
-from . import marble  # noqa: E402
-from . import plugins  # noqa: E402
-from . import mitsuba as _mitsuba  # noqa: E402  (declares the material and integrator)
-from . import scene  # noqa: E402
-from .mitsuba import render, to_mitsuba, write_image  # noqa: E402
-
-plugins.install()
-
-__all__ = ["EnvironmentProblem", "marble", "noise", "render", "scene", "to_mitsuba",
+__all__ = ["EnvironmentProblem", "marble", "noise", "render", "scene", "start", "to_mitsuba",
            "use_variant", "write_image"]
 __version__ = "0.1.0"
+
+# Names that exist once start() has run.
+_STARTED_NAMES = frozenset(("dr", "mi", "noise", "marble", "plugins", "render", "to_mitsuba",
+                            "write_image", "startup_problem"))
+_state = {"started": False, "starting": False}
+
+
+def start() -> None:
+    """Load Dr.Jit and Mitsuba the safe way, pick a variant, register the plugins; idempotent.
+
+    A variant problem (a bad ``$MIMARBLE_VARIANT``) does not raise here: it is
+    kept in ``mimarble.startup_problem`` and raised again by whatever needs the
+    variant.
+    """
+    if _state["started"] or _state["starting"]:
+        return
+    _state["starting"] = True
+    try:
+        dr, mi = environment.import_drjit_and_mitsuba()
+        startup_problem = None
+        if mi.variant() is None:
+            try:
+                use_variant()
+            except EnvironmentProblem as e:
+                startup_problem = e
+        modules = {name: importlib.import_module(f"{__name__}.{name}")
+                   for name in ("noise", "marble", "plugins", "mitsuba", "scene")}
+        mitsuba_side = modules["mitsuba"]   # declares the material and the integrator
+        globals().update(dr=dr, mi=mi, startup_problem=startup_problem,
+                         render=mitsuba_side.render, to_mitsuba=mitsuba_side.to_mitsuba,
+                         write_image=mitsuba_side.write_image,
+                         **{k: v for k, v in modules.items() if k != "mitsuba"})
+        modules["plugins"].install()
+        _state["started"] = True
+    finally:
+        _state["starting"] = False
+
+
+def __getattr__(name):
+    if name in _STARTED_NAMES:
+        start()
+        if name in globals():
+            return globals()[name]
+    elif name == "scene":                # the scene language imports neither Dr.Jit nor Mitsuba
+        return importlib.import_module(f"{__name__}.scene")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def _is_the_command_process() -> bool:
+    """Whether this process is the ``mimarble`` command: its console script or ``-m mimarble``."""
+    argv = list(getattr(sys, "orig_argv", ()))
+    i = 1
+    while i < len(argv):                 # the interpreter's own options, up to what it runs
+        arg = argv[i]
+        if arg == "-m":
+            return argv[i + 1:i + 2] in (["mimarble"], ["mimarble.cli"])
+        if arg.startswith("-m"):
+            return arg[2:] in ("mimarble", "mimarble.cli")
+        if arg in ("-X", "-W", "--check-hash-based-pycs"):
+            i += 2
+            continue
+        if arg == "-c" or arg == "-" or not arg.startswith("-"):
+            break
+        i += 1
+    return os.path.basename(sys.argv[0]) in ("mimarble", "mimarble.exe")
+
+
+if not _is_the_command_process():
+    start()

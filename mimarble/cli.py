@@ -14,6 +14,19 @@ import time
 from pathlib import Path
 
 
+def _start(args) -> None:
+    """Load Dr.Jit and Mitsuba and set the variant, now that the command needs them.
+
+    Everything before this (arguments, output names, the scene file) is checked
+    without them, so mistakes answer at once (mimarble/__init__.py).
+    """
+    import mimarble
+    from . import environment
+    environment.skip_mitsuba_ad_integrators()
+    mimarble.use_variant(args.variant)    # before start(), so the variant is set only once
+    mimarble.start()
+
+
 def _doctor(args) -> int:
     from . import environment
     rows, ok = environment.doctor(args.variant)
@@ -45,7 +58,7 @@ def _check_suffix(path: Path, suffixes, what: str) -> Path:
 
 
 def _output_path(args, default_suffix=".png") -> Path:
-    from .mitsuba.render import IMAGE_FORMATS
+    from .image_formats import IMAGE_FORMATS
     out = Path(args.output) if args.output else Path(Path(args.scene).stem + default_suffix)
     if out.is_dir():
         raise UsageError(f"{out}: is a folder; name the image file, e.g. "
@@ -58,9 +71,9 @@ def _load_scene(args):
     import dataclasses
     import warnings
 
-    import mimarble
+    from . import scene as scene_language
     from .scene import LIMITS
-    scene = mimarble.scene.load(args.scene)
+    scene = scene_language.load(args.scene)
     lo, hi = LIMITS["image_size"]
     size = {}
     for option in ("width", "height"):
@@ -123,17 +136,20 @@ def _write(out: Path, image, eight_bit: bool = False) -> None:
         raise UsageError(f"{out}: could not write the image: {e}") from None
 
 
-def _render_to_file(args, renderer, description: str) -> int:
-    """Load, check arguments, render, write whole, report: shared by render and reference."""
-    import mimarble
+def _render_to_file(args, renderer, description) -> int:
+    """Load, check arguments, render, write whole, report: shared by render and reference.
+
+    ``description()`` names the renderer once it has started.
+    """
     out = _output_path(args)
     scene = _load_scene(args)
     spp = _spp(args, scene)
+    _start(args)
     start = time.perf_counter()
     image = renderer(scene, spp)
     seconds = time.perf_counter() - start
     _write(out, image)
-    print(f"{out}: {scene.image.width}x{scene.image.height}, {spp} spp, {description}, "
+    print(f"{out}: {scene.image.width}x{scene.image.height}, {spp} spp, {description()}, "
           f"{seconds:.2f} s")
     return 0
 
@@ -142,25 +158,26 @@ def _render(args) -> int:
     import mimarble
     return _render_to_file(args, lambda scene, spp: mimarble.render(scene, spp=spp, mode=args.mode,
                                                                     progress=True),
-                           f"{args.mode} mode, {mimarble.mi.variant()}")
+                           lambda: f"{args.mode} mode, {mimarble.mi.variant()}")
 
 
 def _reference(args) -> int:
     from . import reference
     return _render_to_file(args, lambda scene, spp: reference.render(scene, spp=spp, progress=True),
-                           "reference tracer (NumPy float64)")
+                           lambda: "reference tracer (NumPy float64)")
 
 
 def _compare(args) -> int:
     import json
 
-    import mimarble
-    from . import reference
-    from .compare import error_map, image_metrics
     if args.diff:
         _check_folder(_check_suffix(Path(args.diff), (".png",), "error map"))
     scene = _load_scene(args)
     spp = _spp(args, scene)
+    _start(args)
+    import mimarble
+    from . import reference
+    from .compare import error_map, image_metrics
     if any(getattr(channel, "bandlimit", False) for material in scene.materials.values()
            for channel in material.channels().values()):
         print("mimarble: note: the scene has band-limited marble, which the reference tracer "
@@ -187,7 +204,6 @@ def _compare(args) -> int:
 
 
 def _bench(args) -> int:
-    from . import bench
     from . import scene as mimarble_scene
     from .scene import LIMITS
     scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
@@ -207,6 +223,8 @@ def _bench(args) -> int:
         _check_folder(_check_suffix(Path(args.plot), (".png", ".pdf", ".svg"), "plot"))
     for path in scenes:
         mimarble_scene.load(path)   # every scene error before minutes of measuring
+    _start(args)
+    from . import bench
     targets_scene = None if args.no_targets else bench.targets_scene(scenes)
     if not args.no_targets and targets_scene is None:
         raise UsageError("the targets are measured on scenes/fig11a.scene, which is not here; "
@@ -226,12 +244,13 @@ def _bench(args) -> int:
 
 
 def _stress(args) -> int:
-    from .stress import format_report, run_stress
-    from .bench import write_json
     if args.points < 1:
         raise UsageError(f"--points {args.points}: must be at least 1")
     if args.json:
         _check_folder(args.json)
+    _start(args)
+    from .stress import format_report, run_stress
+    from .bench import write_json
     data = run_stress(points=args.points)
     print(format_report(data))
     if args.json:
@@ -243,7 +262,6 @@ def _stress(args) -> int:
 
 
 def _gallery(args) -> int:
-    from .gallery import make_gallery
     from .scene import LIMITS
     scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
     if not scenes:
@@ -254,6 +272,8 @@ def _gallery(args) -> int:
     folder = Path(args.output)
     if folder.exists() and not folder.is_dir():
         raise UsageError(f"{folder}: exists and is not a folder")
+    _start(args)
+    from .gallery import make_gallery
     try:
         for out, seconds in make_gallery(scenes, folder, args.size, args.mode):
             print(f"{out} ({seconds:.2f} s)")
@@ -341,7 +361,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("doctor", help="show the libLLVM, variant and versions in use")
     add_variant(p)
-    p.set_defaults(run=_doctor, needs_variant=False)
+    p.set_defaults(run=_doctor)
     return parser
 
 
@@ -355,17 +375,14 @@ def main(argv=None) -> int:
     warnings.showwarning = _show_warning
     parser = build_parser()
     args = parser.parse_args(argv)
-    # The package import chose the libLLVM before Dr.Jit loaded; it never raises.
-    import mimarble
     from .environment import EnvironmentProblem
+    from .scene.errors import SceneError
     try:
-        if getattr(args, "needs_variant", True):
-            mimarble.use_variant(args.variant)
         return args.run(args)
     except (EnvironmentProblem, UsageError) as e:
         print(f"mimarble: {e}", file=sys.stderr)
         return 2
-    except mimarble.scene.SceneError as e:
+    except SceneError as e:
         print(e, file=sys.stderr)
         return e.exit_status
     except KeyboardInterrupt:

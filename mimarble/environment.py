@@ -25,7 +25,6 @@ import dataclasses
 import glob
 import os
 import re
-import subprocess
 import sys
 import warnings
 
@@ -103,6 +102,7 @@ def probe_llvm_major(path: str) -> int | None | str:
     ``"unloadable"``. A child process, because a library loaded here would be
     the one Dr.Jit picks up.
     """
+    import subprocess   # here, not at the top: the command line's start-up skips it
     try:
         out = subprocess.run([sys.executable, "-c", _PROBE, path], capture_output=True,
                              text=True, timeout=60).stdout.strip()
@@ -221,13 +221,63 @@ def _quiet_stderr(enabled: bool):
         os.close(saved)
 
 
+JIT_DEBUG_ENV = "MIMARBLE_JIT_DEBUG"
+_jit_configured = False
+
+
 def import_drjit_and_mitsuba():
-    """Import Dr.Jit and Mitsuba after choosing the libLLVM; returns ``(dr, mi)``."""
+    """Import Dr.Jit and Mitsuba, set up once; returns ``(dr, mi)``.
+
+    Every module of mimarble that needs them comes through here, so the set-up
+    holds whichever module loads first: the libLLVM is chosen before Dr.Jit
+    loads one, the CPU kernels' LLVM target is set before the first kernel
+    (mimarble/llvm_target.py), and ``MIMARBLE_JIT_DEBUG=1`` turns on Dr.Jit's
+    bounds checks (every gather, scatter and symbolic call checked, bad lanes
+    masked and reported on stderr; ``./go test --jit-debug``).
+    """
+    global _jit_configured
     choice = prepare_llvm()
     with _quiet_stderr("drjit" not in sys.modules and not choice.usable):
         import drjit as dr
         import mitsuba as mi
+    if not _jit_configured:
+        _jit_configured = True
+        if llvm_backend_up():
+            from . import llvm_target
+            llvm_target.configure()
+        if os.environ.get(JIT_DEBUG_ENV) == "1":
+            enable_bounds_checks()
     return dr, mi
+
+
+#: Mitsuba's differentiable integrators, Python modules of ``mitsuba.python.ad.integrators``
+#: (Mitsuba 3.6–3.7); ``common`` (their base classes, cheap) is kept.
+MITSUBA_AD_INTEGRATORS = ("prb_basic", "prb", "prbvolpath", "direct_projective",
+                          "prb_projective", "volprim_rf_basic")
+
+
+def skip_mitsuba_ad_integrators() -> bool:
+    """Keep Mitsuba from building its differentiable integrators at the first ``set_variant``.
+
+    Setting an LLVM or CUDA variant (re)imports ``mitsuba.python.ad.integrators``,
+    whose modules rewrite ten ``@dr.syntax`` functions from their source: 0.16 s
+    of the 0.2 s ``set_variant`` takes, a fifth of a whole ``mimarble render``
+    process (AMD EPYC). The command line uses none of them (``whitted`` is
+    mimarble's integrator, ``path`` Mitsuba's C++ one), so the command's process
+    places empty modules under their names first: the package's ``__init__``
+    then finds them imported and moves on. Only those integrators (``prb``,
+    ``prbvolpath``, …) are missing from such a process; a later change of
+    variant reloads them for real, so nothing breaks, it is only slower. Call it
+    before the first variant is set; returns whether it was done.
+    """
+    _, mi = import_drjit_and_mitsuba()
+    if mi.variant() is not None:
+        return False
+    import types
+    for name in MITSUBA_AD_INTEGRATORS:
+        full = f"mitsuba.python.ad.integrators.{name}"
+        sys.modules.setdefault(full, types.ModuleType(full))
+    return True
 
 
 def llvm_backend_up() -> bool:
@@ -236,9 +286,6 @@ def llvm_backend_up() -> bool:
         return bool(dr.has_backend(dr.JitBackend.LLVM))
     except Exception:
         return False
-
-
-JIT_DEBUG_ENV = "MIMARBLE_JIT_DEBUG"
 
 
 def enable_bounds_checks() -> None:

@@ -109,13 +109,11 @@ def _corner_table(uint_type):
     A = P[X] + Y and B = P[X+1] + Y, so one gather replaces three (7 → 5 per
     noise); 256 KiB, bit for bit the same hashes. A tuple in scalar mode.
     """
-    p = PERMUTATION * 3
-    entries = []
-    for x in range(256):
-        for y in range(256):
-            a, b = p[x] + y, p[x + 1] + y
-            entries.append(p[a] | (p[a + 1] << 8) | (p[b] << 16) | (p[b + 1] << 24))
-    return uint_type(entries) if dr.is_jit_v(uint_type) else tuple(entries)
+    p = np.array(PERMUTATION * 3, dtype=np.uint32)
+    x, y = np.arange(256)[:, None], np.arange(256)[None, :]   # NumPy: 1 ms, a loop 60 ms
+    a, b = p[x] + y, p[x + 1] + y
+    entries = (p[a] | (p[a + 1] << 8) | (p[b] << 16) | (p[b + 1] << 24)).ravel()
+    return uint_type(entries) if dr.is_jit_v(uint_type) else tuple(entries.tolist())
 
 
 def _gather_corners(table, index):
