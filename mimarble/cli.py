@@ -28,14 +28,39 @@ def _start(args) -> None:
 
 
 def _doctor(args) -> int:
-    from . import environment
+    from . import environment, kernel_cache
+    from . import scene as scene_language
+    if args.warm is not None:
+        scenes = _scene_list(args.warm)
+        for path in scenes:
+            scene_language.load(path)    # every scene error before minutes of compiling
     rows, ok = environment.doctor(args.variant)
+    rows.append(("kernel cache", kernel_cache.describe()))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")
     print("rendering can work" if ok else
           "rendering cannot work here, or only in the slow scalar variant: see above")
-    return 0 if ok else 1
+    if not ok:
+        return 1
+    if args.warm is not None:
+        _start(args)
+        start, compiled = time.perf_counter(), 0
+        for path, seconds, kernels in kernel_cache.warm(scenes, progress=True):
+            compiled += kernels
+            print(f"warm: {path}: {kernels} kernel{'s' * (kernels != 1)} compiled, {seconds:.2f} s",
+                  flush=True)
+        print(f"warm: {compiled} kernels compiled in {time.perf_counter() - start:.1f} s; "
+              f"{kernel_cache.describe()}")
+    return 0
+
+
+def _scene_list(given) -> list[str]:
+    """The scenes named, else ./scenes/*.scene."""
+    scenes = given or sorted(str(p) for p in Path("scenes").glob("*.scene"))
+    if not scenes:
+        raise UsageError("no scenes given and none in ./scenes")
+    return scenes
 
 
 class UsageError(Exception):
@@ -206,9 +231,7 @@ def _compare(args) -> int:
 def _bench(args) -> int:
     from . import scene as mimarble_scene
     from .scene import LIMITS
-    scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
-    if not scenes:
-        raise UsageError("no scenes given and none in ./scenes")
+    scenes = _scene_list(args.scenes)
     lo, hi = LIMITS["image_size"]
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
@@ -263,9 +286,7 @@ def _stress(args) -> int:
 
 def _gallery(args) -> int:
     from .scene import LIMITS
-    scenes = args.scenes or sorted(str(p) for p in Path("scenes").glob("*.scene"))
-    if not scenes:
-        raise UsageError("no scenes given and none in ./scenes")
+    scenes = _scene_list(args.scenes)
     lo, hi = LIMITS["image_size"]
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
@@ -359,7 +380,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_variant(p)
     p.set_defaults(run=_gallery)
 
-    p = sub.add_parser("doctor", help="show the libLLVM, variant and versions in use")
+    p = sub.add_parser("doctor", help="show the libLLVM, variant, versions and kernel cache "
+                                      "in use; --warm: compile the scenes' kernels now")
+    p.add_argument("--warm", nargs="*", metavar="SCENE",
+                   help="render these scenes (default: scenes/*.scene) once at 1 spp, so that "
+                        "their kernels are compiled and cached before the first real render")
     add_variant(p)
     p.set_defaults(run=_doctor)
     return parser

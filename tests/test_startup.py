@@ -1,0 +1,166 @@
+"""Start-up (issue 17): the command answers help and mistakes before Dr.Jit and Mitsuba load.
+
+The times themselves are benchmark figures (``mimarble bench``, docs/benchmarks.md);
+these tests check the properties that make them: what is imported, and that the
+lazy start changes nothing a user of the package or of the command can see.
+"""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble import environment
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HEAVY = ("drjit", "mitsuba", "numpy")
+
+
+def imported_by(*args, module="mimarble"):
+    """Run ``python -X importtime -m MODULE ARGS``; the names of the modules it imported."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
+    result = subprocess.run([sys.executable, "-X", "importtime", "-m", module, *map(str, args)],
+                            cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    names = {line.rsplit("|", 1)[1].strip() for line in result.stderr.splitlines()
+             if line.startswith("import time:") and "|" in line}
+    return result, names
+
+
+def heavy(names):
+    return sorted(n for n in names if n.split(".")[0] in HEAVY)
+
+
+def test_help_imports_neither_drjit_nor_mitsuba():
+    result, names = imported_by("--help")
+    assert result.returncode == 0 and "render" in result.stdout
+    assert "mimarble.cli" in names                     # the check sees the imports at all
+    assert heavy(names) == []
+
+
+def test_a_malformed_scene_is_reported_before_drjit_loads(tmp_path):
+    bad = tmp_path / "bad.scene"
+    bad.write_text("camera {\n  foo\n")
+    result, names = imported_by("render", bad, "-o", tmp_path / "out.png")
+    assert result.returncode == 2
+    assert f"{bad}:2:3:" in result.stderr
+    assert heavy(names) == []
+    assert not (tmp_path / "out.png").exists()
+
+
+def test_a_usage_error_is_reported_before_drjit_loads(tmp_path):
+    scene = tmp_path / "ok.scene"
+    scene.write_text("sphere { material \"m\" }\nmaterial \"m\" { diffuse { color < 1 0 0 > } }\n")
+    result, names = imported_by("render", scene, "-o", tmp_path / "no-such-folder" / "x.png")
+    assert result.returncode == 2 and "does not exist" in result.stderr
+    assert heavy(names) == []
+
+
+def test_a_render_loads_them(tmp_path):
+    scene = tmp_path / "ok.scene"
+    scene.write_text("image { width 8 height 8 }\nlight { position < 5 5 5 > }\n"
+                     "sphere { material \"m\" }\nmaterial \"m\" { diffuse { color < 1 0 0 > } }\n")
+    result, names = imported_by("render", scene, "-o", tmp_path / "x.png")
+    assert result.returncode == 0, result.stderr
+    assert {"drjit", "mitsuba"} <= names and (tmp_path / "x.png").exists()
+
+
+def test_importing_the_package_still_registers_the_plugins():
+    """``import mimarble`` outside the command: a variant set and ``marble`` usable at once."""
+    code = ("import mimarble, mitsuba as mi; "
+            "print(mi.variant(), type(mi.load_dict({'type': 'marble'})).__name__)")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
+    result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True,
+                            text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    variant, plugin = result.stdout.split()
+    assert variant.endswith("_rgb") and "Marble" in plugin
+
+
+@pytest.mark.parametrize("orig_argv, argv0, expected", [
+    (["python", "-m", "mimarble", "render"], "-m", True),
+    (["python", "-X", "importtime", "-m", "mimarble"], "-m", True),
+    (["python", "-mmimarble"], "-m", True),
+    (["python", "-m", "mimarble.cli"], "-m", True),
+    (["python", "/venv/bin/mimarble", "--help"], "/venv/bin/mimarble", True),
+    (["python", "-m", "pytest", "-m", "mimarble"], "-m", False),
+    (["python", "-c", "import mimarble", "-m", "mimarble"], "-c", False),
+    (["python", "script.py", "mimarble"], "script.py", False),
+    (["python"], "", False),
+])
+def test_the_command_process_is_recognised(monkeypatch, orig_argv, argv0, expected):
+    monkeypatch.setattr(sys, "orig_argv", orig_argv, raising=False)
+    monkeypatch.setattr(sys, "argv", [argv0])
+    assert mimarble._is_the_command_process() is expected
+
+
+def test_the_package_names_come_from_start():
+    """The lazily provided names are the real objects (here the package has started)."""
+    assert mimarble.render.__module__ == "mimarble.mitsuba.render"
+    assert mimarble.mi.variant() is not None and mimarble.dr.__name__ == "drjit"
+    with pytest.raises(AttributeError):
+        mimarble.no_such_name
+
+
+def test_skipping_mitsubas_ad_integrators_leaves_rendering_whole(tmp_path):
+    """In a fresh process: the skip, then a variant; Mitsuba's C++ integrators and
+    mimarble's load, the Python AD ones are absent; a second variant brings them back."""
+    code = f"""
+import sys
+sys.path.insert(0, {ROOT!r})
+sys.orig_argv = [sys.executable, "-m", "mimarble"]    # as in the command's process
+from mimarble import environment
+assert environment.skip_mitsuba_ad_integrators()
+import mitsuba as mi
+mi.set_variant("llvm_ad_rgb")
+import mimarble
+mimarble.start()
+mi.load_dict({{"type": "path"}}); mi.load_dict({{"type": "whitted"}})
+try:
+    mi.load_dict({{"type": "prb"}})
+    print("prb present")
+except Exception:
+    print("prb absent")
+mi.set_variant("llvm_ad_mono")
+mi.load_dict({{"type": "prb"}})
+print("prb back")
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split("\n")[:2] == ["prb absent", "prb back"]
+
+
+def test_skipping_is_refused_once_a_variant_is_set():
+    assert mimarble.mi.variant() is not None
+    assert environment.skip_mitsuba_ad_integrators() is False
+
+
+def test_the_command_renders_what_the_package_renders(tmp_path):
+    scene = tmp_path / "s.scene"
+    scene.write_text(open(os.path.join(ROOT, "scenes", "fig11a.scene")).read())
+    out = tmp_path / "s.exr"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
+    result = subprocess.run([sys.executable, "-m", "mimarble", "render", scene, "-o", out,
+                             "--width", "40", "--height", "40", "--spp", "4"], cwd=ROOT, env=env,
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    import dataclasses
+    model = mimarble.scene.load(scene)
+    model = dataclasses.replace(model, image=dataclasses.replace(model.image, width=40, height=40))
+    ours = np.array(mimarble.mi.Bitmap(str(out)), dtype=np.float32)[..., :3]
+    assert np.array_equal(ours, mimarble.render(model, spp=4))
+
+
+def test_the_benchmark_times_each_whole_process():
+    """``mimarble bench``'s rows: each run checked for its exit status, so a broken
+    command cannot pass for a fast one."""
+    from mimarble import bench
+    t = bench.process_times(os.path.join(ROOT, "scenes", "fig11a.scene"), repeats=1)
+    assert all(t[k] > 0 for k in ("help_s", "malformed_scene_s", "render_warm_s", "render_cold_s"))
+    text = "\n".join(bench._process_lines(t, {"process_s": 0.8}))
+    assert "--help" in text and "malformed" in text and "POV-Ray" in text
+    with pytest.raises(RuntimeError, match="exit status 2"):
+        bench._process_seconds(["render", "no-such.scene"], 1)
