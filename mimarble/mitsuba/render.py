@@ -27,8 +27,9 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     """Render a scene (model, or path of a scene file) → linear float32 (H, W, 3).
 
     Memory is the image plus a bounded working set whatever the size and spp:
-    up to :data:`PASS_SAMPLES` samples go through ``mi.render`` at once; larger
-    renders go in passes (:func:`render_in_passes`). ``progress``: True for a
+    JIT variants render in passes of up to :data:`PASS_SAMPLES` samples
+    (:func:`render_in_passes`; one kernel for every spp), the scalar variant
+    through ``mi.render``. ``progress``: True for a
     progress bar on stderr (shown once the render has taken 1.5 s), or a
     callable ``progress(samples_done, samples_total)``.
     """
