@@ -182,7 +182,8 @@ def _render_to_file(args, renderer, description) -> int:
 def _render(args) -> int:
     import mimarble
     return _render_to_file(args, lambda scene, spp: mimarble.render(scene, spp=spp, mode=args.mode,
-                                                                    progress=True),
+                                                                    progress=True,
+                                                                    tolerance=args.tolerance),
                            lambda: f"{args.mode} mode, {mimarble.mi.variant()}")
 
 
@@ -208,7 +209,7 @@ def _compare(args) -> int:
         print("mimarble: note: the scene has band-limited marble, which the reference tracer "
               "renders in full detail: expect them to differ", file=sys.stderr)
     start = time.perf_counter()
-    ours = mimarble.render(scene, spp=spp, progress=True)
+    ours = mimarble.render(scene, spp=spp, progress=True, tolerance=args.tolerance)
     mitsuba_seconds = time.perf_counter() - start
     start = time.perf_counter()
     ref = reference.render(scene, spp=spp, progress=True)
@@ -254,7 +255,8 @@ def _bench(args) -> int:
                          "give it among the scenes or pass --no-targets")
     results = bench.run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
                               converged_spp=args.converged_spp, targets=targets_scene,
-                              paper=not args.no_paper, povray=not args.no_povray)
+                              paper=not args.no_paper, povray=not args.no_povray,
+                              tolerance=args.tolerance)
     print(bench.format_report(results))
     try:
         if args.json:
@@ -315,6 +317,13 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--width", type=int, help="image width in pixels (default: the scene's)")
         p.add_argument("--height", type=int, help="image height in pixels (default: the scene's)")
 
+    def add_tolerance(p):
+        p.add_argument("--tolerance", type=_tolerance, metavar="T",
+                       help="colour error each marble may have for leaving out fine octaves "
+                            "(0: every octave; default: the marble's own, else half an 8-bit "
+                            "sRGB code value through the scene's lighting; docs/numerical-"
+                            "stability.md)")
+
     def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
 
@@ -329,6 +338,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "Phong highlight), black background, noisy at few samples (use --spp 256); "
                         "see docs/rendering-model.md")
     add_size(p)
+    add_tolerance(p)
     add_variant(p)
     p.set_defaults(run=_render)
 
@@ -346,6 +356,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the metrics as JSON on the last line")
     p.add_argument("--diff", metavar="OUT.png", help="write a false-colour error map")
     add_size(p)
+    add_tolerance(p)
     add_variant(p)
     p.set_defaults(run=_compare, mode="whitted")
 
@@ -362,6 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-povray", action="store_true",
                    help="skip timing POV-Ray 3.7 on a comparable marble sphere (done with the "
                         "targets when `povray` is installed)")
+    add_tolerance(p)
     add_variant(p)
     p.set_defaults(run=_bench)
 
@@ -388,6 +400,17 @@ def build_parser() -> argparse.ArgumentParser:
     add_variant(p)
     p.set_defaults(run=_doctor)
     return parser
+
+
+def _tolerance(text: str) -> float:
+    """``--tolerance``: a finite number ≥ 0 (argparse reports the error as a usage error)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not (value >= 0 and value != float("inf")):
+        raise argparse.ArgumentTypeError(f"{text} must be a finite number ≥ 0")
+    return value
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -52,6 +52,14 @@ evenly spaced keys k/(K−1), interpolated linearly.
        ``<rgb name="ramp" …/>`` (one colour: a constant) or ``<rgb name="ramp_0" …/>``,
        ``<rgb name="ramp_1" …/>``, … (XML cannot repeat a name).
        Differentiable (key ``ramp``, a Color3f of K entries).
+   * - ``tolerance``
+     - float (1.52e-4)
+     - Colour error allowed for leaving out fine octaves, ≥ 0: only the leading octaves
+       whose omission could move some colour component by more than this are evaluated
+       (a proven bound over every point; mimarble/error_budget.py). 0 evaluates every
+       octave. The default moves an 8-bit sRGB image by at most half a code value where
+       the texture reaches it unscaled. Recomputed when ``distortion`` or ``ramp``
+       change; a new count of octaves compiles a new kernel.
    * - ``bandlimit``
      - boolean (false)
      - Leave out octaves finer than the pixel footprint (from ray differentials
@@ -79,7 +87,7 @@ import re
 
 import numpy as np
 
-from . import environment
+from . import environment, error_budget
 from .noise import MAX_OCTAVES, fractal3, fractal3_band_limited, fractal3_weighted
 from .plugins import plugin, transform_matrix
 from .scene.model import AXES, FIG5_RAMP, MARBLE_FUNCTIONS
@@ -175,6 +183,13 @@ def check_number(name: str, x) -> float:
     return float(x)
 
 
+def check_nonnegative(name: str, x) -> float:
+    x = check_number(name, x)
+    if not x >= 0:
+        raise MarbleParameterError(f"marble: {name}={x!r} must be ≥ 0")
+    return x
+
+
 def check_octaves(octaves) -> int:
     if isinstance(octaves, bool) or not isinstance(octaves, int) or not 0 <= octaves <= MAX_OCTAVES:
         raise MarbleParameterError(f"marble: octaves={octaves!r} must be an integer in 0..{MAX_OCTAVES}")
@@ -232,6 +247,8 @@ class Marble:
         self.axis = check_choice("axis", props.get("axis", "x"), AXES)
         self.turbulence = check_boolean("turbulence", props.get("turbulence", False))
         self.bandlimit = check_boolean("bandlimit", props.get("bandlimit", False))
+        self.tolerance = check_nonnegative("tolerance",
+                                           props.get("tolerance", error_budget.DEFAULT_TOLERANCE))
         colours = parse_ramp(ramp_property(props))
 
         self.scale = mi.Float(scale)
@@ -295,17 +312,21 @@ class Marble:
         for name in ("scale", "period", "distortion", "ramp"):
             dr.make_opaque(getattr(self, name))
         self.octaves = octaves   # structural: a new count traces a new kernel at the next eval
+        # The octaves the error budget keeps (structural too): mimarble/error_budget.py.
+        self.octaves_evaluated = error_budget.octaves_needed(
+            self.tolerance, octaves, _first(self.distortion), colours, self.function)
         self.ramp_size = len(colours)
         self._mean = float(ramp_mean(colours, self.function) @ _LUMINANCE)
         self._max = float(colours.max())
         # Static decisions: what this texture can skip (see the module docstring).
-        self.needs_noise = self.octaves > 0 and (_first(self.distortion) != 0.0
-                                                 or dr.grad_enabled(self.distortion))
+        self.needs_noise = self.octaves_evaluated > 0 and (_first(self.distortion) != 0.0
+                                                           or dr.grad_enabled(self.distortion))
 
     def to_string(self):
         return (f"Marble[function={self.function}, axis={self.axis}, scale={_first(self.scale)}, "
                 f"period={_first(self.period)}, distortion={_first(self.distortion)}, "
-                f"octaves={self.octaves}, turbulence={self.turbulence}, bandlimit={self.bandlimit}, "
+                f"octaves={self.octaves} ({self.octaves_evaluated} within tolerance="
+                f"{self.tolerance:g}), turbulence={self.turbulence}, bandlimit={self.bandlimit}, "
                 f"ramp={self.ramp_size} colours]")
 
     def is_spatially_varying(self):
@@ -390,13 +411,14 @@ class Marble:
         if not self.needs_noise:
             phase_noise = 0.0
         elif footprint is None:
-            phase_noise = _product(self.distortion, fractal3(v, self.octaves, self.turbulence))
+            phase_noise = _product(self.distortion,
+                                   fractal3(v, self.octaves_evaluated, self.turbulence))
         elif dr.grad_enabled(v):   # reverse mode cannot go through the symbolic loop
             phase_noise = _product(self.distortion, fractal3_weighted(
-                v, self.octaves, footprint, self.turbulence))
+                v, self.octaves_evaluated, footprint, self.turbulence))
         else:
             phase_noise = _product(self.distortion, fractal3_band_limited(
-                v, self.octaves, footprint, self.turbulence))
+                v, self.octaves_evaluated, footprint, self.turbulence))
         if self.function == "abs_sine":
             # |sin(πφ)| has period 1 in φ, and φ − ⌊φ⌋ is exact: any φ works.
             phase = _sum(_product(self.period, along), phase_noise)

@@ -199,9 +199,34 @@ def _fractal_f64(pts64, octaves, scale):
     return np.array(fractal3(p * Float64(scale), octaves), dtype=np.float64)
 
 
-def _texture(channel):
+def _texture(channel, tolerance: float = 0.0):
+    """The ``marble`` texture of ``channel``; tolerance 0: every octave, float32's error alone."""
     from .mitsuba.translate import texture_dict
-    return mi.load_dict(texture_dict(channel))
+    return mi.load_dict(texture_dict(channel, tolerance))
+
+
+def tolerance_error(channel: MarbleChannel, tolerance: float, points: int = 1 << 16,
+                    magnitude: float = 2.0, seed: int = 7) -> dict:
+    """The texture's colour with an error budget against the float64 reference's full sum.
+
+    At ``points`` random world points with ‖p‖∞ ≤ ``magnitude``: the largest
+    component error, and what it may be — the tolerance, plus float32's own
+    error there (:func:`colour_error_bound`), plus what the octaves past
+    ``MAX_OCTAVES_EVALUATED`` (never evaluated in float32) can add.
+    """
+    from . import error_budget
+    with _jit_variant():
+        tex = _texture(channel, tolerance)
+        pts = _sample(np.random.default_rng(seed), magnitude, points)
+        ours = _colour_f32(tex, pts)
+        full = reference_marble.marble_color(pts.astype(np.float32).astype(np.float64), channel)
+        skipped = error_budget.colour_change_bound(MAX_OCTAVES_EVALUATED, channel.octaves,
+                                                   channel.distortion, channel.ramp,
+                                                   channel.function)
+        return {"max_error": float(np.abs(ours - full).max()), "tolerance": tolerance,
+                "float32_bound": colour_error_bound(magnitude, channel),
+                "skipped_bound": skipped,
+                "octaves": channel.octaves, "octaves_evaluated": tex.octaves_evaluated}
 
 
 def _colour_f32(tex, pts64):

@@ -23,7 +23,7 @@ PASS_SAMPLES = 1 << 22
 
 
 def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
-           progress=False) -> np.ndarray:
+           progress=False, tolerance: float | None = None) -> np.ndarray:
     """Render a scene (model, or path of a scene file) → linear float32 (H, W, 3).
 
     Memory is the image plus a bounded working set whatever the size and spp:
@@ -31,13 +31,15 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     (:func:`render_in_passes`; one kernel for every spp), the scalar variant
     through ``mi.render``. ``progress``: True for a
     progress bar on stderr (shown once the render has taken 1.5 s), or a
-    callable ``progress(samples_done, samples_total)``.
+    callable ``progress(samples_done, samples_total)``. ``tolerance``: every
+    marble's error budget (colour units, 0 = every octave; default: each marble's
+    own, else the scene's, see ``to_mitsuba``).
     """
     environment.require_rgb_variant()
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
-    mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp))
+    mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance))
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
     if not dr.is_jit_v(mi.Float):

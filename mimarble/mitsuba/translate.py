@@ -31,13 +31,19 @@ from __future__ import annotations
 import math
 import warnings
 
+from .. import error_budget
 from ..scene import model
 
 MODES = ("whitted", "path")
 
 
-def texture_dict(channel: model.ColorChannel | model.MarbleChannel) -> dict:
-    """The Mitsuba texture of one channel."""
+def texture_dict(channel: model.ColorChannel | model.MarbleChannel,
+                 tolerance: float | None = None) -> dict:
+    """The Mitsuba texture of one channel.
+
+    A marble's error budget: ``tolerance`` when given, else the channel's own, else
+    the plugin's default (mimarble/error_budget.py).
+    """
     if isinstance(channel, model.ColorChannel):
         return {"type": "rgb", "value": list(channel.rgb)}
     return {
@@ -50,6 +56,8 @@ def texture_dict(channel: model.ColorChannel | model.MarbleChannel) -> dict:
         "axis": channel.axis,
         "turbulence": channel.turbulence,
         "bandlimit": channel.bandlimit,
+        "tolerance": float(next(t for t in (tolerance, channel.tolerance,
+                                            error_budget.DEFAULT_TOLERANCE) if t is not None)),
         "ramp": ", ".join(" ".join(repr(float(x)) for x in c) for c in channel.ramp),
     }
 
@@ -184,12 +192,18 @@ def _sensor(scene: model.Scene, sampler: dict) -> dict:
     }
 
 
-def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None) -> dict:
+def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None,
+               tolerance: float | None = None) -> dict:
     """A Mitsuba scene dict for ``scene`` (``mi.load_dict`` it to render).
 
     ``spp`` overrides the scene's samples per pixel; in whitted mode it must be
-    a perfect square (an n×n grid of stratum centres).
+    a perfect square (an n×n grid of stratum centres). ``tolerance`` overrides
+    every marble's error budget; without it a marble keeps its own, or gets the
+    scene's default: half an 8-bit sRGB code value through the scene's lighting
+    (``error_budget.scene_tolerance``).
     """
+    if tolerance is not None and not tolerance >= 0:
+        raise ValueError(f"tolerance={tolerance!r} must be ≥ 0")
     if mode not in MODES:
         raise ValueError(f"mode={mode!r} must be one of {', '.join(MODES)}")
     spp = scene.image.samples if spp is None else spp
@@ -202,13 +216,16 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
 
     out: dict = {"type": "scene"}
     textures: dict = {}            # channel value -> texture id (dedupes equal channels)
+    scene_tolerance = error_budget.scene_tolerance(scene.ambient, [l.color for l in scene.lights])
 
     def ref(channel):
         if isinstance(channel, model.ColorChannel):   # a constant: inline, nothing to share
             return texture_dict(channel)
         if channel not in textures:
             textures[channel] = f"texture_{len(textures)}"
-            out[textures[channel]] = texture_dict(channel)
+            budget = tolerance if tolerance is not None else (
+                channel.tolerance if channel.tolerance is not None else scene_tolerance)
+            out[textures[channel]] = texture_dict(channel, budget)
         return {"type": "ref", "id": textures[channel]}
 
     if mode == "whitted":

@@ -190,8 +190,10 @@ class MarbleChannel:
     The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)``,
     piecewise linear, ``t`` clamped to [0, 1] (one colour: a constant).
 
-    ``bandlimit`` is a rendering option for Mitsuba (octaves finer than the pixel
-    footprint are left out); the reference tracer always renders the full marble.
+    ``bandlimit`` and ``tolerance`` are rendering options for Mitsuba (octaves finer
+    than the pixel footprint, or than the colour error ``tolerance`` allows, are left
+    out; ``None``: the scene's default, mimarble/error_budget.py); the reference
+    tracer always renders the full marble.
     """
 
     scale: float = 1.0
@@ -202,6 +204,7 @@ class MarbleChannel:
     axis: Axis = "x"
     turbulence: bool = False
     bandlimit: bool = False
+    tolerance: float | None = None
     ramp: tuple[RGB, ...] = FIG5_RAMP
     pos: Pos | None = _pos()
 

@@ -60,7 +60,7 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "diffuse": ("color", "marble"),
     "specular": ("color", "marble"),
     "marble": ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
-               "bandlimit", "ramp"),
+               "bandlimit", "tolerance", "ramp"),
     "sphere": ("center", "radius", "material"),
 }
 
@@ -602,6 +602,11 @@ class _Builder:
         for key in ("period", "distortion"):
             if key in f:
                 kw[key] = self.number(f[key].children[0])
+        if "tolerance" in f:
+            tok = f["tolerance"].children[0]
+            kw["tolerance"] = self.number(tok)
+            if not kw["tolerance"] >= 0:
+                raise self.error(tok, f"tolerance must be ≥ 0, found {tok}")
         if "octaves" in f:
             lo, hi = LIMITS["octaves"]
             kw["octaves"] = self.integer(f["octaves"].children[0], "octaves", lo, hi)
