@@ -44,7 +44,8 @@ HALF_CODE_VALUE = 0.5 / (255 * 12.92)
 #: The ``marble`` plugin's default tolerance (lighting Λ = 1).
 DEFAULT_TOLERANCE = HALF_CODE_VALUE
 
-_PHASE_SLOPE = {"abs_sine": math.pi, "sine": 0.5, "cosine": 0.5}
+#: S: the largest |dt/dφ| of each stripe function.
+PHASE_SLOPE = {"abs_sine": math.pi, "sine": 0.5, "cosine": 0.5}
 
 
 def ramp_lipschitz(colours) -> float:
@@ -65,7 +66,7 @@ def colour_change_bound(first: int, last: int, distortion: float, colours, funct
     """How far octaves first…last−1 can move any colour component: S·R·|distortion|·T."""
     if first >= last:
         return 0.0
-    return (_PHASE_SLOPE[function] * ramp_lipschitz(colours) * abs(float(distortion))
+    return (PHASE_SLOPE[function] * ramp_lipschitz(colours) * abs(float(distortion))
             * tail_bound(first, last))
 
 

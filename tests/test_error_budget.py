@@ -92,8 +92,8 @@ def test_the_slope_of_each_function_is_its_largest():
                         ("sine", 0.5 * (np.sin(phase) + 1)),
                         ("cosine", 0.5 * (np.cos(phase) + 1))):
         slope = np.abs(np.diff(t)).max() / (phase[1] - phase[0])
-        assert slope <= error_budget._PHASE_SLOPE[function] * (1 + 1e-6)
-        assert slope >= error_budget._PHASE_SLOPE[function] * (1 - 1e-3)
+        assert slope <= error_budget.PHASE_SLOPE[function] * (1 + 1e-6)
+        assert slope >= error_budget.PHASE_SLOPE[function] * (1 - 1e-3)
 
 
 def test_the_default_is_half_an_srgb_code_value_at_black():
