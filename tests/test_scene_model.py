@@ -231,7 +231,7 @@ def test_block_keys_table_matches_the_grammar():
         "position": "<0 0 0>", "color": "<0 0 0>", "shininess": "2",
         "ambient": "{ color <0 0 0> }", "diffuse": "{ color <0 0 0> }", "specular": "{ color <0 0 0> }",
         "scale": "1", "period": "1", "distortion": "1", "octaves": "1", "function": "sine", "axis": "y",
-        "turbulence": "true", "bandlimit": "true", "ramp": "{ <0 0 0> <1 1 1> }",
+        "turbulence": "true", "bandlimit": "true", "tolerance": "0.001", "ramp": "{ <0 0 0> <1 1 1> }",
         "center": "<0 0 0>", "radius": "1",
         "material": '"m"',
     }
