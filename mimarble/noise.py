@@ -137,8 +137,10 @@ def _lattice(x, uint_type):
     return uint_type(wrapped), frac
 
 
-def noise3(p):
-    """Improved noise N(p) at a Dr.Jit 3-vector ``p`` (any backend, float32 or float64)."""
+def corner_hashes(p):
+    """The cell fractions (x, y, z) of ``p`` and the hashes of its 8 cube corners,
+    (hAA, hBA, hAB, hBB, hAA1, hBA1, hAB1, hBB1): corner (i, j, k) of the cell is
+    ``A``/``B`` for i = 0/1, the first/second letter's ``A``/``B`` for j, ``1`` for k = 1."""
     float_type = type(p.x)
     uint_type = dr.uint32_array_t(float_type)
     pairs = _pair_table(uint_type)
@@ -146,7 +148,6 @@ def noise3(p):
     X, x = _lattice(p.x, uint_type)
     Y, y = _lattice(p.y, uint_type)
     Z, z = _lattice(p.z, uint_type)
-    u, v, w = fade(x), fade(y), fade(z)
 
     # Hash the 8 cube corners exactly as Perlin's reference code does
     # (A = P[X]+Y, AA = P[A]+Z, AB = P[A+1]+Z, B = P[X+1]+Y, …): the first two
@@ -158,13 +159,31 @@ def noise3(p):
     hBA, hBA1 = _gather_pair(pairs, BA)
     hAB, hAB1 = _gather_pair(pairs, AB)
     hBB, hBB1 = _gather_pair(pairs, BB)
+    return (x, y, z), (hAA, hBA, hAB, hBB, hAA1, hBA1, hAB1, hBB1)
 
+
+def corner_dots(fractions, hashes):
+    """Each corner's gradient dotted with the offset from that corner, in the order of
+    :func:`corner_hashes`."""
+    x, y, z = fractions
     x1, y1, z1 = x - 1.0, y - 1.0, z - 1.0
-    return lerp(w,
-                lerp(v, lerp(u, grad(hAA, x, y, z), grad(hBA, x1, y, z)),
-                        lerp(u, grad(hAB, x, y1, z), grad(hBB, x1, y1, z))),
-                lerp(v, lerp(u, grad(hAA1, x, y, z1), grad(hBA1, x1, y, z1)),
-                        lerp(u, grad(hAB1, x, y1, z1), grad(hBB1, x1, y1, z1))))
+    hAA, hBA, hAB, hBB, hAA1, hBA1, hAB1, hBB1 = hashes
+    return (grad(hAA, x, y, z), grad(hBA, x1, y, z), grad(hAB, x, y1, z), grad(hBB, x1, y1, z),
+            grad(hAA1, x, y, z1), grad(hBA1, x1, y, z1), grad(hAB1, x, y1, z1),
+            grad(hBB1, x1, y1, z1))
+
+
+def trilinear(u, v, w, c):
+    """Perlin's nested lerps of 8 corner values ``c`` (order of :func:`corner_hashes`)."""
+    return lerp(w, lerp(v, lerp(u, c[0], c[1]), lerp(u, c[2], c[3])),
+                   lerp(v, lerp(u, c[4], c[5]), lerp(u, c[6], c[7])))
+
+
+def noise3(p):
+    """Improved noise N(p) at a Dr.Jit 3-vector ``p`` (any backend, float32 or float64)."""
+    fractions, hashes = corner_hashes(p)
+    x, y, z = fractions
+    return trilinear(fade(x), fade(y), fade(z), corner_dots(fractions, hashes))
 
 
 def _wrap_large(x):
