@@ -89,6 +89,7 @@ import numpy as np
 
 from . import environment, error_budget
 from .noise import MAX_OCTAVES, fractal3, fractal3_band_limited, fractal3_weighted
+from .noise_gradient import fractal3_gradient
 from .plugins import plugin, transform_matrix
 from .scene.model import AXES, FIG5_RAMP, MARBLE_FUNCTIONS
 
@@ -353,21 +354,35 @@ class Marble:
         return mi.luminance(self.eval(si, active))
 
     def eval_1_grad(self, si, active=True):
-        """∂(luminance)/∂(u, v) by central differences along ∂p/∂u and ∂p/∂v.
+        """∂(luminance)/∂(u, v), exact, by the chain rule (what Mitsuba's ``bumpmap`` reads):
 
-        The step is 1e-3 of a noise lattice cell (1e-3/scale in texture units):
-        small against the finest evaluated feature of the first octaves, large
-        enough that float32 rounding of the difference stays near 1e-4 relative.
+            ∇_p lum = lum(ramp′(t)) · t′(φ) · scale · (period·e_a + distortion·∇F(v)),
+
+        ∇F from :func:`mimarble.noise_gradient.fractal3_gradient` (one pass with F),
+        mapped to world space by ``to_world``'s inverse transpose, then dotted with
+        ∂p/∂u and ∂p/∂v. The full sum of the evaluated octaves (band-limiting is a
+        rendering filter of the colour, not of its derivative).
         """
-        step = 1e-3 / dr.abs(self.scale)
-        result = []
-        for dp in (si.dp_du, si.dp_dv):
-            length = dr.norm(dp)
-            direction = dp / dr.maximum(length, 1e-30)
-            ahead = mi.luminance(self.colour_at(si.p + direction * step))
-            behind = mi.luminance(self.colour_at(si.p - direction * step))
-            result.append(dr.select(length > 0, (ahead - behind) / (2 * step) * length, 0.0))
-        return mi.Vector2f(*result)
+        if self.ramp_size == 1:
+            return dr.zeros(mi.Vector2f, dr.width(si.p))
+        p = si.p if self.to_texture is None else self.to_texture @ si.p
+        v = _product(p, self.scale)
+        axis = AXES.index(self.axis)
+        e_axis = mi.Vector3f(*(1.0 if k == axis else 0.0 for k in range(3)))
+        frequency = 1.0 if self.function == "cosine" else self.period
+        if self.needs_noise:
+            F, grad_F = fractal3_gradient(v, self.octaves_evaluated, self.turbulence)
+            phase = self.phase(v, _product(self.distortion, F))
+            grad_phase = e_axis * frequency + grad_F * self.distortion
+        else:
+            phase, grad_phase = self.phase(v, 0.0), e_axis * frequency
+        slope = mi.luminance(self.ramp_slope(self.stripe_of_phase(phase)))
+        gradient = (slope * self.stripe_slope(phase) * self.scale) * grad_phase
+        if self.to_texture is not None:  # ∇ in world space: (M⁻¹)ᵀ ∇ with M⁻¹ = to_texture
+            m = self.to_texture.matrix
+            gradient = mi.Vector3f(*(sum(m[i][j] * gradient[i] for i in range(3))
+                                     for j in range(3)))
+        return mi.Vector2f(dr.dot(gradient, si.dp_du), dr.dot(gradient, si.dp_dv))
 
     def footprint(self, si):
         """Width of the pixel footprint in noise units (``bandlimit`` only, else None).
@@ -407,7 +422,6 @@ class Marble:
         resolution, so finite input always gives a finite colour; NaN and ±Inf
         input still give NaN.
         """
-        along = v[AXES.index(self.axis)]
         if not self.needs_noise:
             phase_noise = 0.0
         elif footprint is None:
@@ -419,14 +433,32 @@ class Marble:
         else:
             phase_noise = _product(self.distortion, fractal3_band_limited(
                 v, self.octaves_evaluated, footprint, self.turbulence))
+        return self.stripe_of_phase(self.phase(v, phase_noise))
+
+    def phase(self, v, phase_noise):
+        """φ = period·v_a + distortion·F (cosine: v_a + distortion·F), given distortion·F."""
+        along = v[AXES.index(self.axis)]
+        if self.function == "cosine":
+            return _sum(along, phase_noise)
+        return _sum(_product(self.period, along), phase_noise)
+
+    def stripe_of_phase(self, phase):
+        """t(φ): |sin πφ|, ½(sin φ + 1) or ½(cos φ + 1)."""
         if self.function == "abs_sine":
             # |sin(πφ)| has period 1 in φ, and φ − ⌊φ⌋ is exact: any φ works.
-            phase = _sum(_product(self.period, along), phase_noise)
             return dr.abs(dr.sin(dr.pi * (phase - dr.floor(phase))))
         if self.function == "sine":
-            return 0.5 * (dr.sin(_reduce_angle(_sum(_product(self.period, along), phase_noise)))
-                          + 1.0)
-        return 0.5 * (dr.cos(_reduce_angle(_sum(along, phase_noise))) + 1.0)
+            return 0.5 * (dr.sin(_reduce_angle(phase)) + 1.0)
+        return 0.5 * (dr.cos(_reduce_angle(phase)) + 1.0)
+
+    def stripe_slope(self, phase):
+        """dt/dφ of :meth:`stripe_of_phase`."""
+        if self.function == "abs_sine":
+            # On φ − ⌊φ⌋ ∈ [0, 1) sin π(·) ≥ 0, so |sin| is sin there: slope π cos.
+            return dr.pi * dr.cos(dr.pi * (phase - dr.floor(phase)))
+        if self.function == "sine":
+            return 0.5 * dr.cos(_reduce_angle(phase))
+        return -0.5 * dr.sin(_reduce_angle(phase))
 
     def ramp_at(self, t):
         """Piecewise-linear ramp at t (clamped to [0, 1]), colours at keys k/(K−1).
@@ -440,13 +472,22 @@ class Marble:
         if self.ramp_size == 1:
             zero = dr.zeros(mi.UInt32, dr.width(t)) if dr.is_jit_v(mi.Float) else 0
             return self._ramp_colour(zero)
+        index, f = self._ramp_piece(t)
+        return dr.lerp(self._ramp_colour(index), self._ramp_colour(index + 1), f)
+
+    def _ramp_piece(self, t):
+        """(i, f): t on the ramp's piece i (0..K−2, NaN-proof, see :meth:`ramp_at`) at f."""
         last = self.ramp_size - 1
         x = dr.clip(t, 0.0, 1.0) * last
         i = dr.floor(x)
         i = dr.select((i >= 0.0) & (i <= last - 1), i, dr.select(i > 0.0, last - 1, 0.0))
-        f = x - i
-        index = dr.uint32_array_t(type(x))(i)
-        return dr.lerp(self._ramp_colour(index), self._ramp_colour(index + 1), f)
+        return dr.uint32_array_t(type(x))(i), x - i
+
+    def ramp_slope(self, t):
+        """d ramp/dt at t: (K−1)·(c_{i+1} − c_i) on the piece t falls in (0 outside [0, 1])."""
+        index, _ = self._ramp_piece(t)
+        step = self._ramp_colour(index + 1) - self._ramp_colour(index)
+        return dr.select((t >= 0.0) & (t <= 1.0), step * float(self.ramp_size - 1), 0.0)
 
     # -- helpers ---------------------------------------------------------------
 
