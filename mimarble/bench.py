@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
-from . import environment, error_budget, reference, stress
+from . import environment, kernel_cache, reference, stress
 from . import scene as scene_language
 from .compare import image_metrics
 from .gallery import resized
-from .mitsuba import to_mitsuba
+from .mitsuba.translate import marble_tolerance, to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -99,7 +99,7 @@ def time_render(scene, spp: int, repeats: int) -> Timing:
         runs.append(1000 * (time.perf_counter() - start))
     return Timing(run_ms=statistics.median(runs), runs_ms=runs,
                   compile_ms=sum(k["codegen_time"] + k["backend_time"] for k in first),
-                  kernels_compiled=sum(1 for k in first if not k["cache_hit"]), image=image)
+                  kernels_compiled=kernel_cache.compiled(first), image=image)
 
 
 def _reference_source_digest() -> str:
@@ -299,9 +299,8 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
     marble32 = next(c for m in with_marbles(base, octaves=32).materials.values()
                     for c in m.channels().values()
                     if isinstance(c, scene_language.MarbleChannel))
-    budget = tolerance if tolerance is not None else error_budget.scene_tolerance(
-        base.ambient, [light.color for light in base.lights])
-    t["tolerance_error_32"] = stress.tolerance_error(marble32, budget)
+    t["tolerance_error_32"] = stress.tolerance_error(marble32,
+                                                     marble_tolerance(base, marble32, tolerance))
 
     marble8 = run(with_marbles(base, octaves=8))
     constant = run(with_constant_colours(base))

@@ -30,10 +30,8 @@ def _start(args) -> None:
 def _doctor(args) -> int:
     from . import environment, kernel_cache
     from . import scene as scene_language
-    if args.warm is not None:
-        scenes = _scene_list(args.warm)
-        for path in scenes:
-            scene_language.load(path)    # every scene error before minutes of compiling
+    if args.warm is not None:    # every scene error before minutes of compiling
+        scenes = [(path, scene_language.load(path)) for path in _scene_list(args.warm)]
     rows, ok = environment.doctor(args.variant)
     rows.append(("kernel cache", kernel_cache.describe()))
     width = max(len(k) for k, _ in rows)

@@ -251,7 +251,7 @@ def import_drjit_and_mitsuba():
 
 
 #: Mitsuba's differentiable integrators, Python modules of ``mitsuba.python.ad.integrators``
-#: (Mitsuba 3.6–3.7); ``common`` (their base classes, cheap) is kept.
+#: (Mitsuba 3.9); ``common`` (their base classes, cheap) is kept.
 MITSUBA_AD_INTEGRATORS = ("prb_basic", "prb", "prbvolpath", "direct_projective",
                           "prb_projective", "volprim_rf_basic")
 
@@ -278,6 +278,14 @@ def skip_mitsuba_ad_integrators() -> bool:
         full = f"mitsuba.python.ad.integrators.{name}"
         sys.modules.setdefault(full, types.ModuleType(full))
     return True
+
+
+def drjit_core():
+    """drjit-core's shared library through ctypes, for the calls Dr.Jit's Python API lacks
+    (the LLVM target, the kernel cache's folder). Raises OSError when it cannot be loaded."""
+    import ctypes
+    dr, _ = import_drjit_and_mitsuba()
+    return ctypes.CDLL(os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so"))
 
 
 def llvm_backend_up() -> bool:

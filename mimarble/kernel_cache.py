@@ -26,15 +26,14 @@ _CACHE_DIR = "_Z13jit_cache_dirv"     # drjit-core: const char *jit_cache_dir()
 
 def folder() -> Path | None:
     """The folder Dr.Jit keeps compiled kernels in (None: it keeps none)."""
+    from .environment import drjit_core
     try:
-        import drjit
-        lib = ctypes.CDLL(os.path.join(os.path.dirname(drjit.__file__), "libdrjit-core.so"))
-        get = getattr(lib, _CACHE_DIR)
+        get = getattr(drjit_core(), _CACHE_DIR)
         get.restype = ctypes.c_char_p
         path = get()
         if path:
             return Path(path.decode())
-    except (OSError, AttributeError, ImportError):
+    except (OSError, AttributeError):
         pass
     # Not initialised yet, or another drjit-core: its rule.
     if os.environ.get("DRJIT_CACHE_DIR"):
@@ -66,19 +65,23 @@ def describe() -> str:
             f"DRJIT_CACHE_MAXSIZE={limit}; delete the folder to clear it)")
 
 
-def warm(scene_paths, progress=None):
-    """Render each scene once at its own size, 1 spp; yields (path, seconds, kernels compiled).
+def compiled(history) -> int:
+    """How many kernels of a ``dr.kernel_history()`` were compiled (found in no cache)."""
+    import drjit as dr
+    return sum(1 for k in history if k["type"] == dr.KernelType.JIT and not k["cache_hit"])
 
-    Afterwards a render of these scenes at their size compiles nothing, at any
-    spp. ``progress`` as for :func:`mimarble.render`.
+
+def warm(scenes, progress=None):
+    """Render each scene once at its own size, 1 spp; yields (name, seconds, kernels compiled).
+
+    ``scenes``: (name, scene model) pairs. Afterwards a render of these scenes at
+    their size compiles nothing, at any spp. ``progress`` as for :func:`mimarble.render`.
     """
     import mimarble
     dr = mimarble.dr
-    for path in scene_paths:
-        scene = mimarble.scene.load(path)
+    for name, scene in scenes:
         start = time.perf_counter()
         with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
             mimarble.render(scene, spp=1, progress=progress)
-            compiled = sum(1 for k in dr.kernel_history()
-                           if k["type"] == dr.KernelType.JIT and not k["cache_hit"])
-        yield path, time.perf_counter() - start, compiled
+            kernels = compiled(dr.kernel_history())
+        yield name, time.perf_counter() - start, kernels

@@ -68,8 +68,8 @@ class _Core:
     """drjit-core's target calls through ctypes; raises OSError/AttributeError when absent."""
 
     def __init__(self):
-        import drjit
-        lib = ctypes.CDLL(os.path.join(os.path.dirname(drjit.__file__), "libdrjit-core.so"))
+        from .environment import drjit_core
+        lib = drjit_core()
         self._set = getattr(lib, _SET_TARGET)
         self._set.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
         self._set.restype = None

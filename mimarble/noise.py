@@ -191,7 +191,7 @@ def _wrap_large(x):
     return dr.select(dr.abs(x) >= _TWO_24, x - 256.0 * dr.floor(x * (1.0 / 256.0)), x)
 
 
-def _wrap_large_point(p):
+def wrap_large_point(p):
     return type(p)(_wrap_large(p.x), _wrap_large(p.y), _wrap_large(p.z))
 
 
@@ -213,7 +213,7 @@ def fractal3(p, octaves: int, turbulence: bool = False):
     total = dr.zeros(float_type, dr.width(p)) if dr.is_jit_v(float_type) else 0.0
     if n_eval == 0:
         return total   # the empty sum
-    q = _wrap_large_point(p)
+    q = wrap_large_point(p)
     for i in range(n_eval):
         n = noise3(q * float(2.0 ** i))
         total += (dr.abs(n) if turbulence else n) * float(2.0 ** -i)
@@ -260,7 +260,7 @@ def fractal3_band_limited(p, octaves: int, footprint, turbulence: bool = False):
     whole, last = band_limit(footprint, octaves)
     float_type = type(p.x)
     uint_type = dr.uint32_array_t(float_type)
-    q = _wrap_large_point(p)
+    q = wrap_large_point(p)
     count = uint_type(whole) + dr.select(last > 0.0, 1, 0)
 
     def body(i, frequency, amplitude, total):
@@ -278,7 +278,7 @@ def fractal3_band_limited(p, octaves: int, footprint, turbulence: bool = False):
 def fractal3_weighted(p, octaves: int, footprint, turbulence: bool = False):
     """The same band-limited sum, unrolled (differentiable; no work is saved)."""
     whole, last = band_limit(footprint, octaves)
-    q = _wrap_large_point(p)
+    q = wrap_large_point(p)
     total = dr.zeros(type(p.x), dr.width(p))
     for i in range(octaves_evaluated(octaves)):
         weight = dr.select(whole > i, 1.0, dr.select(whole == i, last, 0.0))

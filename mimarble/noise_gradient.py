@@ -24,7 +24,7 @@ from __future__ import annotations
 
 from . import environment
 from .noise import (corner_dots, corner_hashes, fade, grad, lerp, octaves_evaluated,
-                    trilinear, _wrap_large_point)
+                    trilinear, wrap_large_point)
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -66,7 +66,7 @@ def fractal3_gradient(p, octaves: int, turbulence: bool = False):
     gradient = dr.zeros(type(p), dr.width(p)) if jit else type(p)(0.0)
     if n_eval == 0:
         return total, gradient
-    q = _wrap_large_point(p)
+    q = wrap_large_point(p)
     for i in range(n_eval):
         n, g = noise3_gradient(q * float(2.0 ** i))
         if turbulence:

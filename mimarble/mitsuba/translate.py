@@ -62,6 +62,18 @@ def texture_dict(channel: model.ColorChannel | model.MarbleChannel,
     }
 
 
+def marble_tolerance(scene: model.Scene, channel: model.MarbleChannel,
+                     tolerance: float | None = None) -> float:
+    """A marble's error budget in ``scene``: ``tolerance`` when given, else the channel's
+    own, else the scene's default, half an 8-bit sRGB code value through its lighting
+    (``error_budget.scene_tolerance``)."""
+    if tolerance is not None:
+        return tolerance
+    if channel.tolerance is not None:
+        return channel.tolerance
+    return error_budget.scene_tolerance(scene.ambient, [light.color for light in scene.lights])
+
+
 def _distance(a, b) -> float:
     return math.dist(a, b)
 
@@ -216,16 +228,14 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
 
     out: dict = {"type": "scene"}
     textures: dict = {}            # channel value -> texture id (dedupes equal channels)
-    scene_tolerance = error_budget.scene_tolerance(scene.ambient, [l.color for l in scene.lights])
 
     def ref(channel):
         if isinstance(channel, model.ColorChannel):   # a constant: inline, nothing to share
             return texture_dict(channel)
         if channel not in textures:
             textures[channel] = f"texture_{len(textures)}"
-            budget = tolerance if tolerance is not None else (
-                channel.tolerance if channel.tolerance is not None else scene_tolerance)
-            out[textures[channel]] = texture_dict(channel, budget)
+            out[textures[channel]] = texture_dict(channel,
+                                                  marble_tolerance(scene, channel, tolerance))
         return {"type": "ref", "id": textures[channel]}
 
     if mode == "whitted":
