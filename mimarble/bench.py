@@ -24,11 +24,37 @@ from . import environment, kernel_cache, reference, stress
 from . import scene as scene_language
 from .compare import image_metrics
 from .gallery import resized
+from .mitsuba.render import edge_mask, render_in_passes
 from .mitsuba.translate import marble_tolerance, to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-MODES = ("plain", "bandlimit")
+#: Edge samples of the sweep's prefilter+edges mode unless --edge-spp says otherwise.
+DEFAULT_EDGE_SPP = 16
+
+
+@dataclasses.dataclass(frozen=True)
+class Mode:
+    """How a sweep renders: every marble's ``filter``, and edge samples (None: none)."""
+
+    name: str
+    filter: str = "none"
+    edge_spp: int | None = None
+
+
+def modes(filter: str | None = None, edge_spp: int | None = None) -> tuple[Mode, ...]:
+    """The sweep's modes: plain, bandlimit, prefilter and prefilter with edge samples;
+    with ``filter``, that filter alone (with edge samples when ``edge_spp`` is given)."""
+    if filter is None:
+        return (Mode("plain"), Mode("bandlimit", "bandlimit"), Mode("prefilter", "prefilter"),
+                Mode("prefilter+edges", "prefilter", edge_spp or DEFAULT_EDGE_SPP))
+    name = "plain" if filter == "none" else filter
+    return (Mode(name + ("+edges" if edge_spp else ""), filter, edge_spp),)
+
+
+MODES = modes()
+#: The modes the fig11a targets compare (octaves 32 vs 8, time to RMSE ≤ 0.01).
+TARGET_MODES = MODES[:2]
 # The paper's "render" column (seconds on a 2 GHz Pentium 4, 500×500) for Figs. 7–11.
 PAPER_SECONDS = {
     "fig07a": 2.0, "fig07b": 2.0, "fig07c": 2.0, "fig07d": 2.0,
@@ -85,17 +111,23 @@ class Timing:
     image: np.ndarray = dataclasses.field(repr=False)
 
 
-def time_render(scene, spp: int, repeats: int) -> Timing:
-    """Load once, render once (compile), then ``repeats`` warm renders after a sync."""
+def time_render(scene, spp: int, repeats: int, edge_spp: int | None = None) -> Timing:
+    """Load once, render once (compile), then ``repeats`` warm renders after a sync, as
+    ``mimarble.render`` renders (``render_in_passes``: one kernel for every spp, ray
+    differentials from the eye, edge samples)."""
     mitsuba_scene = mi.load_dict(to_mitsuba(scene, spp=spp))
+
+    def render():
+        return render_in_passes(mitsuba_scene, spp, edge_spp=edge_spp)
+
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-        image = np.array(mi.render(mitsuba_scene))[..., :3]
+        image = render()
         first = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
     runs = []
     for _ in range(repeats):
         dr.sync_thread()
         start = time.perf_counter()
-        image = np.array(mi.render(mitsuba_scene))[..., :3]
+        image = render()
         runs.append(1000 * (time.perf_counter() - start))
     return Timing(run_ms=statistics.median(runs), runs_ms=runs,
                   compile_ms=sum(k["codegen_time"] + k["backend_time"] for k in first),
@@ -163,36 +195,43 @@ def targets_scene(scene_paths):
 
 def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=5,
               targets=None, paper=True, cache_dir=None, progress=True, povray=True,
-              tolerance=None) -> dict:
+              tolerance=None, modes=MODES) -> dict:
     """The sweeps, the paper comparison, and (with ``targets``, a scene path) the targets.
 
     ``tolerance``: every marble's error budget for our renders (None: each scene's
-    default); the converged reference is always the full sum.
+    default); the converged reference is always the full sum. ``modes``: the
+    :class:`Mode` of each sweep. Each run also has its RMSE inside the silhouettes
+    (``interior_rmse``: pixels whose 3×3 neighbourhood sees one shape, at 16 spp).
     """
     cache_dir = Path(cache_dir or Path.home() / ".cache" / "mimarble")
     scenes = [(Path(p).stem, scene_language.load(p)) for p in scene_paths]
-    steps = len(scenes) * (1 + len(MODES) * len(spps))
+    steps = len(scenes) * (1 + len(modes) * len(spps))
     steps += sum(1 for name, _ in scenes if name in PAPER_SECONDS) if paper else 0
     steps += 9 if targets else 0
     bar = Progress(steps, progress)
     results = {"machine": machine_facts(), "size": size, "converged_spp": converged_spp,
                "repeats": repeats, "tolerance": tolerance, "runs": [], "paper": [],
-               "targets": {}}
+               "modes": [dataclasses.asdict(m) for m in modes], "targets": {}}
 
     for name, scene in scenes:
         small = resized(scene, size)
         truth = converged(small, converged_spp, cache_dir)
+        interior = ~edge_mask(mi.load_dict(to_mitsuba(small, spp=16)), 16)
         bar.step(f"{name}: converged reference")
-        for mode in MODES:
-            variant = with_marbles(small, bandlimit=(mode == "bandlimit"), tolerance=tolerance)
+        for mode in modes:
+            variant = with_marbles(small, filter=mode.filter, tolerance=tolerance)
             for spp in spps:
-                timing = time_render(variant, spp, repeats)
+                timing = time_render(variant, spp, repeats, mode.edge_spp)
                 metrics = image_metrics(timing.image, truth)
                 results["runs"].append({
-                    "scene": name, "mode": mode, "spp": spp, "run_ms": timing.run_ms,
-                    "compile_ms": timing.compile_ms, "kernels_compiled": timing.kernels_compiled,
-                    "rmse": metrics["rmse"], "psnr": metrics["psnr"]})
-                bar.step(f"{name}: {mode} {spp} spp")
+                    "scene": name, "mode": mode.name, "spp": spp, "edge_spp": mode.edge_spp,
+                    "run_ms": timing.run_ms, "compile_ms": timing.compile_ms,
+                    "kernels_compiled": timing.kernels_compiled,
+                    "rmse": metrics["rmse"], "psnr": metrics["psnr"],
+                    "interior_rmse": float(np.sqrt(np.mean(
+                        np.square(timing.image - truth)[interior])))})
+                bar.step(f"{name}: {mode.name} {spp} spp")
+    results["speedup_at_plain16_rmse"] = speedups_at_equal_error(results["runs"])
 
     if paper:
         for name, scene in scenes:
@@ -288,12 +327,11 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
     def run(scene, spp=1):
         return time_render(scene, spp, repeats)
 
-    for mode in MODES:
-        bl = mode == "bandlimit"
-        t8 = run(with_marbles(base, octaves=8, bandlimit=bl)).run_ms
-        t32 = run(with_marbles(base, octaves=32, bandlimit=bl)).run_ms
-        bar.step(f"targets: octaves 32 vs 8 ({mode})")
-        t[f"octaves32_over_8_{mode}"] = {"t8_ms": t8, "t32_ms": t32, "ratio": t32 / t8}
+    for mode in TARGET_MODES:
+        t8 = run(with_marbles(base, octaves=8, filter=mode.filter)).run_ms
+        t32 = run(with_marbles(base, octaves=32, filter=mode.filter)).run_ms
+        bar.step(f"targets: octaves 32 vs 8 ({mode.name})")
+        t[f"octaves32_over_8_{mode.name}"] = {"t8_ms": t8, "t32_ms": t32, "ratio": t32 / t8}
     # What the error budget costs in colour at 32 octaves: the texture at its tolerance
     # against the float64 reference's full sum (mimarble.stress.tolerance_error).
     marble32 = next(c for m in with_marbles(base, octaves=32).materials.values()
@@ -325,21 +363,41 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
     truth = converged(base, 64, cache_dir)
     bar.step("targets: converged reference at 500x500")
     reach = {}
-    for mode in MODES:
+    for mode in TARGET_MODES:
         curve = []
         for spp in (1, 4, 9, 16, 25, 36, 64):
-            timing = run(with_marbles(base, bandlimit=(mode == "bandlimit")), spp)
+            timing = run(with_marbles(base, filter=mode.filter), spp)
             rmse = image_metrics(timing.image, truth)["rmse"]
             curve.append({"spp": spp, "run_ms": timing.run_ms, "rmse": rmse})
             if rmse <= 0.01:
                 break
         first = next((c for c in curve if c["rmse"] <= 0.01), None)
-        reach[mode] = {"curve": curve, "ms_to_rmse_0.01": first["run_ms"] if first else None}
-        bar.step(f"targets: time to RMSE 0.01 ({mode})")
+        reach[mode.name] = {"curve": curve, "ms_to_rmse_0.01": first["run_ms"] if first else None}
+        bar.step(f"targets: time to RMSE 0.01 ({mode.name})")
     plain, limited = reach["plain"]["ms_to_rmse_0.01"], reach["bandlimit"]["ms_to_rmse_0.01"]
     t["rmse_0.01"] = {"by_mode": reach,
                       "speedup": plain / limited if plain and limited else None}
     return t
+
+
+def speedups_at_equal_error(runs) -> dict:
+    """Per scene and mode: the fastest run of the mode whose RMSE is at most plain 16 spp's,
+    and plain 16 spp's time over its time (None: no run of the mode got there)."""
+    out = {}
+    for scene in sorted({r["scene"] for r in runs}):
+        mine = [r for r in runs if r["scene"] == scene]
+        plain16 = next((r for r in mine if r["mode"] == "plain" and r["spp"] == 16), None)
+        if plain16 is None:
+            continue
+        out[scene] = {}
+        for mode in sorted({r["mode"] for r in mine} - {"plain"}):
+            good = [r for r in mine if r["mode"] == mode and r["rmse"] <= plain16["rmse"]]
+            best = min(good, key=lambda r: r["run_ms"]) if good else None
+            out[scene][mode] = None if best is None else {
+                "spp": best["spp"], "edge_spp": best.get("edge_spp"), "run_ms": best["run_ms"],
+                "rmse": best["rmse"], "plain16_ms": plain16["run_ms"],
+                "plain16_rmse": plain16["rmse"], "speedup": plain16["run_ms"] / best["run_ms"]}
+    return out
 
 
 def machine_facts() -> dict:
@@ -383,6 +441,23 @@ def _cpu_name() -> str:
 # ---------------------------------------------------------------------------
 # Reports
 
+def _speedup_lines(speedups: dict) -> list[str]:
+    """Each mode's speed-up over plain 16 spp at no more RMSE: per scene, mean, worst."""
+    modes = sorted({m for by_mode in speedups.values() for m in by_mode})
+    if not modes:
+        return []
+    lines = ["", "Speed-up over plain 16 spp at equal or lower RMSE (fastest run that gets there):"]
+    for mode in modes:
+        values = [by_mode.get(mode) for by_mode in speedups.values()]
+        reached = [v["speedup"] for v in values if v]
+        worst = "not reached on every scene" if len(reached) < len(values) else \
+            f"worst {min(reached):.2f}×"
+        mean = f"mean {np.mean(reached):.2f}× over {len(reached)} of {len(values)} scenes" \
+            if reached else "reached on no scene"
+        lines.append(f"  {mode:15}: {mean}, {worst}   target ≥ 4× (prefilter+edges)")
+    return lines
+
+
 def _process_lines(p, povray) -> list[str]:
     against = (f"   POV-Ray's whole process {povray['process_s']:.2f} s: target faster"
                if povray else "")
@@ -405,12 +480,13 @@ def format_report(results: dict) -> str:
     lines = [f"mimarble bench — {machine_line(results['machine'])}",
              f"{results['size']}², error against the float64 reference at "
              f"{results['converged_spp']} spp; times are medians of {results['repeats']} warm runs", ""]
-    lines.append(f"{'scene':8} {'mode':9} {'spp':>4} {'run ms':>8} {'compile ms':>10} "
-                 f"{'new kernels':>11} {'RMSE':>8} {'PSNR dB':>8}")
+    lines.append(f"{'scene':8} {'mode':15} {'spp':>4} {'run ms':>8} {'compile ms':>10} "
+                 f"{'new kernels':>11} {'RMSE':>8} {'PSNR dB':>8} {'interior':>8}")
     for r in results["runs"]:
-        lines.append(f"{r['scene']:8} {r['mode']:9} {r['spp']:>4} {r['run_ms']:>8.1f} "
+        lines.append(f"{r['scene']:8} {r['mode']:15} {r['spp']:>4} {r['run_ms']:>8.1f} "
                      f"{r['compile_ms']:>10.1f} {r['kernels_compiled']:>11} {r['rmse']:>8.4f} "
-                     f"{r['psnr']:>8.1f}")
+                     f"{r['psnr']:>8.1f} {r.get('interior_rmse', float('nan')):>8.4f}")
+    lines += _speedup_lines(results.get("speedup_at_plain16_rmse") or {})
     if results["paper"]:
         lines += ["", "Against the paper's render column (500×500, the scene's own spp):",
                   f"{'scene':8} {'spp':>4} {'ours s':>8} {'paper s':>8} {'ours/paper':>10} "
@@ -421,7 +497,7 @@ def format_report(results: dict) -> str:
     t = results.get("targets")
     if t:
         lines += ["", "Targets (fig11a, 500×500, sphere filling the view, 1 spp):"]
-        for mode in MODES:
+        for mode in (m.name for m in TARGET_MODES):
             r = t[f"octaves32_over_8_{mode}"]
             lines.append(f"  time(octaves 32)/time(octaves 8), {mode:9}: {r['ratio']:.2f} "
                          f"({r['t32_ms']:.1f} / {r['t8_ms']:.1f} ms)   target ≤ 1.3")
@@ -440,7 +516,7 @@ def format_report(results: dict) -> str:
                      f"(24 octaves vs none: {r['t24_ms']:.1f} - {r['t0_ms']:.1f} ms over "
                      f"{r['hits']:.0f} hits, {r['cores']} cores)   target ≥ 100 M, stretch 200 M")
         r = t["rmse_0.01"]
-        for mode in MODES:
+        for mode in (m.name for m in TARGET_MODES):
             curve = ", ".join(f"{c['spp']} spp {c['run_ms']:.0f} ms RMSE {c['rmse']:.4f}"
                               for c in r["by_mode"][mode]["curve"])
             lines.append(f"  RMSE ≤ 0.01, {mode:9}: {curve}")
@@ -463,8 +539,10 @@ def plot(results: dict, path) -> None:
 
     fig, ax = plt.subplots(figsize=(7, 5))
     runs = results["runs"]
-    colours = {"plain": "tab:blue", "bandlimit": "tab:orange"}
-    for mode in MODES:
+    palette = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
+    names = list(dict.fromkeys(r["mode"] for r in runs))
+    colours = dict(zip(names, palette * len(names)))
+    for mode in names:
         mine = [r for r in runs if r["mode"] == mode]
         ax.scatter([r["run_ms"] for r in mine], [r["rmse"] for r in mine], s=8, alpha=0.3,
                    color=colours[mode])

@@ -179,10 +179,11 @@ def _render_to_file(args, renderer, description) -> int:
 
 def _render(args) -> int:
     import mimarble
-    return _render_to_file(args, lambda scene, spp: mimarble.render(scene, spp=spp, mode=args.mode,
-                                                                    progress=True,
-                                                                    tolerance=args.tolerance),
-                           lambda: f"{args.mode} mode, {mimarble.mi.variant()}")
+    _check_edge_spp(args)
+    return _render_to_file(args, lambda scene, spp: mimarble.render(
+        scene, spp=spp, mode=args.mode, progress=True, tolerance=args.tolerance,
+        filter=args.filter, edge_spp=args.edge_spp),
+        lambda: f"{args.mode} mode, {mimarble.mi.variant()}")
 
 
 def _reference(args) -> int:
@@ -202,12 +203,16 @@ def _compare(args) -> int:
     import mimarble
     from . import reference
     from .compare import error_map, image_metrics
-    if any(getattr(channel, "bandlimit", False) for material in scene.materials.values()
-           for channel in material.channels().values()):
-        print("mimarble: note: the scene has band-limited marble, which the reference tracer "
-              "renders in full detail: expect them to differ", file=sys.stderr)
+    filters = {args.filter} if args.filter else {
+        getattr(channel, "filter", "none") for material in scene.materials.values()
+        for channel in material.channels().values()}
+    if filters - {"none"} or args.edge_spp:
+        print("mimarble: note: the reference tracer renders plain supersampling (the ground "
+              "truth): filtered marble or edge samples differ from it by what they filter",
+              file=sys.stderr)
     start = time.perf_counter()
-    ours = mimarble.render(scene, spp=spp, progress=True, tolerance=args.tolerance)
+    ours = mimarble.render(scene, spp=spp, progress=True, tolerance=args.tolerance,
+                           filter=args.filter, edge_spp=args.edge_spp)
     mitsuba_seconds = time.perf_counter() - start
     start = time.perf_counter()
     ref = reference.render(scene, spp=spp, progress=True)
@@ -254,7 +259,8 @@ def _bench(args) -> int:
     results = bench.run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
                               converged_spp=args.converged_spp, targets=targets_scene,
                               paper=not args.no_paper, povray=not args.no_povray,
-                              tolerance=args.tolerance)
+                              tolerance=args.tolerance,
+                              modes=bench.modes(args.filter, args.edge_spp))
     print(bench.format_report(results))
     try:
         if args.json:
@@ -303,6 +309,11 @@ def _gallery(args) -> int:
     return 0
 
 
+#: mimarble.scene.model.MARBLE_FILTERS, written out: --help must not import the scene
+#: package (lark) to list them (tests/test_cli.py checks that they agree).
+MARBLE_FILTERS = ("none", "bandlimit", "prefilter")
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mimarble",
@@ -322,6 +333,16 @@ def build_parser() -> argparse.ArgumentParser:
                             "sRGB code value through the scene's lighting; docs/numerical-"
                             "stability.md)")
 
+    def add_filter(p, what):
+        p.add_argument("--filter", choices=MARBLE_FILTERS,
+                       help="every marble's pixel filter: none (the colour at the sample), "
+                            "bandlimit (sub-pixel octaves left out), prefilter (the colour "
+                            f"averaged over the pixel's phase); {what}")
+        p.add_argument("--edge-spp", type=_edge_spp, metavar="N",
+                       help="render pixels on a silhouette again with N samples, a perfect "
+                            "square (whitted mode)" + ("" if what.startswith("default: the")
+                                                       else "; default 16 in the sweep"))
+
     def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
 
@@ -337,6 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "see docs/rendering-model.md")
     add_size(p)
     add_tolerance(p)
+    add_filter(p, "default: the marbles' own")
     add_variant(p)
     p.set_defaults(run=_render)
 
@@ -355,6 +377,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--diff", metavar="OUT.png", help="write a false-colour error map")
     add_size(p)
     add_tolerance(p)
+    add_filter(p, "default: the marbles' own (the reference renders plain supersampling)")
     add_variant(p)
     p.set_defaults(run=_compare, mode="whitted")
 
@@ -372,6 +395,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip timing POV-Ray 3.7 on a comparable marble sphere (done with the "
                         "targets when `povray` is installed)")
     add_tolerance(p)
+    add_filter(p, "sweeps only this one (default: plain, bandlimit, prefilter, and prefilter "
+                  "with edge samples)")
     add_variant(p)
     p.set_defaults(run=_bench)
 
@@ -398,6 +423,23 @@ def build_parser() -> argparse.ArgumentParser:
     add_variant(p)
     p.set_defaults(run=_doctor)
     return parser
+
+
+def _edge_spp(text: str) -> int:
+    """``--edge-spp``: a perfect square ≥ 1 (argparse reports the error as a usage error)."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1 or round(value ** 0.5) ** 2 != value:
+        raise argparse.ArgumentTypeError(f"{value} must be a perfect square ≥ 1 (1, 4, 9, 16, …): "
+                                         f"the edge samples are an n×n grid")
+    return value
+
+
+def _check_edge_spp(args) -> None:
+    if args.edge_spp and args.mode != "whitted":
+        raise UsageError(f"--edge-spp needs whitted mode (its stratum centres), not --mode {args.mode}")
 
 
 def _tolerance(text: str) -> float:

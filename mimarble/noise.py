@@ -233,16 +233,16 @@ def _smoothstep(a, b, x):
 BAND_LIMIT_MARGIN = 2
 
 
-def band_limit(footprint, octaves: int):
+def band_limit(footprint, octaves: int, margin: float = BAND_LIMIT_MARGIN):
     """(whole octaves, weight of the next one) for a footprint in noise-space units.
 
     pbrt-v4's FBm clamp, n = clamp(−1 − log2(footprint), 0, K), moved up by
-    ``BAND_LIMIT_MARGIN`` octaves; the octave ⌊n⌋ fades in with smoothstep(0.3, 0.7)
+    ``margin`` octaves (:data:`BAND_LIMIT_MARGIN` unless given); the octave ⌊n⌋ fades in with smoothstep(0.3, 0.7)
     of the fraction, so the count changes without seams. A zero footprint (no ray
     differentials) keeps every octave, and so does a NaN one.
     """
     most = float(octaves_evaluated(octaves))
-    n = BAND_LIMIT_MARGIN - 1.0 - dr.log2(footprint)
+    n = margin - 1.0 - dr.log2(footprint)
     # NaN (a lane without a valid footprint) and +inf both fail `n < most`: all octaves.
     # The loop count must never come from a NaN: its integer conversion is unbounded.
     n = dr.maximum(dr.select(n < most, n, most), 0.0)

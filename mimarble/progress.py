@@ -27,6 +27,8 @@ def report(progress, description: str):
         if bar is None:
             bar = tqdm(total=total, desc=description, unit="sample", unit_scale=True,
                        delay=DELAY_S, leave=False, file=sys.stderr, disable=None)
+        if bar.total != total:          # edge samples add work once the first pass is done
+            bar.total = total
         bar.update(done - bar.n)
         if done >= total:
             bar.close()

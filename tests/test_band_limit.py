@@ -45,7 +45,7 @@ def test_unrolled_weighted_form_equals_the_loop(jit_variant):
 
 
 def bandlimited(scene, flag=True):
-    return with_marbles(scene, bandlimit=flag)
+    return with_marbles(scene, filter="bandlimit" if flag else "none")
 
 
 def test_band_limited_render_stays_close_to_the_full_one(llvm):

@@ -58,10 +58,10 @@ def test_marble_defaults():
 def test_all_marble_keys():
     m = parse(
         'material "m" { ambient { marble { scale 2 period 3 distortion 4 octaves 5 function cosine axis z '
-        "turbulence true bandlimit true ramp { <0 0 0> <1 1 1> } } } }"
+        "turbulence true filter bandlimit ramp { <0 0 0> <1 1 1> } } } }"
     ).materials["m"].ambient
     assert m == MarbleChannel(scale=2.0, period=3.0, distortion=4.0, octaves=5, function="cosine",
-                              axis="z", turbulence=True, bandlimit=True,
+                              axis="z", turbulence=True, filter="bandlimit",
                               ramp=((0.0, 0.0, 0.0), (1.0, 1.0, 1.0)))
     assert m.axis_index == 2
 
@@ -231,7 +231,7 @@ def test_block_keys_table_matches_the_grammar():
         "position": "<0 0 0>", "color": "<0 0 0>", "shininess": "2",
         "ambient": "{ color <0 0 0> }", "diffuse": "{ color <0 0 0> }", "specular": "{ color <0 0 0> }",
         "scale": "1", "period": "1", "distortion": "1", "octaves": "1", "function": "sine", "axis": "y",
-        "turbulence": "true", "bandlimit": "true", "tolerance": "0.001", "ramp": "{ <0 0 0> <1 1 1> }",
+        "turbulence": "true", "filter": "prefilter", "tolerance": "0.001", "ramp": "{ <0 0 0> <1 1 1> }",
         "center": "<0 0 0>", "radius": "1",
         "material": '"m"',
     }

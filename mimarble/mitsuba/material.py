@@ -69,8 +69,8 @@ class ChannelMaterial:
         return getattr(self, name) is not None
 
     def needs_differentials(self) -> bool:
-        """Some channel is a band-limited marble: the integrator must provide footprints."""
-        return any(getattr(getattr(self, name), "bandlimit", False) for name in CHANNELS)
+        """Some channel is a filtered marble: the integrator must provide footprints."""
+        return any(getattr(getattr(self, name), "filter", "none") != "none" for name in CHANNELS)
 
     # -- a Lambertian BSDF for every other integrator -------------------------
 

@@ -23,7 +23,8 @@ PASS_SAMPLES = 1 << 22
 
 
 def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
-           progress=False, tolerance: float | None = None) -> np.ndarray:
+           progress=False, tolerance: float | None = None, filter: str | None = None,
+           edge_spp: int | None = None) -> np.ndarray:
     """Render a scene (model, or path of a scene file) → linear float32 (H, W, 3).
 
     Memory is the image plus a bounded working set whatever the size and spp:
@@ -33,13 +34,18 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     progress bar on stderr (shown once the render has taken 1.5 s), or a
     callable ``progress(samples_done, samples_total)``. ``tolerance``: every
     marble's error budget (colour units, 0 = every octave; default: each marble's
-    own, else the scene's, see ``to_mitsuba``).
+    own, else the scene's, see ``to_mitsuba``). ``filter``: every marble's pixel
+    filter (``none``, ``bandlimit``, ``prefilter``; default: each marble's own).
+    ``edge_spp``: n² stratum-centre samples for pixels on a silhouette
+    (:func:`render_in_passes`; whitted mode, JIT variants; default: none).
     """
     environment.require_rgb_variant()
+    check_edge_spp(edge_spp, mode)
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
-    mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance))
+    mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance,
+                                            filter=filter))
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
     if not dr.is_jit_v(mi.Float):
@@ -48,21 +54,39 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
         image = np.array(mi.render(mitsuba_scene), dtype=np.float32)[..., :3]
         done(total, total)
         return image
-    return render_in_passes(mitsuba_scene, spp, mode, progress)
+    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp)
+
+
+def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
+    """``edge_spp`` is None or a perfect square ≥ 1, in whitted mode (ValueError otherwise)."""
+    if edge_spp is None:
+        return
+    if isinstance(edge_spp, bool) or not isinstance(edge_spp, int) or edge_spp < 1 \
+            or round(edge_spp ** 0.5) ** 2 != edge_spp:
+        raise ValueError(f"edge_spp={edge_spp!r} must be a perfect square ≥ 1 (1, 4, 9, 16, …)")
+    if mode != "whitted":
+        raise ValueError(f"edge_spp needs whitted mode (its stratum centres); mode is {mode!r}")
 
 
 def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=False,
-                     pass_samples: int | None = None) -> np.ndarray:
+                     pass_samples: int | None = None, edge_spp: int | None = None) -> np.ndarray:
     """What ``mi.render`` computes, in passes of at most ``pass_samples`` samples.
 
     Each pass takes a run of whole pixels (or, when one pixel has more samples
     than a pass, a run of one pixel's samples) and does what Mitsuba's
     ``SamplingIntegrator.render`` does for them: film position → the sensor's
-    ``sample_ray_differential`` (differentials scaled by 1/√spp) → the
-    integrator's ``sample``; with the translator's ``box`` filter a pixel is
-    the plain mean of its samples. Sample positions: whitted mode takes the
-    n×n stratum centres (what the non-jittered ``stratified`` sampler gives, in
-    another order), path mode the scene's sampler, seeded per pass.
+    ``sample_ray_differential`` (differentials scaled by 1/√spp, starting at the
+    eye: :class:`PixelTracer`) → the integrator's ``sample``; with the
+    translator's ``box`` filter a pixel is the plain mean of its samples. Sample
+    positions: whitted mode takes the n×n stratum centres (what the non-jittered
+    ``stratified`` sampler gives, in another order), path mode the scene's
+    sampler, seeded per pass.
+
+    ``edge_spp`` (whitted mode): afterwards, every pixel on a silhouette — among
+    its own samples and those of its 8 neighbours, the first shapes hit are not
+    all the same (a miss counts as a shape) — is rendered again with
+    ``edge_spp`` = m² stratum centres, which replace its first samples.
+    Deterministic, like the rest.
 
     Every number that varies between renders of one scene structure is opaque
     (pass offsets, samples per pixel, image width and height), so a scene
@@ -72,45 +96,35 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     the spp as a constant. JIT variants therefore always render here, also in
     one pass.
     """
+    check_edge_spp(edge_spp, mode)
     pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
-    sensor = mitsuba_scene.sensors()[0]
-    integrator = mitsuba_scene.integrator()
-    width, height = (int(x) for x in sensor.film().crop_size())
+    tracer = PixelTracer(mitsuba_scene, mode)
+    width, height = tracer.width, tracer.height
     pixels = width * height
-    whitted = mode == "whitted"
-    n = int(round(spp ** 0.5))
-    sampler = sensor.sampler().clone()
     image = np.empty((pixels, 3), dtype=np.float32)   # the only full-size array
     partial = np.zeros(3)                              # a pixel split over passes, so far
+    # First and last shape hit among each pixel's samples (0: a miss), for edge_spp.
+    shapes = np.zeros((2, pixels), dtype=np.uint32) if edge_spp else None
     done = report(progress, "render")
     samples_done, samples_total = 0, pixels * spp
     done(0, samples_total)                             # a bar's delay counts from here
     pixels_per_pass = max(1, pass_samples // spp)
     samples_per_pass = min(spp, pass_samples)
-    u32, f32 = (lambda v: dr.opaque(mi.UInt32, v)), (lambda v: dr.opaque(mi.Float, v))
-    columns, per_axis = u32(width), u32(n)
-    # Reciprocals, as Dr.Jit makes of a division by a constant: Mitsuba's own image bit for bit.
-    inv_film, inv_n = mi.Point2f(f32(1.0 / width), f32(1.0 / height)), f32(1.0 / n)
+    u32 = tracer.u32
     for index, (p0, q0, n_pixels, n_samples) in enumerate(
             _passes(pixels, spp, pixels_per_pass, samples_per_pass)):
         lanes = n_pixels * n_samples
         lane = dr.arange(mi.UInt32, lanes)
         pixel = u32(p0) + lane // u32(n_samples)
         sub = u32(q0) + lane % u32(n_samples)
-        y = pixel // columns
-        x = pixel - y * columns
-        if whitted:
-            offset = (mi.Point2f(mi.Float(sub % per_axis), mi.Float(sub // per_axis)) + 0.5) * inv_n
-        else:
-            sampler.seed(u32(index), lanes)
-            offset = sampler.next_2d()
-        position = (mi.Point2f(mi.Float(x), mi.Float(y)) + offset) * inv_film
-        ray, weight = sensor.sample_ray_differential(mi.Float(sensor.shutter_open()), 0.0,
-                                                     position, mi.Point2f(0.5))
-        if ray.has_differentials:
-            ray.scale_differential(f32(1.0 / spp ** 0.5))
-        radiance = integrator.sample(mitsuba_scene, sampler, ray, None, True)[0]
-        sums = _pixel_sums(weight * radiance, lanes, n_samples)
+        radiance, hit_shape = tracer.trace(pixel, sub, spp, index, shapes is not None)
+        sums = _pixel_sums(radiance, lanes, n_samples)
+        if shapes is not None:
+            hit = np.array(hit_shape, dtype=np.uint32).reshape(n_pixels, n_samples)
+            lo, hi = hit.min(axis=1), hit.max(axis=1)
+            span = slice(p0, p0 + n_pixels)
+            shapes[0, span] = lo if q0 == 0 else np.minimum(shapes[0, span], lo)
+            shapes[1, span] = hi if q0 == 0 else np.maximum(shapes[1, span], hi)
         if n_samples == spp:
             image[p0:p0 + n_pixels] = sums / spp
         else:
@@ -120,7 +134,120 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
                 partial[:] = 0.0
         samples_done += lanes
         done(samples_done, samples_total)
+    if edge_spp:
+        edges = silhouette_pixels(shapes, width, height)
+        samples_total += len(edges) * edge_spp
+        for start in range(0, len(edges), max(1, pass_samples // edge_spp)):
+            chunk = edges[start:start + max(1, pass_samples // edge_spp)]
+            lanes = len(chunk) * edge_spp
+            lane = dr.arange(mi.UInt32, lanes)
+            pixel = dr.gather(mi.UInt32, mi.UInt32(chunk), lane // u32(edge_spp))
+            radiance, _ = tracer.trace(pixel, lane % u32(edge_spp), edge_spp, 0, False)
+            image[chunk] = _pixel_sums(radiance, lanes, edge_spp) / edge_spp
+            samples_done += lanes
+            done(samples_done, samples_total)
     return image.reshape(height, width, 3)
+
+
+def edge_mask(mitsuba_scene, spp: int = 16) -> np.ndarray:
+    """(H, W) bool: the pixels :func:`render_in_passes` gives edge samples, found with
+    ``spp`` stratum centres per pixel (the benchmark's "edge" pixels; the rest is the
+    interior)."""
+    tracer = PixelTracer(mitsuba_scene, "whitted")
+    pixels = tracer.width * tracer.height
+    shapes = np.zeros((2, pixels), dtype=np.uint32)
+    step = max(1, PASS_SAMPLES // spp)
+    for p0 in range(0, pixels, step):
+        n_pixels = min(step, pixels - p0)
+        lane = dr.arange(mi.UInt32, n_pixels * spp)
+        pixel = tracer.u32(p0) + lane // tracer.u32(spp)
+        hit = np.array(tracer.first_shape(pixel, lane % tracer.u32(spp), spp),
+                       dtype=np.uint32).reshape(n_pixels, spp)
+        shapes[0, p0:p0 + n_pixels], shapes[1, p0:p0 + n_pixels] = hit.min(1), hit.max(1)
+    mask = np.zeros(pixels, dtype=bool)
+    mask[silhouette_pixels(shapes, tracer.width, tracer.height)] = True
+    return mask.reshape(tracer.height, tracer.width)
+
+
+def silhouette_pixels(shapes: np.ndarray, width: int, height: int) -> np.ndarray:
+    """Indices of the pixels whose 3×3 neighbourhood holds more than one first-hit shape.
+
+    ``shapes``: (2, pixels), each pixel's smallest and largest shape id over its
+    samples (0 for a miss)."""
+    lo = shapes[0].reshape(height, width)
+    hi = shapes[1].reshape(height, width)
+    lo = np.pad(lo, 1, mode="edge")
+    hi = np.pad(hi, 1, mode="edge")
+    least, most = lo[1:-1, 1:-1].copy(), hi[1:-1, 1:-1].copy()
+    for dy in (0, 1, 2):
+        for dx in (0, 1, 2):
+            np.minimum(least, lo[dy:dy + height, dx:dx + width], out=least)
+            np.maximum(most, hi[dy:dy + height, dx:dx + width], out=most)
+    return np.flatnonzero(least != most).astype(np.uint32)
+
+
+class PixelTracer:
+    """Radiance of samples given by pixel index and sample index within the pixel."""
+
+    def __init__(self, mitsuba_scene, mode: str):
+        self.scene = mitsuba_scene
+        self.sensor = mitsuba_scene.sensors()[0]
+        self.integrator = mitsuba_scene.integrator()
+        self.width, self.height = (int(x) for x in self.sensor.film().crop_size())
+        self.whitted = mode == "whitted"
+        self.sampler = self.sensor.sampler().clone()
+        # Mitsuba's perspective camera starts a ray at the near clip plane but its two
+        # differential rays at that same point, not at the eye: pixel footprints came out
+        # (t − near)/t of their size (half, for fig11a). They start at the eye here.
+        self.eye = mi.Point3f(self.sensor.world_transform().translation())
+        f32 = self.f32
+        self.columns = self.u32(self.width)
+        # Reciprocals, as Dr.Jit makes of a division by a constant: Mitsuba's own image bit for bit.
+        self.inv_film = mi.Point2f(f32(1.0 / self.width), f32(1.0 / self.height))
+
+    @staticmethod
+    def u32(value):
+        return dr.opaque(mi.UInt32, value)
+
+    @staticmethod
+    def f32(value):
+        return dr.opaque(mi.Float, value)
+
+    def ray(self, pixel, sub, spp: int, seed: int):
+        """(ray with differentials, weight) of sample ``sub`` of ``spp`` in ``pixel``."""
+        u32, f32 = self.u32, self.f32
+        y = pixel // self.columns
+        x = pixel - y * self.columns
+        if self.whitted:
+            n = int(round(spp ** 0.5))
+            per_axis = u32(n)
+            offset = (mi.Point2f(mi.Float(sub % per_axis), mi.Float(sub // per_axis)) + 0.5) \
+                * f32(1.0 / n)
+        else:
+            self.sampler.seed(u32(seed), dr.width(pixel))
+            offset = self.sampler.next_2d()
+        position = (mi.Point2f(mi.Float(x), mi.Float(y)) + offset) * self.inv_film
+        ray, weight = self.sensor.sample_ray_differential(
+            mi.Float(self.sensor.shutter_open()), 0.0, position, mi.Point2f(0.5))
+        if ray.has_differentials:
+            ray.scale_differential(f32(1.0 / spp ** 0.5))
+            ray.o_x = ray.o_y = self.eye
+        return ray, weight
+
+    def trace(self, pixel, sub, spp: int, seed: int, with_shapes: bool):
+        """(weighted radiance, first shape hit or 0, when ``with_shapes``) of each lane:
+        sample ``sub`` of ``spp`` in pixel ``pixel``."""
+        ray, weight = self.ray(pixel, sub, spp, seed)
+        radiance = self.integrator.sample(self.scene, self.sampler, ray, None, True)[0]
+        shape = self._shape(ray) if with_shapes else None
+        return weight * radiance, shape
+
+    def first_shape(self, pixel, sub, spp: int):
+        """The id of the first shape each (whitted) sample hits, 0 for a miss."""
+        return self._shape(self.ray(pixel, sub, spp, 0)[0])
+
+    def _shape(self, ray):
+        return dr.reinterpret_array(mi.UInt32, self.scene.ray_intersect(ray).shape)
 
 
 def _pixel_sums(value, lanes: int, n_samples: int) -> np.ndarray:

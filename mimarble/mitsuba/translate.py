@@ -28,6 +28,7 @@ Constant channels are plain ``rgb`` textures: no noise code is generated for the
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import warnings
 
@@ -55,7 +56,7 @@ def texture_dict(channel: model.ColorChannel | model.MarbleChannel,
         "function": channel.function,
         "axis": channel.axis,
         "turbulence": channel.turbulence,
-        "bandlimit": channel.bandlimit,
+        "filter": channel.filter,
         "tolerance": float(next(t for t in (tolerance, channel.tolerance,
                                             error_budget.DEFAULT_TOLERANCE) if t is not None)),
         "ramp": ", ".join(" ".join(repr(float(x)) for x in c) for c in channel.ramp),
@@ -205,17 +206,20 @@ def _sensor(scene: model.Scene, sampler: dict) -> dict:
 
 
 def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None,
-               tolerance: float | None = None) -> dict:
+               tolerance: float | None = None, filter: str | None = None) -> dict:
     """A Mitsuba scene dict for ``scene`` (``mi.load_dict`` it to render).
 
     ``spp`` overrides the scene's samples per pixel; in whitted mode it must be
     a perfect square (an n×n grid of stratum centres). ``tolerance`` overrides
     every marble's error budget; without it a marble keeps its own, or gets the
     scene's default: half an 8-bit sRGB code value through the scene's lighting
-    (``error_budget.scene_tolerance``).
+    (``error_budget.scene_tolerance``). ``filter`` overrides every marble's pixel
+    filter (``none``, ``bandlimit``, ``prefilter``).
     """
     if tolerance is not None and not tolerance >= 0:
         raise ValueError(f"tolerance={tolerance!r} must be ≥ 0")
+    if filter is not None and filter not in model.MARBLE_FILTERS:
+        raise ValueError(f"filter={filter!r} must be one of {', '.join(model.MARBLE_FILTERS)}")
     if mode not in MODES:
         raise ValueError(f"mode={mode!r} must be one of {', '.join(MODES)}")
     spp = scene.image.samples if spp is None else spp
@@ -232,6 +236,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     def ref(channel):
         if isinstance(channel, model.ColorChannel):   # a constant: inline, nothing to share
             return texture_dict(channel)
+        if filter is not None:
+            channel = dataclasses.replace(channel, filter=filter)
         if channel not in textures:
             textures[channel] = f"texture_{len(textures)}"
             out[textures[channel]] = texture_dict(channel,

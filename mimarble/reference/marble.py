@@ -25,7 +25,7 @@ import numpy as np
 
 from .noise import fractal
 
-__all__ = ["stripe", "ramp", "marble_color"]
+__all__ = ["stripe", "stripe_of_phase", "ramp", "marble_color"]
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -41,14 +41,20 @@ def stripe(points, channel):
     else:
         phase = 0.0
     a = v[..., _AXES[channel.axis]]
-    fn = channel.function
-    if fn == "abs_sine":
-        return np.abs(np.sin(math.pi * (float(channel.period) * a + phase)))
-    if fn == "sine":
-        return 0.5 * (np.sin(float(channel.period) * a + phase) + 1.0)
-    if fn == "cosine":
-        return 0.5 * (np.cos(a + phase) + 1.0)
-    raise ValueError(f"unknown marble function {fn!r}; expected abs_sine, sine or cosine")
+    if channel.function == "cosine":
+        return stripe_of_phase(a + phase, "cosine")
+    return stripe_of_phase(float(channel.period) * a + phase, channel.function)
+
+
+def stripe_of_phase(phase, function):
+    """t(φ): |sin πφ| (abs_sine), ½(sin φ + 1) (sine) or ½(cos φ + 1) (cosine)."""
+    if function == "abs_sine":
+        return np.abs(np.sin(math.pi * phase))
+    if function == "sine":
+        return 0.5 * (np.sin(phase) + 1.0)
+    if function == "cosine":
+        return 0.5 * (np.cos(phase) + 1.0)
+    raise ValueError(f"unknown marble function {function!r}; expected abs_sine, sine or cosine")
 
 
 def ramp(t, colours):

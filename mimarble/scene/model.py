@@ -41,16 +41,20 @@ __all__ = [
     "Axis",
     "FIG5_RAMP",
     "MARBLE_FUNCTIONS",
+    "MARBLE_FILTERS",
     "AXES",
 ]
 
 Vec3 = tuple[float, float, float]
 RGB = tuple[float, float, float]
 MarbleFunction = Literal["abs_sine", "sine", "cosine"]
+MarbleFilter = Literal["none", "bandlimit", "prefilter"]
 Axis = Literal["x", "y", "z"]
 
 #: The marble functions, in the order of the documentation.
 MARBLE_FUNCTIONS: tuple[str, ...] = ("abs_sine", "sine", "cosine")
+#: How a marble filters the pixel's footprint in Mitsuba (``marble`` plugin ``filter``).
+MARBLE_FILTERS: tuple[str, ...] = ("none", "bandlimit", "prefilter")
 #: The coordinate axes a marble may run along.
 AXES: tuple[str, ...] = ("x", "y", "z")
 
@@ -190,10 +194,11 @@ class MarbleChannel:
     The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)``,
     piecewise linear, ``t`` clamped to [0, 1] (one colour: a constant).
 
-    ``bandlimit`` and ``tolerance`` are rendering options for Mitsuba (octaves finer
-    than the pixel footprint, or than the colour error ``tolerance`` allows, are left
-    out; ``None``: the scene's default, mimarble/error_budget.py); the reference
-    tracer always renders the full marble.
+    ``filter`` and ``tolerance`` are rendering options for Mitsuba (``bandlimit``
+    leaves out octaves finer than the pixel footprint, ``prefilter`` averages the
+    colour over the pixel's interval of phase; octaves that the colour error
+    ``tolerance`` allows are left out, ``None``: the scene's default,
+    mimarble/error_budget.py); the reference tracer always renders the full marble.
     """
 
     scale: float = 1.0
@@ -203,7 +208,7 @@ class MarbleChannel:
     function: MarbleFunction = "abs_sine"
     axis: Axis = "x"
     turbulence: bool = False
-    bandlimit: bool = False
+    filter: MarbleFilter = "none"
     tolerance: float | None = None
     ramp: tuple[RGB, ...] = FIG5_RAMP
     pos: Pos | None = _pos()

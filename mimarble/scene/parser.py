@@ -30,6 +30,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 from .errors import SceneError
 from .model import (
     AXES,
+    MARBLE_FILTERS,
     MARBLE_FUNCTIONS,
     Camera,
     ColorChannel,
@@ -60,9 +61,12 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "diffuse": ("color", "marble"),
     "specular": ("color", "marble"),
     "marble": ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
-               "bandlimit", "tolerance", "ramp"),
+               "filter", "tolerance", "ramp"),
     "sphere": ("center", "radius", "material"),
 }
+
+#: Keys that were renamed, and what to write now (said in the error).
+_RENAMED_KEYS = {"bandlimit": " (it is now 'filter bandlimit'; also 'filter prefilter')"}
 
 #: Limits checked after parsing (documented in docs/scene-language.md).
 LIMITS = {
@@ -341,7 +345,8 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str) -> SceneError:
                 return at(line, col, f"empty {name}: expected {what}")
             return at(line, col, f"unexpected {found} in {name}; expected {what}")
         if tok.type == "WORD":
-            return at(line, col, f"unknown keyword '{tok}' in {name}; allowed: {allowed}")
+            renamed = _RENAMED_KEYS.get(str(tok), "")
+            return at(line, col, f"unknown keyword '{tok}' in {name}{renamed}; allowed: {allowed}")
         if tok.type in kwt:
             return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: {allowed}")
         return at(line, col, f"unexpected {found} in {name}; expected a keyword ({allowed}) or '}}'")
@@ -371,7 +376,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str) -> SceneError:
             "function": "a function name: abs_sine, sine or cosine",
             "axis": "an axis: x, y or z",
             "turbulence": "true or false",
-            "bandlimit": "true or false",
+            "filter": "a filter: none, bandlimit or prefilter",
         }.get(str(prev), "a name")
         return at(line, col, f"expected {choices}{after}, found {found}")
     return at(line, col, f"unexpected {found}; expected {_expected_list(expected)}")
@@ -610,9 +615,9 @@ class _Builder:
         if "octaves" in f:
             lo, hi = LIMITS["octaves"]
             kw["octaves"] = self.integer(f["octaves"].children[0], "octaves", lo, hi)
-        booleans = ("turbulence", "bandlimit")
+        booleans = ("turbulence",)
         for key, choices in (("function", MARBLE_FUNCTIONS), ("axis", AXES),
-                             ("turbulence", ("true", "false")), ("bandlimit", ("true", "false"))):
+                             ("turbulence", ("true", "false")), ("filter", MARBLE_FILTERS)):
             if key in f:
                 tok = f[key].children[0]
                 if str(tok) not in choices:

@@ -1,0 +1,186 @@
+"""The marble colour averaged over an interval of phase, exactly: the prefilter.
+
+Over a pixel the phase φ of the marble (``mimarble/marble.py``) runs over an interval;
+the pixel's colour is the mean of f(φ) = ramp(t(φ)) over it. f is periodic in φ, so
+with its antiderivative G the mean over [φ − w/2, φ + w/2] is
+
+    (G(φ + w/2) − G(φ − w/2)) / w,
+
+two lookups, whatever w. G is exact here, in closed form. With y = φ/P + y₀ each
+function's stripe becomes one shape of period 1 in y, symmetric about y = ½::
+
+    abs_sine:  t = |sin πφ|        P = 1,   y₀ = 0     t = T(x) = sin πx
+    sine:      t = ½(sin φ + 1)    P = 2π,  y₀ = ¼     t = T(x) = sin² πx
+    cosine:    t = ½(cos φ + 1)    P = 2π,  y₀ = ½     t = T(x) = sin² πx
+
+with x = y − ⌊y⌋. The ramp is linear in t on each of its K − 1 pieces,
+ramp = α_i + β_i t, β_i = (K−1)(c_{i+1} − c_i), α_i = c_i − i(c_{i+1} − c_i); t
+crosses the keys k/(K−1) at x_k = T⁻¹(k/(K−1)) rising and 1 − x_k falling, which cut
+the period into 2(K−1) pieces j with boundaries B_j. On a piece
+
+    ∫_a^b f = α_i (b − a) + β_i ∫_a^b T,
+    ∫_a^b sin πs ds   = (2/π) sin(π(a+b)/2) sin(π(b−a)/2)
+    ∫_a^b sin² πs ds  = (b−a)/2 − cos(π(a+b)) sin(π(b−a)) / (2π)
+
+(products of sines: no cancellation as b → a, so a narrow interval inside one piece is
+as accurate as a point). Whole pieces come from a table C_j = ∫_0^{B_j} f, linear in
+the ramp colours (C = W·c, W built here in float64), so it follows ``mi.traverse``
+edits and carries gradients to the ramp. An interval across pieces is the two end
+partials plus C differences; across periods adds whole periods C_end.
+
+The float64 twin (numerical quadrature, nothing shared) is
+:mod:`mimarble.reference.prefilter`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import environment
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+
+@dataclass(frozen=True)
+class StripeShape:
+    """t as a function of y = φ/period + offset: sin πx, or sin² πx (``squared``)."""
+
+    period: float
+    offset: float
+    squared: bool
+
+    def y(self, phase):
+        if self.period == 1.0 and self.offset == 0.0:
+            return phase
+        return phase * (1.0 / self.period) + self.offset
+
+    # float64 NumPy, for the table
+
+    def inverse(self, t: np.ndarray) -> np.ndarray:
+        """The rising x ∈ [0, ½] where T(x) = t."""
+        return np.arcsin(np.sqrt(t) if self.squared else t) / math.pi
+
+    def antiderivative(self, x: np.ndarray) -> np.ndarray:
+        """∫_0^x T."""
+        if self.squared:
+            return x / 2 - np.sin(2 * math.pi * x) / (4 * math.pi)
+        return (1 - np.cos(math.pi * x)) / math.pi
+
+    # Dr.Jit, in the kernel
+
+    def stripe(self, x):
+        s = dr.sin(dr.pi * x)
+        return s * s if self.squared else s
+
+    def integral(self, a, b):
+        """∫_a^b T, without cancellation as b → a."""
+        if self.squared:
+            return 0.5 * (b - a) - dr.cos(dr.pi * (a + b)) * dr.sin(dr.pi * (b - a)) * (0.5 / dr.pi)
+        return (2.0 / dr.pi) * dr.sin((0.5 * dr.pi) * (a + b)) * dr.sin((0.5 * dr.pi) * (b - a))
+
+
+SHAPES = {
+    "abs_sine": StripeShape(1.0, 0.0, False),
+    "sine": StripeShape(2 * math.pi, 0.25, True),
+    "cosine": StripeShape(2 * math.pi, 0.5, True),
+}
+
+#: Intervals of more periods than this are the period's mean (n_hi − n_lo stays exact).
+_MANY_PERIODS = float(2 ** 20)
+
+
+def piece_table(function: str, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """(B, W) for a ramp of ``size`` ≥ 2 colours: the 2(K−1)+1 piece boundaries B_j in
+    [0, 1] and the weights W (2(K−1)+1, K) with C_j = ∫_0^{B_j} f = Σ_k W_jk c_k."""
+    shape, last = SHAPES[function], size - 1
+    keys = np.arange(size) / last
+    rising = shape.inverse(keys)
+    rising[-1] = 0.5
+    boundaries = np.concatenate([rising, 1.0 - rising[-2::-1]])
+    weights = np.zeros((2 * last + 1, size))
+    for j in range(2 * last):
+        i = j if j < last else 2 * last - 1 - j
+        a, b = boundaries[j], boundaries[j + 1]
+        length = b - a
+        # ∫ c_i + (t − t_i)(K−1)(c_{i+1} − c_i) = c_i (L − m) + c_{i+1} m
+        m = last * (shape.antiderivative(b) - shape.antiderivative(a) - keys[i] * length)
+        weights[j + 1] = weights[j]
+        weights[j + 1, i] += length - m
+        weights[j + 1, i + 1] += m
+    return boundaries, weights
+
+
+class PhaseAverage:
+    """ramp∘t averaged over phase intervals, for one marble's function and ramp.
+
+    ``piece(t)`` → (i, f) and ``colour(i)`` → c_i are the marble's own ramp lookups,
+    so the ramp is read exactly as the unfiltered texture reads it.
+    """
+
+    def __init__(self, function: str, size: int, piece, colour):
+        self.shape = SHAPES[function]
+        self.last = size - 1
+        self.piece, self.colour = piece, colour
+        boundaries, self.weights = piece_table(function, size)
+        self.boundaries = mi.Float(boundaries)
+
+    def update(self, ramp) -> None:
+        """C = W·c from the ramp as it is now (a Color3f of K entries; gradients flow)."""
+        cumulative = dr.zeros(mi.Color3f, self.weights.shape[0])
+        for k in range(self.weights.shape[1]):
+            c_k = dr.gather(mi.Color3f, ramp, mi.UInt32(k))
+            cumulative += mi.Float(self.weights[:, k]) * c_k
+        dr.eval(cumulative)
+        self.cumulative = cumulative
+
+    def __call__(self, phase, width):
+        """The mean of ramp(t(φ)) over [phase − width/2, phase + width/2] (width ≥ 0),
+        and a mask of the lanes where it is defined (an interval below float32's
+        resolution of the phase, or a NaN: use the point)."""
+        shape = self.shape
+        y = shape.y(phase)
+        half = width * (0.5 / shape.period)
+        lo, hi = y - half, y + half
+        n_lo, n_hi = dr.floor(lo), dr.floor(hi)
+        x_lo, x_hi = lo - n_lo, hi - n_hi
+        (alpha_lo, beta_lo), j_lo = self._piece_at(x_lo)
+        (alpha_hi, beta_hi), j_hi = self._piece_at(x_hi)
+
+        def partial(a, b, alpha, beta):
+            return alpha * (b - a) + beta * shape.integral(a, b)
+
+        # The mean is each integral over the length it integrates, both from the same
+        # rounded numbers: lo − ⌊lo⌋ drops low bits of a negative lo, hi − lo would not.
+        x_end = hi - n_lo
+        inside, inside_length = partial(x_lo, x_end, alpha_lo, beta_lo), x_end - x_lo
+        end_lo = dr.gather(mi.Float, self.boundaries, j_lo + 1)
+        start_hi = dr.gather(mi.Float, self.boundaries, j_hi)
+        periods = n_hi - n_lo
+        whole = (dr.gather(mi.Color3f, self.cumulative, j_hi)
+                 - dr.gather(mi.Color3f, self.cumulative, j_lo + 1)
+                 + periods * self._period_integral())
+        across = (partial(x_lo, end_lo, alpha_lo, beta_lo) + whole
+                  + partial(start_hi, x_hi, alpha_hi, beta_hi))
+        across_length = (end_lo - x_lo) + (periods + (start_hi - end_lo)) + (x_hi - start_hi)
+        same = (periods == 0.0) & (j_lo == j_hi)
+        length = dr.select(same, inside_length, across_length)
+        mean = dr.select(same, inside, across) / length
+        many = periods >= _MANY_PERIODS
+        mean = dr.select(many, self._period_integral(), mean)
+        return mean, many | (length > 0.0)
+
+    def _period_integral(self):
+        """∫ f over one period = its mean (the period is 1 in y)."""
+        index = dr.full(mi.UInt32, 2 * self.last, 1)
+        return dr.gather(mi.Color3f, self.cumulative, index)
+
+    def _piece_at(self, x):
+        """((α_i, β_i), j) of the piece holding x ∈ [0, 1)."""
+        i, _ = self.piece(self.shape.stripe(x))
+        j = dr.select(x < 0.5, i, 2 * self.last - 1 - i)
+        below, above = self.colour(i), self.colour(i + 1)
+        step = above - below
+        return (below - mi.Float(i) * step, step * float(self.last)), j
