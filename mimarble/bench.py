@@ -30,7 +30,7 @@ from .mitsuba.translate import marble_tolerance, to_mitsuba
 dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Edge samples of the sweep's prefilter+edges mode unless --edge-spp says otherwise.
-DEFAULT_EDGE_SPP = 16
+DEFAULT_EDGE_SPP = 64
 
 
 @dataclasses.dataclass(frozen=True)

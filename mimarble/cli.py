@@ -341,7 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--edge-spp", type=_edge_spp, metavar="N",
                        help="render pixels on a silhouette again with N samples, a perfect "
                             "square (whitted mode)" + ("" if what.startswith("default: the")
-                                                       else "; default 16 in the sweep"))
+                                                       else "; default 64 in the sweep"))
 
     def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")

@@ -68,8 +68,9 @@ evenly spaced keys k/(K−1), interpolated linearly.
        faded in (pbrt-v4's FBm clamp): fewer noise evaluations, less aliasing.
        ``prefilter``: the colour averaged over the pixel's interval of phase, exactly
        (mimarble/prefilter.py), the octaves finer than the footprint left out and
-       their spread of phase added to the interval: 1 spp close to many.
-       Without differentials every filter is ``none``.
+       their spread of phase added to the interval. Exact where the phase is linear
+       across the pixel; octaves one to four pixels long are not (docs/benchmarks.md
+       has the error against time). Without differentials every filter is ``none``.
    * - ``to_world``
      - transform (identity)
      - Places the texture in the world; the point is mapped by its inverse. Must be
@@ -428,7 +429,7 @@ class Marble:
         if self.needs_noise:
             F, grad_F, dropped = fractal3_band_limited_gradient(
                 v, self.octaves_evaluated, _footprint(dv_dx, dv_dy), PREFILTER_MARGIN,
-                self.turbulence)
+                self.turbulence, (dv_dx, dv_dy))
             phase, grad_phase = self.phase_and_gradient(v, F, grad_F)
             spread = dr.square(self.distortion) * dropped
         else:

@@ -87,9 +87,17 @@ ABS_NOISE_VARIANCE = 0.0245
 
 
 def fractal3_band_limited_gradient(p, octaves: int, footprint, margin: float,
-                                   turbulence: bool = False):
+                                   turbulence: bool = False, differentials=None):
     """(F, ∇F, σ²): the octaves up to ``footprint`` (:func:`mimarble.noise.band_limit`
-    with ``margin``), their gradient, and the variance σ² the octaves left out would add.
+    with ``margin``), their gradient, and the variance σ² of F across the pixel that the
+    gradient does not describe: the octaves left out, and, for turbulence with the
+    pixel's ``differentials`` (∂p/∂x, ∂p/∂y), the octaves folded inside the pixel.
+
+    |N| folds where N crosses 0: across a pixel where N runs linearly over
+    [n − W/2, n + W/2] (W from ∇N and the differentials; |n| < W/2) the mean of |N|
+    is n²/W + W/4, not |n|, and it spreads with variance n² + W²/12 − mean² about that
+    mean, with no slope: such an octave adds its mean to F and its spread to σ², not
+    its gradient. Without differentials the octave is |N| at the point.
 
     A symbolic loop (each lane stops after its own last octave), unrolled when ``p``
     carries gradients (reverse mode cannot go through a symbolic loop)."""
@@ -99,30 +107,41 @@ def fractal3_band_limited_gradient(p, octaves: int, footprint, margin: float,
     uint_type = dr.uint32_array_t(float_type)
     q = wrap_large_point(p)
     width = dr.width(p)
+    folds = turbulence and differentials is not None
 
-    def octave(i, frequency, amplitude, total, gradient):
+    def octave(i, frequency, amplitude, total, gradient, spread):
         n, g = noise3_gradient(q * frequency)
+        weight = dr.select(float_type(i) < whole, 1.0, dr.select(float_type(i) == whole, last, 0.0))
         if turbulence:
             g = g * dr.sign(n) * dr.select(n == 0.0, 0.0, 1.0)
             n = dr.abs(n)
-        weight = dr.select(float_type(i) < whole, 1.0, dr.select(float_type(i) == whole, last, 0.0))
+        if folds:
+            # N across the pixel, in N's units: ∇N(2^i p)·2^i·(∂p/∂x, ∂p/∂y).
+            across = frequency * dr.sqrt(dr.square(dr.dot(g, differentials[0]))
+                                         + dr.square(dr.dot(g, differentials[1])))
+            folded = n < 0.5 * across
+            mean = dr.select(folded, dr.square(n) / across + 0.25 * across, n)
+            variance = dr.select(folded, dr.square(n) + dr.square(across) / 12.0
+                                 - dr.square(mean), 0.0)
+            n, g = mean, dr.select(folded, 0.0, g)
+            spread = spread + dr.maximum(variance, 0.0) * dr.square(amplitude * weight)
         return (i + 1, frequency * 2.0, amplitude * 0.5,
-                total + n * (amplitude * weight), gradient + g * weight)
+                total + n * (amplitude * weight), gradient + g * weight, spread)
 
     state = (dr.zeros(uint_type, width), dr.full(float_type, 1.0, width),
              dr.full(float_type, 1.0, width), dr.zeros(float_type, width),
-             dr.zeros(type(p), width))
+             dr.zeros(type(p), width), dr.zeros(float_type, width))
     if dr.grad_enabled(p):
         for _ in range(most):
             state = octave(*state)
     else:
         count = uint_type(whole) + dr.select(last > 0.0, 1, 0)
         state = dr.while_loop(state, lambda i, *rest: i < count, octave)
-    total, gradient = state[3], state[4]
+    total, gradient, folded_spread = state[3], state[4], state[5]
 
     # Left out: (1 − last) of octave `whole`, and all of whole+1 … most−1.
     variance = ABS_NOISE_VARIANCE if turbulence else NOISE_VARIANCE
     power = dr.exp2(-2.0 * whole)                      # 4^−whole
     dropped = dr.square(1.0 - last) * power + (power * 0.25 - 4.0 ** -most) * (4.0 / 3.0)
     dropped = dr.select(whole < float(most), variance * dr.maximum(dropped, 0.0), 0.0)
-    return total, gradient, dropped
+    return total, gradient, dropped + folded_spread

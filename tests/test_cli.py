@@ -74,6 +74,9 @@ def test_scene_errors_point_at_file_line_column(tmp_path, text, where, words):
 
 @pytest.mark.parametrize("args, words", [
     (["--spp", "3"], "perfect square"),
+    (["--edge-spp", "3"], "perfect square"),
+    (["--edge-spp", "4", "--mode", "path"], "whitted mode"),
+    (["--filter", "blur"], "invalid choice"),
     (["-o", "x.jpg"], "unsupported image format"),
     (["-o", "missing/x.png"], "does not exist"),
 ])
@@ -95,6 +98,20 @@ def test_path_mode_renders(tmp_path, small_scene):
     result = mimarble_cli("render", small_scene, "--mode", "path", "--spp", "2", "-o", out)
     assert result.returncode == 0, result.stderr
     assert np.isfinite(np.array(mimarble.mi.Bitmap(str(out)))).all()
+
+
+def test_prefilter_with_edge_samples_renders(tmp_path, small_scene):
+    out = tmp_path / "f.exr"
+    result = mimarble_cli("render", small_scene, "--filter", "prefilter", "--edge-spp", "9",
+                          "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert np.isfinite(np.array(mimarble.mi.Bitmap(str(out)))).all()
+
+
+def test_the_filters_listed_in_help_are_the_scene_languages():
+    from mimarble import cli
+    from mimarble.scene import MARBLE_FILTERS
+    assert cli.MARBLE_FILTERS == MARBLE_FILTERS
 
 
 def test_written_image_has_the_usual_file_mode(tmp_path, small_scene):

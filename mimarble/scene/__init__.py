@@ -15,6 +15,7 @@ from .errors import SceneError
 from .model import (
     AXES,
     FIG5_RAMP,
+    MARBLE_FILTERS,
     MARBLE_FUNCTIONS,
     RGB,
     Axis,
@@ -54,6 +55,7 @@ __all__ = [
     "MarbleFunction",
     "Axis",
     "FIG5_RAMP",
+    "MARBLE_FILTERS",
     "MARBLE_FUNCTIONS",
     "AXES",
     "BLOCK_KEYS",
