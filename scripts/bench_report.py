@@ -112,10 +112,9 @@ octaves/s/core (measured once, outside the benchmark).
   finer than the pixel, but the 1-spp error of these scenes is aliasing of the sharp veins of
   |sin| (the stripe function and the first octaves), present with any octave count. With pbrt's
   exact clamp the RMSE at 1 spp was worse than plain (0.030 against 0.018, fig11a at 250²); the
-  margin of two octaves past Nyquist in `mimarble/noise.py` brings it level. What would reach the
-  target is prefiltering the stripe itself: average |sin(πφ)| analytically over the phase
-  footprint (its antiderivative is elementary) — exact in expectation for the paper's ramp, which
-  is linear in t — from the phase gradient, which needs ∇F (analytic noise derivatives).
+  margin of two octaves past Nyquist in `mimarble/noise.py` brings it level. Issue 13 then
+  prefiltered the stripe itself (ramp∘t averaged exactly over the pixel's interval of phase,
+  from ∇F): see "Prefiltered marble and edge samples" below for what that reached.
 """
 # Sections measured by other commands (scripts/peak_memory.py, …) follow this marker and are kept.
 KEPT = "<!-- Below: measured by other commands; scripts/bench_report.py keeps it. -->"
@@ -134,6 +133,21 @@ rows = "\n".join(
     f"{paper_by[name]['reference_s']:.2f} s |"
     for name, label in (("fig10a", "1 octave"), ("fig10d", "8 octaves"), ("fig11a", "12 octaves"),
                         ("fig11b", "32 octaves")) if name in paper_by)
+prefilter_line = ""
+prefilter_json = ROOT / "docs" / "bench" / "prefilter.json"
+if prefilter_json.exists():   # issue 13's sweep (its own run, its own machine)
+    pre = json.loads(prefilter_json.read_text())
+
+    def pre_mean(mode, spp, key):
+        return np.mean([r[key] for r in pre["runs"] if r["mode"] == mode and r["spp"] == spp])
+    prefilter_line = (
+        f"\nPrefiltered marble with edge samples (`--filter prefilter --edge-spp 64`, 4 spp): RMSE "
+        f"{pre_mean('prefilter+edges', 4, 'rmse'):.4f} in {pre_mean('prefilter+edges', 4, 'run_ms'):.1f} ms "
+        f"against plain 16 spp's {pre_mean('plain', 16, 'rmse'):.4f} in "
+        f"{pre_mean('plain', 16, 'run_ms'):.1f} ms (256², mean of {len({r['scene'] for r in pre['runs']})}; "
+        f"{pre['machine']['processor']}, {pre['machine']['cores']} cores; "
+        f"[docs/benchmarks.md](docs/benchmarks.md#prefiltered-marble-and-edge-samples-issue-13)).\n")
+
 section = f"""## Benchmark
 
 `./go bench --json docs/bench/bench.json --plot docs/bench/error-vs-time.png` on an
@@ -153,7 +167,7 @@ Full tables, the targets and what they say: [docs/benchmarks.md](docs/benchmarks
 
 Whitted renders agree with the reference on every paper scene above 116 dB PSNR, no pixel off by
 1/255 (`./go compare SCENE`; [docs/rendering-model.md](docs/rendering-model.md)).
-
+{prefilter_line}
 """
 readme = (ROOT / "README.md").read_text()
 start = readme.index("## Benchmark")

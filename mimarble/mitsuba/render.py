@@ -118,10 +118,8 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
         pixel = u32(p0) + lane // u32(n_samples)
         sub = u32(q0) + lane % u32(n_samples)
         radiance, hit_shape = tracer.trace(pixel, sub, spp, index, shapes is not None)
-        sums = _pixel_sums(radiance, lanes, n_samples)
+        sums, lo, hi = _pixel_sums(radiance, lanes, n_samples, hit_shape)
         if shapes is not None:
-            hit = np.array(hit_shape, dtype=np.uint32).reshape(n_pixels, n_samples)
-            lo, hi = hit.min(axis=1), hit.max(axis=1)
             span = slice(p0, p0 + n_pixels)
             shapes[0, span] = lo if q0 == 0 else np.minimum(shapes[0, span], lo)
             shapes[1, span] = hi if q0 == 0 else np.maximum(shapes[1, span], hi)
@@ -143,7 +141,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
             lane = dr.arange(mi.UInt32, lanes)
             pixel = dr.gather(mi.UInt32, mi.UInt32(chunk), lane // u32(edge_spp))
             radiance, _ = tracer.trace(pixel, lane % u32(edge_spp), edge_spp, 0, False)
-            image[chunk] = _pixel_sums(radiance, lanes, edge_spp) / edge_spp
+            image[chunk] = _pixel_sums(radiance, lanes, edge_spp)[0] / edge_spp
             samples_done += lanes
             done(samples_done, samples_total)
     return image.reshape(height, width, 3)
@@ -236,10 +234,18 @@ class PixelTracer:
 
     def trace(self, pixel, sub, spp: int, seed: int, with_shapes: bool):
         """(weighted radiance, first shape hit or 0, when ``with_shapes``) of each lane:
-        sample ``sub`` of ``spp`` in pixel ``pixel``."""
+        sample ``sub`` of ``spp`` in pixel ``pixel``. The shape comes from the
+        integrator's own intersection where it offers one (``whitted``'s
+        ``sample_and_shape``), else from a second ``ray_intersect``."""
         ray, weight = self.ray(pixel, sub, spp, seed)
-        radiance = self.integrator.sample(self.scene, self.sampler, ray, None, True)[0]
-        shape = self._shape(ray) if with_shapes else None
+        shape = None
+        if with_shapes and hasattr(self.integrator, "sample_and_shape"):
+            radiance, _, _, shape = self.integrator.sample_and_shape(
+                self.scene, self.sampler, ray, None, True)
+        else:
+            radiance = self.integrator.sample(self.scene, self.sampler, ray, None, True)[0]
+            if with_shapes:
+                shape = self._shape(ray)
         return weight * radiance, shape
 
     def first_shape(self, pixel, sub, spp: int):
@@ -250,17 +256,24 @@ class PixelTracer:
         return dr.reinterpret_array(mi.UInt32, self.scene.ray_intersect(ray).shape)
 
 
-def _pixel_sums(value, lanes: int, n_samples: int) -> np.ndarray:
-    """Sums of each run of ``n_samples`` lanes of a Color3f, in float64 → (lanes/n_samples, 3).
+def _pixel_sums(value, lanes: int, n_samples: int, shapes=None):
+    """(sums, first, last): sums of each run of ``n_samples`` lanes of a Color3f, in
+    float64 → (lanes/n_samples, 3); with ``shapes`` (a UInt32 per lane), their smallest
+    and largest per run, else None.
 
-    Summed by Dr.Jit (``block_sum``), so only one value per pixel comes back to
-    NumPy; in float64, whose rounding is far below float32's.
+    Reduced by Dr.Jit (``block_sum``, ``block_reduce``) in one kernel, so only values
+    per pixel come back to NumPy; sums in float64, whose rounding is far below float32's.
     """
     value = mi.Color3d(value) + dr.zeros(mi.Color3d, lanes)   # constant channels: full width
-    dr.eval(value)                                             # one kernel for all channels
+    dr.eval(value if shapes is None else (value, shapes))      # one kernel for all of them
     if n_samples > 1:
         value = dr.block_sum(value, n_samples)
-    return np.array(value, dtype=np.float64).T
+    if shapes is None:
+        return np.array(value, dtype=np.float64).T, None, None
+    first = dr.block_reduce(dr.ReduceOp.Min, shapes, n_samples) if n_samples > 1 else shapes
+    last = dr.block_reduce(dr.ReduceOp.Max, shapes, n_samples) if n_samples > 1 else shapes
+    return (np.array(value, dtype=np.float64).T, np.array(first, dtype=np.uint32),
+            np.array(last, dtype=np.uint32))
 
 
 def _passes(pixels: int, spp: int, pixels_per_pass: int, samples_per_pass: int):

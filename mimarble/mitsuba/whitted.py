@@ -121,6 +121,13 @@ class Whitted:
         return _material_channels(si.bsdf(ray), si, hit) if hit else _no_channels(si)
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
+        return self.sample_and_shape(scene, sampler, ray, medium, active)[:3]
+
+    def sample_and_shape(self, scene, sampler, ray, medium=None, active=True):
+        """``sample``'s (radiance, valid, aovs), and the id of the shape each ray hit
+        first (its registry index; 0 for a miss), for edge samples: from the same
+        intersection, so finding silhouettes costs no second ray (and nothing at all
+        when the id is not used: Dr.Jit traces only what is evaluated)."""
         # Static facts about the scene decide which code is traced at all.
         materials = self._materials(scene)
         any_specular = any(m.has_channel("specular") for m in materials)
@@ -161,4 +168,6 @@ class Whitted:
                 shade += ks * dr.power(dr.maximum(dr.dot(n, h), 0.0), shininess)
             radiance += dr.select(lit, intensity * shade, 0.0)
 
-        return dr.select(hit, radiance, self.background), mi.Bool(True), []
+        shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), 0) \
+            if dr.is_jit_v(mi.Float) else None
+        return dr.select(hit, radiance, self.background), mi.Bool(True), [], shape
