@@ -72,9 +72,8 @@ def with_marbles(scene, **changes):
     """The scene with ``changes`` applied to every marble channel of every material."""
     materials = {}
     for name, material in scene.materials.items():
-        channels = {k: dataclasses.replace(c, **changes)
-                    for k, c in material.channels().items()
-                    if isinstance(c, scene_language.MarbleChannel)}
+        channels = {k: scene_language.replace_marbles(c, **changes)
+                    for k, c in material.channels().items()}
         materials[name] = dataclasses.replace(material, **channels)
     return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
 

@@ -203,9 +203,10 @@ def _compare(args) -> int:
     import mimarble
     from . import reference
     from .compare import error_map, image_metrics
+    from .scene import walk
     filters = {args.filter} if args.filter else {
-        getattr(channel, "filter", "none") for material in scene.materials.values()
-        for channel in material.channels().values()}
+        getattr(inner, "filter", "none") for material in scene.materials.values()
+        for channel in material.channels().values() for inner in walk(channel)}
     if filters - {"none"} or args.edge_spp:
         print("mimarble: note: the reference tracer renders plain supersampling (the ground "
               "truth): filtered marble or edge samples differ from it by what they filter",

@@ -101,3 +101,67 @@ def scene_tolerance(ambient, light_colours) -> float:
     """A scene's default tolerance: half an 8-bit sRGB code value through its lighting."""
     scale = lighting_scale(ambient, light_colours)
     return HALF_CODE_VALUE / scale if scale > 0 else DEFAULT_TOLERANCE
+
+
+# ---------------------------------------------------------------------------
+# Marbles inside channel expressions (add, multiply, mix)
+
+def channel_bound(channel) -> float:
+    """An upper bound of every colour component of a channel (colours are ≥ 0)."""
+    from .scene import model
+    if isinstance(channel, model.ColorChannel):
+        return max(channel.rgb)
+    if isinstance(channel, model.MarbleChannel):
+        return max(max(c) for c in channel.ramp)
+    if isinstance(channel, model.ImageChannel):
+        return 1.0                                   # an 8-bit sRGB texel decodes to ≤ 1
+    if isinstance(channel, model.Add):
+        return sum(channel_bound(c) for c in channel.operands)
+    if isinstance(channel, model.Multiply):
+        return math.prod(channel_bound(c) for c in channel.operands)
+    a, b = channel_bound(channel.a), channel_bound(channel.b)
+    keep, take = _mix_weights(channel.weight)
+    return keep * a + take * b
+
+
+def _mix_weights(weight) -> tuple[float, float]:
+    """Bounds of |1 − w| and |w| for a mix weight (a number, or a channel ≥ 0)."""
+    if isinstance(weight, float):
+        return abs(1.0 - weight), abs(weight)
+    w = channel_bound(weight)
+    return max(1.0, w - 1.0), w
+
+
+def marble_gains(channel, factor: float = 1.0, gains: dict | None = None) -> dict:
+    """For each marble in ``channel``: the most an error in its colour can be multiplied
+    by on its way to the channel's colour, summed over its occurrences.
+
+    A sum passes errors on unchanged; a product multiplies an operand's by the
+    others' bounds; a mix multiplies a's by |1 − w|, b's by |w| and the weight's by
+    max(a, b) (|∂/∂w| = |b − a|). So the channel's error is at most Σ gain·error.
+    """
+    from .scene import model
+    gains = {} if gains is None else gains
+    if isinstance(channel, model.MarbleChannel):
+        gains[channel] = gains.get(channel, 0.0) + factor
+    elif isinstance(channel, model.Add):
+        for operand in channel.operands:
+            marble_gains(operand, factor, gains)
+    elif isinstance(channel, model.Multiply):
+        bounds = [channel_bound(c) for c in channel.operands]
+        for k, operand in enumerate(channel.operands):
+            marble_gains(operand, factor * math.prod(bounds[:k] + bounds[k + 1:]), gains)
+    elif isinstance(channel, model.Mix):
+        keep, take = _mix_weights(channel.weight)
+        marble_gains(channel.a, factor * keep, gains)
+        marble_gains(channel.b, factor * take, gains)
+        if not isinstance(channel.weight, float):
+            marble_gains(channel.weight, factor * max(channel_bound(channel.a),
+                                                      channel_bound(channel.b)), gains)
+    return gains
+
+
+def expression_gain(channel) -> float:
+    """Σ of :func:`marble_gains`: a channel's error per unit of error of its marbles
+    (1 for a lone marble). Each of its marbles then gets tolerance / gain."""
+    return sum(marble_gains(channel).values())

@@ -10,7 +10,7 @@ ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = sorted((ROOT / "mimarble" / "reference").glob("*.py"))
 FORBIDDEN = ("mitsuba", "drjit", "mimarble.noise", "mimarble.marble", "mimarble.mitsuba",
              "mimarble.environment", "mimarble.cli")
-ALLOWED_THIRD_PARTY = ("numpy",)
+ALLOWED_THIRD_PARTY = ("numpy", "PIL")   # PIL: image maps decoded by Pillow
 ALLOWED_PROJECT = ("mimarble.scene", "mimarble.reference", "mimarble.progress")
 
 

@@ -4,8 +4,8 @@ A BSDF plugin that carries the three channels of the paper's §3.2 — ``ambient
 ``diffuse``, ``specular``, each any Mitsuba texture (``rgb`` for the paper's
 ChannelColor, ``marble`` for ChannelMarble) or absent — and a Phong exponent
 ``shininess``. The ``whitted`` integrator reads the channels through
-:meth:`channels`; a channel given twice as the same texture object (a ``ref`` in
-the scene dict) is evaluated once.
+:meth:`channels`; a texture given twice as the same object (a ``ref`` in the scene
+dict), also inside ``channel_expression`` operands, is evaluated once.
 
 .. list-table::
    :header-rows: 1
@@ -28,6 +28,7 @@ from __future__ import annotations
 
 from .. import environment
 from ..plugins import plugin
+from .channel_expression import evaluate, shared_evaluations, textures_within
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -53,24 +54,25 @@ class ChannelMaterial:
     # -- what the whitted integrator calls --------------------------------------
 
     def channels(self, si, active=True):
-        """(ka, kd, ks, shininess) at the surface point ``si``; absent channels are 0."""
+        """(ka, kd, ks, shininess) at the surface point ``si``; absent channels are 0.
+
+        A texture object met more than once — the same marble in two channels, or
+        inside expressions of several — is evaluated once (``shared_evaluations``)."""
         values = {}
-        for name in CHANNELS:
-            texture = getattr(self, name)
-            if texture is None:
-                values[name] = dr.zeros(mi.Color3f, dr.width(si.p))
-                continue
-            shared = next((values[other] for other in values
-                           if getattr(self, other) is texture), None)
-            values[name] = shared if shared is not None else texture.eval(si, active)
+        with shared_evaluations():
+            for name in CHANNELS:
+                texture = getattr(self, name)
+                values[name] = dr.zeros(mi.Color3f, dr.width(si.p)) if texture is None \
+                    else evaluate(texture, si, active)
         return values["ambient"], values["diffuse"], values["specular"], self.shininess
 
     def has_channel(self, name: str) -> bool:
         return getattr(self, name) is not None
 
     def needs_differentials(self) -> bool:
-        """Some channel is a filtered marble: the integrator must provide footprints."""
-        return any(getattr(getattr(self, name), "filter", "none") != "none" for name in CHANNELS)
+        """Some channel is, or holds, a filtered marble: the integrator must provide footprints."""
+        return any(getattr(texture, "filter", "none") != "none"
+                   for name in CHANNELS for texture in textures_within(getattr(self, name)))
 
     # -- a Lambertian BSDF for every other integrator -------------------------
 

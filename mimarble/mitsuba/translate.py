@@ -38,15 +38,31 @@ from ..scene import model
 MODES = ("whitted", "path")
 
 
-def texture_dict(channel: model.ColorChannel | model.MarbleChannel,
-                 tolerance: float | None = None) -> dict:
+def texture_dict(channel, tolerance: float | None = None, operand=None) -> dict:
     """The Mitsuba texture of one channel.
 
     A marble's error budget: ``tolerance`` when given, else the channel's own, else
-    the plugin's default (mimarble/error_budget.py).
+    the plugin's default (mimarble/error_budget.py). ``operand(channel)`` gives the
+    texture of an expression's operand (default: its own ``texture_dict``, inline;
+    ``to_mitsuba`` passes references to shared textures).
     """
+    if operand is None:
+        def operand(inner):
+            return texture_dict(inner, tolerance)
     if isinstance(channel, model.ColorChannel):
         return {"type": "rgb", "value": list(channel.rgb)}
+    if isinstance(channel, model.ImageChannel):
+        # Mitsuba's bitmap defaults, said out loud: sRGB → linear, bilinear, repeat.
+        return {"type": "bitmap", "filename": channel.location, "raw": False,
+                "filter_type": "bilinear", "wrap_mode": "repeat"}
+    if isinstance(channel, model.EXPRESSIONS):
+        out = {"type": "channel_expression", "op": type(channel).__name__.lower()}
+        sides = (channel.a, channel.b) if isinstance(channel, model.Mix) else channel.operands
+        out.update({f"operand_{k}": operand(c) for k, c in enumerate(sides)})
+        if isinstance(channel, model.Mix):
+            weight = channel.weight
+            out["weight"] = weight if isinstance(weight, float) else operand(weight)
+        return out
     return {
         "type": "marble",
         "scale": channel.scale,
@@ -64,15 +80,28 @@ def texture_dict(channel: model.ColorChannel | model.MarbleChannel,
 
 
 def marble_tolerance(scene: model.Scene, channel: model.MarbleChannel,
-                     tolerance: float | None = None) -> float:
+                     tolerance: float | None = None, gain: float = 1.0) -> float:
     """A marble's error budget in ``scene``: ``tolerance`` when given, else the channel's
     own, else the scene's default, half an 8-bit sRGB code value through its lighting
-    (``error_budget.scene_tolerance``)."""
+    (``error_budget.scene_tolerance``), divided by ``gain``, what the expressions it is
+    in can multiply its error by (``error_budget.expression_gain``; 1 alone)."""
     if tolerance is not None:
         return tolerance
     if channel.tolerance is not None:
         return channel.tolerance
-    return error_budget.scene_tolerance(scene.ambient, [light.color for light in scene.lights])
+    return error_budget.scene_tolerance(scene.ambient, [light.color for light in scene.lights]) \
+        / max(gain, 1.0)
+
+
+def _marble_gains(scene: model.Scene) -> dict:
+    """Each marble's largest expression gain over the channels it is in."""
+    gains: dict = {}
+    for material in scene.materials.values():
+        for channel in material.channels().values():
+            total = error_budget.expression_gain(channel)
+            for marble in error_budget.marble_gains(channel):
+                gains[marble] = max(gains.get(marble, 1.0), total)
+    return gains
 
 
 def _distance(a, b) -> float:
@@ -233,15 +262,22 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     out: dict = {"type": "scene"}
     textures: dict = {}            # channel value -> texture id (dedupes equal channels)
 
+    gains = _marble_gains(scene)
+
     def ref(channel):
+        """A reference to the channel's texture, declared once for equal channels (an
+        expression's operands first, so that they are declared before it)."""
         if isinstance(channel, model.ColorChannel):   # a constant: inline, nothing to share
             return texture_dict(channel)
-        if filter is not None:
+        marble = isinstance(channel, model.MarbleChannel)
+        budget = marble_tolerance(scene, channel, tolerance, gains.get(channel, 1.0)) \
+            if marble else None
+        if marble and filter is not None:
             channel = dataclasses.replace(channel, filter=filter)
         if channel not in textures:
+            texture = texture_dict(channel, budget, operand=ref)
             textures[channel] = f"texture_{len(textures)}"
-            out[textures[channel]] = texture_dict(channel,
-                                                  marble_tolerance(scene, channel, tolerance))
+            out[textures[channel]] = texture
         return {"type": "ref", "id": textures[channel]}
 
     if mode == "whitted":

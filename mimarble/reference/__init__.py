@@ -3,9 +3,11 @@
 The project's ground truth for the Mitsuba path. It shares nothing with it but
 the parsed scene model (:mod:`mimarble.scene`): its own Perlin noise (Shirley's
 sum-of-ω form, :mod:`.noise`), its own marble (:mod:`.marble`), its own
-camera, sphere intersection, ``shadowHit`` and shading (:mod:`.tracer`). Its
-modules import only NumPy, the standard library, ``mimarble.scene`` and
-``mimarble.progress`` (which loads tqdm only when a bar is asked for).
+camera, sphere intersection, ``shadowHit`` and shading (:mod:`.tracer`), its own
+channel expressions, sphere (u, v) and image maps (:mod:`.channels`, :mod:`.image_map`:
+Pillow decodes, the sRGB curve and bilinear lookup are here). Its modules import only
+NumPy, Pillow, the standard library, ``mimarble.scene`` and ``mimarble.progress``
+(which loads tqdm only when a bar is asked for).
 
     >>> from mimarble import scene, reference
     >>> img = reference.render(scene.load("scenes/fig11a.scene"), spp=1)   # (500, 500, 3) float64

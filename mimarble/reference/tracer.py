@@ -26,9 +26,12 @@ the hit routine returns where and what was hit, and the record carries the
 material's channel colours ka, kd, ks at the hit point back to the shader, each
 distinct channel evaluated once per batch and only where its value is used.
 
+Channels (colours, marbles, image maps and their sums, products and mixes) are
+evaluated by :mod:`.channels`; :func:`channel_color` is re-exported here.
+
 Everything is vectorised over batches of rays; Python loops run over spheres,
 lights, channels and chunks only. Imports NumPy, the standard library,
-:mod:`mimarble.scene` (the model) and this package's own marble and noise.
+:mod:`mimarble.scene` (the model) and this package's own channels, marble and noise.
 """
 
 from __future__ import annotations
@@ -38,9 +41,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mimarble.scene.model import ColorChannel, MarbleChannel, Scene, samples_per_axis
+from mimarble.scene.model import Scene, samples_per_axis
 
-from .marble import marble_color
+from .channels import channel_color, needs_uv, sphere_uv
 
 __all__ = [
     "T_MIN_REL",
@@ -289,22 +292,13 @@ def closest_hit(prep: PreparedScene, o, d) -> HitRecord:
                      material=prep.sphere_material[s])
 
 
-def channel_color(channel, points) -> np.ndarray:
-    """A channel's colour at (k, 3) world-space points -> (k, 3)."""
-    points = np.asarray(points, dtype=np.float64)
-    if isinstance(channel, ColorChannel):
-        return np.broadcast_to(np.array(channel.rgb, dtype=np.float64), points.shape).copy()
-    if isinstance(channel, MarbleChannel):
-        return marble_color(points, channel)
-    raise TypeError(f"unknown channel type {type(channel).__name__}")
-
-
 def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecord:
     """Evaluate the channel colours into ``rec.colors`` ("passing back").
 
     ``needed[slot]`` is a bool (k,) mask of the hits where that component's
     value is used (elsewhere it is left 0). Each distinct channel is evaluated
-    once, on the union of the points where any slot of any material uses it.
+    once, on the union of the points where any slot of any material uses it;
+    image maps read the hit sphere's (u, v) (:func:`.channels.sphere_uv`).
     """
     k = rec.index.size
     slot_ch = prep.slot_channel[rec.material] if k else np.empty((0, 3), dtype=np.int64)
@@ -318,10 +312,14 @@ def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecor
                 continue
             m = mask & (slot_ch[:, s] == c)
             want[c] = want[c] | m if c in want else m
+    uv = None
+    if any(needs_uv(prep.channels[c]) for c in want):
+        # Mitsuba's sphere (u, v) of every hit, from the hit sphere's centre and radius.
+        uv = sphere_uv(rec.p, prep.centers[rec.sphere], prep.radii[rec.sphere])
     values = {}
     for c, m in want.items():
         full = np.zeros((k, 3))
-        full[m] = channel_color(prep.channels[c], rec.p[m])
+        full[m] = channel_color(prep.channels[c], rec.p[m], None if uv is None else uv[m])
         values[c] = full
     for s, slot in enumerate(SLOTS):
         mask = needed.get(slot)

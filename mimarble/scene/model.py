@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple, Union
 
 __all__ = [
@@ -37,6 +37,14 @@ __all__ = [
     "Sphere",
     "Scene",
     "FrozenMap",
+    "ImageChannel",
+    "Add",
+    "Multiply",
+    "Mix",
+    "EXPRESSIONS",
+    "CHANNEL_TYPES",
+    "walk",
+    "replace_marbles",
     "MarbleFunction",
     "Axis",
     "FIG5_RAMP",
@@ -223,9 +231,119 @@ class MarbleChannel:
         return AXES.index(self.axis)
 
 
+@dataclass(frozen=True)
+class ImageChannel:
+    """``image { file "maps/veins.png" }``: an 8-bit PNG or JPEG on the sphere's (u, v).
+
+    ``file`` is as written; ``path`` is where it was found (the parser resolves it
+    against the scene file's folder; built in Python without ``path``, ``file`` is
+    taken from the working directory). Looked up as Mitsuba's ``bitmap`` texture
+    does by default: 8-bit sRGB decoded to linear, bilinear, repeating; (u, v) as
+    Mitsuba's ``sphere`` defines them (u = φ/2π around the z axis, v = θ/π from +z;
+    v = 0 is the image's top row).
+    """
+
+    file: str
+    path: str | None = None
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.file, str) or not self.file:
+            raise ValueError(f"ImageChannel: file={self.file!r} must be a non-empty path")
+
+    @property
+    def location(self) -> str:
+        """The file to read: ``path`` when the parser found it, else ``file``."""
+        return self.path or self.file
+
+
+def _check_operands(kind: str, operands) -> tuple:
+    operands = tuple(operands)
+    if len(operands) < 2:
+        raise ValueError(f"{kind} needs two or more channels, got {len(operands)}")
+    for operand in operands:
+        if not isinstance(operand, CHANNEL_TYPES):
+            raise TypeError(f"{kind}: {operand!r} is not a channel")
+    return operands
+
+
+@dataclass(frozen=True)
+class Add:
+    """``add { CH CH … }``: the componentwise sum of two or more channels."""
+
+    operands: tuple
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "operands", _check_operands("add", self.operands))
+
+
+@dataclass(frozen=True)
+class Multiply:
+    """``multiply { CH CH … }``: the componentwise product of two or more channels."""
+
+    operands: tuple
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "operands", _check_operands("multiply", self.operands))
+
+
+@dataclass(frozen=True)
+class Mix:
+    """``mix { A B weight W }``: a·(1 − w) + b·w, componentwise; ``weight`` a channel or a
+    number (a constant weight, not clamped)."""
+
+    a: object
+    b: object
+    weight: object
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        _check_operands("mix", (self.a, self.b))
+        if isinstance(self.weight, bool) or not isinstance(self.weight, CHANNEL_TYPES + (int, float)):
+            raise TypeError(f"mix: weight={self.weight!r} must be a channel or a number")
+        if isinstance(self.weight, (int, float)):
+            if not math.isfinite(self.weight):
+                raise ValueError(f"mix: weight={self.weight!r} must be finite")
+            object.__setattr__(self, "weight", float(self.weight))
+
+    @property
+    def operands(self) -> tuple:
+        """a, b and, when it is a channel, the weight."""
+        return (self.a, self.b) + ((self.weight,) if isinstance(self.weight, CHANNEL_TYPES) else ())
+
+
+#: Channels that combine other channels (the paper's future work, §5).
+EXPRESSIONS = (Add, Multiply, Mix)
+CHANNEL_TYPES = (ColorChannel, MarbleChannel, ImageChannel) + EXPRESSIONS
+
 #: What a material component is bound to. ``None`` in a Material means the
 #: component is absent (contributes nothing; renderers may skip it).
-Channel = Union[ColorChannel, MarbleChannel]
+Channel = Union[ColorChannel, MarbleChannel, ImageChannel, Add, Multiply, Mix]
+
+
+def walk(channel) -> Iterator:
+    """The channel and every channel inside it, outermost first."""
+    yield channel
+    if isinstance(channel, EXPRESSIONS):
+        for operand in channel.operands:
+            yield from walk(operand)
+
+
+def replace_marbles(channel, **changes):
+    """The channel with ``changes`` applied to every marble inside it."""
+    if isinstance(channel, MarbleChannel):
+        return replace(channel, **changes)
+    if isinstance(channel, Mix):
+        weight = channel.weight if isinstance(channel.weight, float) else \
+            replace_marbles(channel.weight, **changes)
+        return replace(channel, a=replace_marbles(channel.a, **changes),
+                       b=replace_marbles(channel.b, **changes), weight=weight)
+    if isinstance(channel, EXPRESSIONS):
+        return replace(channel, operands=tuple(replace_marbles(c, **changes)
+                                               for c in channel.operands))
+    return channel
 
 
 @dataclass(frozen=True)

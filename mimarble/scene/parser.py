@@ -30,6 +30,10 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 from .errors import SceneError
 from .model import (
     AXES,
+    Add,
+    ImageChannel,
+    Mix,
+    Multiply,
     MARBLE_FILTERS,
     MARBLE_FUNCTIONS,
     Camera,
@@ -51,15 +55,25 @@ GRAMMAR_PATH = Path(__file__).with_name("scene.lark")
 #: Top-level statements, in documentation order.
 STATEMENTS = ("image", "camera", "ambient", "light", "material", "sphere")
 
-#: The keywords allowed in each kind of block (keyed by the block's keyword).
+#: The keywords that start a channel.
+CHANNEL_KEYWORDS = ("color", "marble", "image", "add", "multiply", "mix")
+#: The blocks whose contents are channels.
+_CHANNEL_BLOCKS = ("ambient", "diffuse", "specular", "add", "multiply", "mix")
+
+#: The keywords allowed in each kind of block (keyed by the block's rule name: an image
+#: map is ``image_map``, written ``image { file "…" }`` like the image statement).
 BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "image": ("width", "height", "samples", "background"),
     "camera": ("eye", "lookat", "up", "fov"),
     "light": ("position", "color"),
     "material": ("ambient", "diffuse", "specular", "shininess"),
-    "ambient": ("color", "marble"),
-    "diffuse": ("color", "marble"),
-    "specular": ("color", "marble"),
+    "ambient": CHANNEL_KEYWORDS,
+    "diffuse": CHANNEL_KEYWORDS,
+    "specular": CHANNEL_KEYWORDS,
+    "add": CHANNEL_KEYWORDS,
+    "multiply": CHANNEL_KEYWORDS,
+    "mix": CHANNEL_KEYWORDS + ("weight",),
+    "image_map": ("file",),
     "marble": ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
                "filter", "tolerance", "ramp"),
     "sphere": ("center", "radius", "material"),
@@ -80,7 +94,7 @@ LIMITS = {
 _FLT_MAX = LIMITS["max_abs_number"]
 
 # Rule names whose keyword differs from the rule name.
-_RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient"}
+_RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image"}
 
 _PUNCT = {
     "LBRACE": "'{'",
@@ -139,6 +153,42 @@ def _keyword_terminals() -> dict[str, str]:
 
 
 # --------------------------------------------------------------------------
+#  Image files (standard library only: the scene package imports no imaging library)
+# --------------------------------------------------------------------------
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def image_file_problem(path: str) -> str | None:
+    """Why ``path`` cannot be an image map (None: it can): it must exist, be readable,
+    and be an 8-bit PNG or a JPEG (read from its header; decoding comes later)."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(33)
+    except FileNotFoundError:
+        return f"no such file (looked for {path})"
+    except IsADirectoryError:
+        return f"it is a directory ({path})"
+    except PermissionError:
+        return f"permission denied ({path})"
+    except OSError as e:
+        return f"cannot read it: {e.strerror or e} ({path})"
+    if head.startswith(_PNG_SIGNATURE):
+        if len(head) < 33 or head[12:16] != b"IHDR":
+            return "a truncated PNG (no IHDR header)"
+        width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+        depth = head[24]
+        if width == 0 or height == 0:
+            return f"an empty PNG ({width}x{height})"
+        if depth != 8:
+            return f"a {depth}-bit PNG; image maps are 8-bit PNG or JPEG"
+        return None
+    if head.startswith(b"\xff\xd8\xff"):
+        return None
+    return "not a PNG or JPEG file; image maps are 8-bit PNG or JPEG"
+
+
+# --------------------------------------------------------------------------
 #  Public entry points
 # --------------------------------------------------------------------------
 
@@ -179,7 +229,7 @@ def parse(text: str | bytes, filename: str = "<string>", *, source: str | None =
         tree = _lark().parse(text)
     except UnexpectedInput as e:
         raise _syntax_error(e, text, filename) from None
-    return _Builder(text, filename).scene(tree, source)
+    return _Builder(text, filename, source).scene(tree, source)
 
 
 def _decode(data: bytes, filename: str) -> str:
@@ -339,10 +389,17 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str) -> SceneError:
                 return at(line, col, f"unknown statement '{tok}'; a statement is one of {allowed}")
             return at(line, col, f"unexpected {found} at top level; a statement is one of {allowed}")
         opener, name = blocks[-1]
-        if opener in ("ambient", "diffuse", "specular"):
-            what = "a channel: 'color < r g b >' or 'marble { ... }'"
+        if opener in _CHANNEL_BLOCKS:
+            what = ("a channel: 'color < r g b >', 'marble { ... }', 'image { file \"...\" }', "
+                    "'add { ... }', 'multiply { ... }' or 'mix { ... }'")
+            if opener == "mix":
+                what += ", or 'weight W' last"
             if tok.type == "RBRACE":
                 return at(line, col, f"empty {name}: expected {what}")
+            if str(tok) == "weight":
+                return at(line, col, "'weight' belongs in a mix block: mix { A B weight W }")
+            if tok.type == "WORD":
+                return at(line, col, f"unknown channel '{tok}' in {name}; expected {what}")
             return at(line, col, f"unexpected {found} in {name}; expected {what}")
         if tok.type == "WORD":
             renamed = _RENAMED_KEYS.get(str(tok), "")
@@ -396,9 +453,11 @@ def _pos_of(tree: Tree) -> Pos:
 
 
 class _Builder:
-    def __init__(self, text: str, filename: str) -> None:
+    def __init__(self, text: str, filename: str, source: str | None = None) -> None:
         self.text = text
         self.filename = filename
+        # Image maps are found relative to the scene file (else the working directory).
+        self.folder = os.path.dirname(os.path.abspath(source)) if source else os.getcwd()
 
     # -- errors ---------------------------------------------------------------
     def error(self, where, message: str) -> SceneError:
@@ -591,10 +650,69 @@ class _Builder:
         return Material(name, shininess=shininess, pos=_pos_of(st), **channels)
 
     def channel(self, component: Tree, what: str):
+        """The one channel of a component block (ambient, diffuse, specular)."""
         (ch,) = [c for c in component.children if isinstance(c, Tree)]
+        return self.channel_of(ch, what)
+
+    def channel_of(self, ch: Tree, what: str):
+        if ch.data == "weight":
+            raise self.error(ch, "'weight' belongs in a mix block: mix { A B weight W }")
         if ch.data == "color":
             return ColorChannel(self.color(ch.children[0], what), pos=_pos_of(ch))
-        return self.marble(ch)
+        if ch.data == "marble":
+            return self.marble(ch)
+        if ch.data == "image_map":
+            return self.image_map(ch)
+        return self.expression(ch, what)
+
+    def expression(self, st: Tree, what: str):
+        """add / multiply / mix: their operands, counted and placed."""
+        kind = str(st.data)
+        parts = [c for c in st.children if isinstance(c, Tree)]
+        operands = [c for c in parts if c.data != "weight"]
+        weights = [c for c in parts if c.data == "weight"]
+        inside = f"{what}, in '{kind}'"
+        if kind != "mix" and weights:
+            raise self.error(weights[0], f"'weight' belongs in a mix block, not in '{kind}': "
+                                         f"mix {{ A B weight W }}")
+        if kind == "mix":
+            if len(operands) != 2:
+                where = operands[2] if len(operands) > 2 else st
+                raise self.error(where, f"mix takes exactly two channels and a weight "
+                                        f"(mix {{ A B weight W }}), found {len(operands)} channels")
+            if not weights:
+                raise self.error(st, "mix has no 'weight'; write mix { A B weight W } "
+                                     "(W a channel or a number)")
+            if len(weights) > 1:
+                first = weights[0].meta
+                raise self.error(weights[1], f"duplicate 'weight' in 'mix' block (first given "
+                                             f"at {first.line}:{first.column})")
+            if parts.index(weights[0]) != len(parts) - 1:
+                raise self.error(weights[0], "'weight' comes last: mix { A B weight W }")
+            (value,) = weights[0].children
+            weight = self.number(value) if isinstance(value, Token) \
+                else self.channel_of(value, f"{inside} weight")
+            a, b = (self.channel_of(c, inside) for c in operands)
+            return Mix(a, b, weight, pos=_pos_of(st))
+        if len(operands) < 2:
+            raise self.error(st, f"'{kind}' needs two or more channels, found {len(operands)}")
+        channels = tuple(self.channel_of(c, inside) for c in operands)
+        return (Add if kind == "add" else Multiply)(channels, pos=_pos_of(st))
+
+    def image_map(self, st: Tree) -> ImageChannel:
+        """``image { file "…" }``: the file must be there and be an 8-bit PNG or JPEG."""
+        f = self.fields(st, "'image' channel")
+        if "file" not in f:
+            raise self.error(st, 'image channel has no \'file\'; write image { file "maps/x.png" }')
+        tok = f["file"].children[0]
+        name = str(tok)[1:-1]
+        if not name:
+            raise self.error(tok, "an image file name must not be empty")
+        path = os.path.normpath(os.path.join(self.folder, name))
+        problem = image_file_problem(path)
+        if problem:
+            raise self.error(tok, f"image file '{name}': {problem}")
+        return ImageChannel(name, path, pos=_pos_of(st))
 
     def marble(self, st: Tree) -> MarbleChannel:
         f = self.fields(st, "'marble' block")

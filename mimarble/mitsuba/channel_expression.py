@@ -1,0 +1,355 @@
+"""``channel_expression``: channels combined arithmetically (the paper's future work, §5).
+
+.. math::
+
+    \\texttt{add}: \\sum_k c_k \\qquad
+    \\texttt{multiply}: \\prod_k c_k \\qquad
+    \\texttt{mix}: a\\,(1 - w) + b\\,w
+
+componentwise, each operand any Mitsuba texture (``rgb``, ``marble``, ``bitmap``,
+another ``channel_expression``…). The float64 twin is :mod:`mimarble.reference.channels`.
+
+.. list-table::
+   :header-rows: 1
+
+   * - Parameter
+     - Type
+     - Description
+   * - ``op``
+     - string
+     - ``add``, ``multiply`` or ``mix``.
+   * - ``operand_0``, ``operand_1``, …
+     - texture (or an ``rgb`` / a float value)
+     - Two or more operands, numbered without gaps; ``mix`` takes exactly two, a and b.
+       Differentiable through their own parameters (``operand_0.value``, …).
+   * - ``weight``
+     - texture or float
+     - ``mix`` only: w, a texture's colour (componentwise) or a number (not clamped).
+       A number is differentiable (key ``weight``).
+
+What is not needed is not computed, decided when the texture is loaded and again
+after every parameter change (a new decision compiles a new kernel): constant
+operands (``rgb``, a one-colour ramp, a constant sub-expression) are folded into one
+constant; a product whose constant is 0 evaluates nothing; a ``mix`` whose weight is
+the constant 0 or 1 evaluates only ``a`` or only ``b``; an expression of constants is a
+constant. Equal operands inside one ``channel_material`` are evaluated once
+(:func:`shared_evaluations`); elsewhere Dr.Jit's common-subexpression elimination
+merges identical unrolled code.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import re
+
+import numpy as np
+
+from .. import environment
+from ..plugins import plugin
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+OPERATIONS = ("add", "multiply", "mix")
+_OPERAND = re.compile(r"operand_(\d+)$")
+#: Points at which mean() averages an expression that is not linear in its
+#: operands (a product or a varying weight): deterministic, over [−16, 16]³ and the
+#: whole (u, v) square.
+MEAN_POINTS = 1 << 14
+#: Step of the central differences of eval_1_grad for products and mixes, relative
+#: to |∂p/∂u| (sums add their operands' own gradients).
+GRADIENT_STEP = 1e-3
+
+
+class ChannelExpressionError(ValueError):
+    """An invalid ``channel_expression``; the message names the parameter."""
+
+
+# ---------------------------------------------------------------------------
+# Equal operands, evaluated once per shading point
+
+_evaluations: dict | None = None
+
+
+@contextlib.contextmanager
+def shared_evaluations():
+    """Within this context :func:`evaluate` evaluates each texture object once (the
+    ``channel_material`` opens one per shading call: its channels share a point)."""
+    global _evaluations
+    outer, _evaluations = _evaluations, {}
+    try:
+        yield
+    finally:
+        _evaluations = outer
+
+
+def evaluate(texture, si, active=True):
+    """``texture.eval(si, active)``, once per texture within :func:`shared_evaluations`."""
+    if _evaluations is None:
+        return texture.eval(si, active)
+    key = id(texture)
+    if key not in _evaluations:
+        _evaluations[key] = texture.eval(si, active)
+    return _evaluations[key]
+
+
+def textures_within(texture):
+    """The texture and, for an expression, every texture inside it (None: nothing)."""
+    if texture is None:
+        return
+    yield texture
+    for inner in list(getattr(texture, "operands", ())) + [getattr(texture, "weight", None)]:
+        yield from textures_within(inner)
+
+
+# ---------------------------------------------------------------------------
+
+@plugin("texture", "channel_expression")
+class ChannelExpression:
+    """Textures added, multiplied or mixed. See the module docstring for parameters."""
+
+    def __init__(self, props):
+        mi.Texture.__init__(self, props)
+        self.op = props.get("op", None)
+        if self.op not in OPERATIONS:
+            raise ChannelExpressionError(f"channel_expression: op={self.op!r} must be one of "
+                                         f"{', '.join(OPERATIONS)}")
+        numbered = sorted((int(m.group(1)), key) for key in props.keys()
+                          if (m := _OPERAND.match(key)))
+        if [k for k, _ in numbered] != list(range(len(numbered))):
+            raise ChannelExpressionError(
+                "channel_expression: operands must be operand_0, operand_1, … without gaps, got "
+                + (", ".join(key for _, key in numbered) or "none"))
+        count = len(numbered)
+        if count < 2 or (self.op == "mix" and count != 2):
+            need = "exactly two operands (a and b)" if self.op == "mix" else "two or more operands"
+            raise ChannelExpressionError(f"channel_expression: {self.op} takes {need}, got {count}")
+        self.operands = [props.get_texture(key) for _, key in numbered]
+        self.weight, self.weight_value = None, None
+        if self.op == "mix":
+            if "weight" not in props:
+                raise ChannelExpressionError("channel_expression: mix needs a weight (a texture "
+                                             "or a number)")
+            value = props.get("weight")
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                if not np.isfinite(value):
+                    raise ChannelExpressionError(f"channel_expression: weight={value!r} must be "
+                                                 f"finite")
+                self.weight_value = mi.Float(float(value))
+            else:
+                self.weight = props.get_texture("weight")
+        elif "weight" in props:
+            raise ChannelExpressionError(f"channel_expression: weight belongs to mix, not "
+                                         f"{self.op}")
+        self.parameters_changed([])
+
+    # -- Mitsuba object protocol -------------------------------------------
+
+    def traverse(self, cb):
+        flags = mi.ParamFlags.Differentiable
+        for k, operand in enumerate(self.operands):
+            cb.put(f"operand_{k}", operand, flags)
+        if self.weight is not None:
+            cb.put("weight", self.weight, flags)
+        elif self.weight_value is not None:
+            cb.put("weight", self.weight_value, flags)
+
+    def parameters_changed(self, keys=[]):
+        """Fold the constant operands again (their values may have changed)."""
+        if self.weight_value is not None:
+            dr.make_opaque(self.weight_value)
+        constants = [_constant(t) for t in self.operands]
+        self.varying = [t for t, c in zip(self.operands, constants) if c is None]
+        values = [c for c in constants if c is not None]
+        self.constant = None
+        if self.op == "add" and values:
+            self.constant = _opaque(sum(values[1:], values[0]))
+        elif self.op == "multiply" and values:
+            product = values[0]
+            for value in values[1:]:
+                product = product * value
+            self.constant = _opaque(product)
+        # Structural decisions (a new one traces a new kernel):
+        self.zero_product = self.op == "multiply" and self.constant is not None \
+            and not np.any(_numbers(self.constant))
+        self.mix_side = None          # "a" or "b" when the weight is the constant 0 or 1
+        if self.op == "mix":
+            weight = self.weight_value if self.weight is None else _constant(self.weight)
+            if weight is not None:
+                w = _numbers(weight)
+                self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
+            self.mix_constants = constants
+        self._mean = None
+
+    def to_string(self):
+        return (f"ChannelExpression[op={self.op}, operands={len(self.operands)}, "
+                f"varying={len(self.varying)}]")
+
+    def is_spatially_varying(self):
+        if self.op == "multiply" and self.zero_product:
+            return False
+        if self.op == "mix":
+            if self.mix_side is not None:
+                side = self.operands[0 if self.mix_side == "a" else 1]
+                return side.is_spatially_varying()
+            return bool(self.varying) or (self.weight is not None
+                                          and self.weight.is_spatially_varying())
+        return bool(self.varying)
+
+    def spectral_resolution(self):
+        return 0.0
+
+    def max(self):
+        """An upper bound: sums and products of the operands' maxima (mix: the larger side,
+        for weights in [0, 1]; otherwise |1 − w|·max a + |w|·max b)."""
+        maxima = [float(t.max()) for t in self.operands]
+        if self.op == "add":
+            return float(sum(maxima))
+        if self.op == "multiply":
+            return float(np.prod(maxima))
+        if self.weight is None:
+            w = float(_numbers(self.weight_value)[0])
+            return abs(1.0 - w) * maxima[0] + abs(w) * maxima[1]
+        w_max = float(self.weight.max())
+        return max(maxima) if w_max <= 1.0 else maxima[0] * (1.0 + w_max) + maxima[1] * w_max
+
+    def mean(self):
+        """The mean luminance: exact for sums and constant-weight mixes (linear in the
+        operands' means); for products and varying weights, the average over
+        :data:`MEAN_POINTS` deterministic points (world points in [−16, 16]³, (u, v)
+        over the unit square)."""
+        if self._mean is None:
+            self._mean = self._compute_mean()
+        return mi.Float(self._mean)
+
+    # -- Evaluation ------------------------------------------------------------
+
+    def eval(self, si, active=True):
+        width = dr.width(si.p) if dr.is_jit_v(mi.Float) else 1
+        if self.op == "add":
+            total = self.constant
+            for texture in self.varying:
+                value = evaluate(texture, si, active)
+                total = value if total is None else total + value
+            return _full(total, width)
+        if self.op == "multiply":
+            if self.zero_product:
+                return dr.zeros(mi.Color3f, width)
+            total = self.constant
+            for texture in self.varying:
+                value = evaluate(texture, si, active)
+                total = value if total is None else total * value
+            return _full(total, width)
+        a, b = self._side(0, si, active), self._side(1, si, active)
+        if self.mix_side == "a":
+            return _full(a, width)
+        if self.mix_side == "b":
+            return _full(b, width)
+        w = self.weight_value if self.weight is None else evaluate(self.weight, si, active)
+        return _full(a * (1.0 - w) + b * w, width)
+
+    def eval_3(self, si, active=True):
+        return self.eval(si, active)
+
+    def eval_1(self, si, active=True):
+        return mi.luminance(self.eval(si, active))
+
+    def eval_1_grad(self, si, active=True):
+        """∂(luminance)/∂(u, v): the operands' own gradients for a sum (luminance is
+        linear); central differences of :meth:`eval_1` for a product or a mix, moving the
+        point along ∂p/∂u, ∂p/∂v and (u, v) together (marble reads the point, an image the
+        (u, v)), with a step of GRADIENT_STEP in (u, v)."""
+        if self.op == "add":
+            gradient = dr.zeros(mi.Vector2f, dr.width(si.p))
+            for texture in self.varying:
+                gradient += texture.eval_1_grad(si, active)
+            return gradient
+        h = GRADIENT_STEP
+        out = []
+        for axis, dp in ((0, si.dp_du), (1, si.dp_dv)):
+            values = []
+            for sign in (1.0, -1.0):
+                moved = mi.SurfaceInteraction3f(si)
+                moved.p = si.p + dp * (sign * h)
+                step = mi.Vector2f(sign * h if axis == 0 else 0.0, sign * h if axis == 1 else 0.0)
+                moved.uv = si.uv + step
+                values.append(self.eval_1(moved, active))
+            out.append((values[0] - values[1]) / (2.0 * h))
+        return mi.Vector2f(out[0], out[1])
+
+    # -- helpers ---------------------------------------------------------------
+
+    def _side(self, k, si, active):
+        """Operand k of a mix: its folded constant, or its value at si."""
+        if self.mix_side is not None and self.mix_side != "ab"[k]:
+            return None
+        constant = self.mix_constants[k]
+        return constant if constant is not None else evaluate(self.operands[k], si, active)
+
+    def _compute_mean(self) -> float:
+        # Luminance, as marble's and Mitsuba's bitmap's mean() (its rgb averages the three
+        # components instead: constants are taken by their luminance here).
+        means = [float(_numbers(t.mean())[0]) if c is None else _luminance(c)
+                 for t, c in zip(self.operands, map(_constant, self.operands))]
+        if self.op == "add":
+            return float(sum(means))
+        if self.op == "mix" and (self.weight is None or not self.weight.is_spatially_varying()):
+            w = _numbers(self.weight_value if self.weight is None else _constant(self.weight))
+            if np.ptp(w) == 0.0:                       # a grey weight: linear in the means
+                return (1.0 - w[0]) * means[0] + w[0] * means[1]
+        if self.op == "multiply" and len(self.varying) <= 1:
+            c = np.ones(1) if self.constant is None else _numbers(self.constant)
+            if np.ptp(c) == 0.0 and self.varying:     # a grey factor: linear in the mean
+                return float(c[0]) * float(_numbers(self.varying[0].mean())[0])
+            if not self.varying:
+                return _luminance(self.constant)
+        return _sampled_mean(self)
+
+
+def _sampled_mean(texture) -> float:
+    if not dr.is_jit_v(mi.Float):
+        return float(np.mean([_numbers(t.mean())[0] for t in texture.operands]))
+    rng = np.random.default_rng(0)
+    points = rng.uniform(-16.0, 16.0, (MEAN_POINTS, 3)).astype(np.float32)
+    uv = rng.uniform(0.0, 1.0, (MEAN_POINTS, 2)).astype(np.float32)
+    si = dr.zeros(mi.SurfaceInteraction3f, MEAN_POINTS)
+    si.p = mi.Point3f(*(mi.Float(points[:, k]) for k in range(3)))
+    si.uv = mi.Point2f(mi.Float(uv[:, 0]), mi.Float(uv[:, 1]))
+    with dr.suspend_grad():
+        return float(np.mean(np.array(texture.eval_1(si))))
+
+
+def _constant(texture):
+    """The colour of a texture that is the same everywhere, else None."""
+    if texture.is_spatially_varying():
+        return None
+    si = dr.zeros(mi.SurfaceInteraction3f, 1) if dr.is_jit_v(mi.Float) \
+        else dr.zeros(mi.SurfaceInteraction3f)
+    return texture.eval(si)
+
+
+def _luminance(colour) -> float:
+    r, g, b = _numbers(colour)[:3] if _numbers(colour).size >= 3 else [_numbers(colour)[0]] * 3
+    return float(0.212671 * r + 0.715160 * g + 0.072169 * b)
+
+
+def _opaque(value):
+    if dr.is_jit_v(mi.Float) and not dr.grad_enabled(value):
+        value = mi.Color3f(value)
+        dr.make_opaque(value)
+    return value
+
+
+def _numbers(value) -> np.ndarray:
+    """The components of a one-lane (or scalar) Dr.Jit value, as float64 NumPy."""
+    if isinstance(value, (int, float)):
+        return np.array([float(value)])
+    return np.ravel(np.array(dr.detach(value), dtype=np.float64))
+
+
+def _full(value, width: int):
+    """A Color3f of ``width`` lanes (a folded constant has one)."""
+    if value is None:
+        return dr.zeros(mi.Color3f, width)
+    if dr.is_jit_v(mi.Float):
+        return mi.Color3f(value) + dr.zeros(mi.Color3f, width)
+    return mi.Color3f(value)
