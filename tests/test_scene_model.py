@@ -223,6 +223,9 @@ def test_grammar_is_shipped_next_to_the_parser():
     assert S.GRAMMAR_PATH.name == "scene.lark" and S.GRAMMAR_PATH.parent == Path(S.__file__).parent
 
 
+PNG = str(Path(__file__).resolve().parent.parent / "scenes" / "future-work" / "maps" / "flagstones.png")
+
+
 def test_block_keys_table_matches_the_grammar():
     # Every keyword listed for a block is accepted there (a tiny, valid use of each).
     samples = {
@@ -240,10 +243,25 @@ def test_block_keys_table_matches_the_grammar():
         "material": 'material "m" {{ {} }}', "marble": 'material "m" {{ diffuse {{ marble {{ {} }} }} }}',
         "sphere": 'material "m" {{ }} sphere {{ material "m" {} }}',
     }
+    one = {"color": "color <0 0 0>", "marble": "marble { }", "weight": "weight 0.5",
+           "image": f'image {{ file "{PNG}" }}', "add": "add { color <0 0 0> color <0 0 0> }",
+           "multiply": "multiply { color <0 0 0> color <0 0 0> }",
+           "mix": "mix { color <0 0 0> color <0 0 0> weight 0.5 }"}
     for block, keys in S.BLOCK_KEYS.items():
         if block in ("ambient", "diffuse", "specular"):
             for ch in keys:
-                parse(f'material "m" {{ {block} {{ {ch} {"<0 0 0>" if ch == "color" else "{ }"} }} }}')
+                parse(f'material "m" {{ {block} {{ {one[ch]} }} }}')
+            continue
+        if block in ("add", "multiply", "mix", "image_map"):
+            for key in keys:
+                if block == "image_map":                     # its one key: file
+                    inner = one["image"]
+                elif key == "weight":
+                    inner = one[block]
+                else:
+                    operands = f"{one[key]} {one[key]}" + (" weight 0.5" if block == "mix" else "")
+                    inner = f"{block} {{ {operands} }}"
+                parse(f'material "m" {{ diffuse {{ {inner} }} }}')
             continue
         for key in keys:
             if (block, key) in (("light", "position"), ("sphere", "material")):
