@@ -173,3 +173,32 @@ def test_the_command_line_takes_a_tolerance(tmp_path):
     assert bad.returncode == 2 and "--tolerance" in bad.stderr and "≥ 0" in bad.stderr
     assert not (tmp_path / "b.png").exists()
     assert math.isfinite(float(np.array(mi.Bitmap(str(out))).mean()))
+
+
+def test_expression_gain_is_what_an_expression_can_multiply_a_marble_error_by():
+    from mimarble import scene as S
+    marble = S.MarbleChannel()                                  # Fig. 5 ramp: bound 1
+    other = S.MarbleChannel(octaves=3, ramp=((0, 0, 0), (0.5, 0.5, 0.5)))
+    half = S.ColorChannel((0.5, 0.25, 0.1))
+    assert error_budget.expression_gain(marble) == 1.0
+    assert error_budget.expression_gain(S.Multiply((half, marble))) == 0.5
+    assert error_budget.expression_gain(S.Add((marble, marble))) == 2.0
+    assert error_budget.marble_gains(S.Multiply((marble, other))) == {marble: 0.5, other: 1.0}
+    # mix: a by |1 − w|, b by |w|, the weight's error by max(a, b).
+    assert error_budget.marble_gains(S.Mix(marble, half, 0.25)) == {marble: 0.75}
+    assert error_budget.marble_gains(S.Mix(half, half, other)) == {other: 0.5}
+
+
+def test_a_marble_in_an_expression_gets_the_scene_budget_over_the_gain():
+    from mimarble import scene as S
+    from mimarble.mitsuba.translate import to_mitsuba
+    marble = S.MarbleChannel()
+    scene = S.Scene(lights=(S.Light((5, 5, 5)),), spheres=(S.Sphere("m"),),
+                    materials={"m": S.Material("m", diffuse=S.Add((marble, marble)))})
+    alone = S.Scene(lights=(S.Light((5, 5, 5)),), spheres=(S.Sphere("m"),),
+                    materials={"m": S.Material("m", diffuse=marble)})
+    tolerance = [v["tolerance"] for v in to_mitsuba(scene).values()
+                 if isinstance(v, dict) and v.get("type") == "marble"]
+    single = [v["tolerance"] for v in to_mitsuba(alone).values()
+              if isinstance(v, dict) and v.get("type") == "marble"]
+    assert len(tolerance) == 1 and tolerance[0] == pytest.approx(single[0] / 2)
