@@ -40,6 +40,7 @@ merges identical unrolled code.
 from __future__ import annotations
 
 import contextlib
+import operator
 import re
 
 import numpy as np
@@ -225,19 +226,14 @@ class ChannelExpression:
 
     def eval(self, si, active=True):
         width = dr.width(si.p) if dr.is_jit_v(mi.Float) else 1
-        if self.op == "add":
-            total = self.constant
-            for texture in self.varying:
-                value = evaluate(texture, si, active)
-                total = value if total is None else total + value
-            return _full(total, width)
-        if self.op == "multiply":
+        if self.op != "mix":
             if self.zero_product:
-                return dr.zeros(mi.Color3f, width)
+                return _full(None, width)
+            combine = operator.add if self.op == "add" else operator.mul
             total = self.constant
             for texture in self.varying:
                 value = evaluate(texture, si, active)
-                total = value if total is None else total * value
+                total = value if total is None else combine(total, value)
             return _full(total, width)
         a, b = self._side(0, si, active), self._side(1, si, active)
         if self.mix_side == "a":
@@ -328,7 +324,9 @@ def _constant(texture):
 
 
 def _luminance(colour) -> float:
-    r, g, b = _numbers(colour)[:3] if _numbers(colour).size >= 3 else [_numbers(colour)[0]] * 3
+    """Rec. 709 luminance (Mitsuba's ``luminance``) of a one-lane colour or number."""
+    c = _numbers(colour)
+    r, g, b = c[:3] if c.size >= 3 else (c[0],) * 3
     return float(0.212671 * r + 0.715160 * g + 0.072169 * b)
 
 

@@ -268,25 +268,29 @@ def _check_operands(kind: str, operands) -> tuple:
 
 
 @dataclass(frozen=True)
-class Add:
-    """``add { CH CH … }``: the componentwise sum of two or more channels."""
+class _Operation:
+    """Two or more channels combined componentwise (``keyword`` names it)."""
 
     operands: tuple
     pos: Pos | None = _pos()
+    keyword = ""
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "operands", _check_operands("add", self.operands))
+        object.__setattr__(self, "operands", _check_operands(self.keyword, self.operands))
 
 
 @dataclass(frozen=True)
-class Multiply:
+class Add(_Operation):
+    """``add { CH CH … }``: the componentwise sum of two or more channels."""
+
+    keyword = "add"
+
+
+@dataclass(frozen=True)
+class Multiply(_Operation):
     """``multiply { CH CH … }``: the componentwise product of two or more channels."""
 
-    operands: tuple
-    pos: Pos | None = _pos()
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "operands", _check_operands("multiply", self.operands))
+    keyword = "multiply"
 
 
 @dataclass(frozen=True)
