@@ -80,7 +80,8 @@ def with_marbles(scene, **changes):
 
 def with_constant_colours(scene):
     """Every marble channel replaced by a constant colour (its ramp keys' mean): the same
-    shading work without the texture — for timing only."""
+    shading work without the texture — for timing only (top-level marbles: the targets'
+    scene, fig11a, has no expressions)."""
     materials = {}
     for name, material in scene.materials.items():
         channels = {k: scene_language.ColorChannel(tuple(np.mean(c.ramp, axis=0).tolist()))

@@ -107,12 +107,13 @@ def scene_tolerance(ambient, light_colours) -> float:
 # Marbles inside channel expressions (add, multiply, mix)
 
 def channel_bound(channel) -> float:
-    """An upper bound of every colour component of a channel (colours are ≥ 0)."""
+    """An upper bound of |every colour component| of a channel (parsed colours are ≥ 0;
+    built in Python they need not be)."""
     from .scene import model
     if isinstance(channel, model.ColorChannel):
-        return max(channel.rgb)
+        return max(map(abs, channel.rgb))
     if isinstance(channel, model.MarbleChannel):
-        return max(max(c) for c in channel.ramp)
+        return max(abs(x) for c in channel.ramp for x in c)
     if isinstance(channel, model.ImageChannel):
         return 1.0                                   # an 8-bit sRGB texel decodes to ≤ 1
     if isinstance(channel, model.Add):
@@ -125,11 +126,11 @@ def channel_bound(channel) -> float:
 
 
 def _mix_weights(weight) -> tuple[float, float]:
-    """Bounds of |1 − w| and |w| for a mix weight (a number, or a channel ≥ 0)."""
+    """Bounds of |1 − w| and |w| for a mix weight (a number, or a channel with |w| ≤ W)."""
     if isinstance(weight, float):
         return abs(1.0 - weight), abs(weight)
     w = channel_bound(weight)
-    return max(1.0, w - 1.0), w
+    return 1.0 + w, w
 
 
 def marble_gains(channel, factor: float = 1.0, gains: dict | None = None) -> dict:

@@ -84,14 +84,17 @@ def fractal3_gradient(p, octaves: int, turbulence: bool = False):
 #: F moves it by a spread of variance V·Σ_{i≥n} 4^−i.
 NOISE_VARIANCE = 0.0731
 ABS_NOISE_VARIANCE = 0.0245
+#: E|N(p)| (the mean of a turbulence octave; E N = 0), measured with the variances.
+ABS_NOISE_MEAN = 0.2204
 
 
 def fractal3_band_limited_gradient(p, octaves: int, footprint, margin: float,
                                    turbulence: bool = False, differentials=None):
     """(F, ∇F, σ²): the octaves up to ``footprint`` (:func:`mimarble.noise.band_limit`
     with ``margin``), their gradient, and the variance σ² of F across the pixel that the
-    gradient does not describe: the octaves left out, and, for turbulence with the
-    pixel's ``differentials`` (∂p/∂x, ∂p/∂y), the octaves folded inside the pixel.
+    gradient does not describe: the octaves left out (turbulent ones also add their mean
+    E|N| to F), and, for turbulence with the pixel's ``differentials`` (∂p/∂x, ∂p/∂y),
+    the octaves folded inside the pixel.
 
     |N| folds where N crosses 0: across a pixel where N runs linearly over
     [n − W/2, n + W/2] (W from ∇N and the differentials; |n| < W/2) the mean of |N|
@@ -139,9 +142,15 @@ def fractal3_band_limited_gradient(p, octaves: int, footprint, margin: float,
         state = dr.while_loop(state, lambda i, *rest: i < count, octave)
     total, gradient, folded_spread = state[3], state[4], state[5]
 
-    # Left out: (1 − last) of octave `whole`, and all of whole+1 … most−1.
+    # Left out: (1 − last) of octave `whole`, and all of whole+1 … most−1. They add their
+    # spread to σ², and, turbulent, their mean to F (|N| averages E|N| over a pixel).
+    left_out = whole < float(most)
     variance = ABS_NOISE_VARIANCE if turbulence else NOISE_VARIANCE
     power = dr.exp2(-2.0 * whole)                      # 4^−whole
     dropped = dr.square(1.0 - last) * power + (power * 0.25 - 4.0 ** -most) * (4.0 / 3.0)
-    dropped = dr.select(whole < float(most), variance * dr.maximum(dropped, 0.0), 0.0)
+    dropped = dr.select(left_out, variance * dr.maximum(dropped, 0.0), 0.0)
+    if turbulence:
+        half = dr.exp2(-whole)                         # 2^−whole
+        weights = (1.0 - last) * half + dr.maximum(half - 2.0 ** (1 - most), 0.0)
+        total = total + dr.select(left_out, ABS_NOISE_MEAN * weights, 0.0)
     return total, gradient, dropped + folded_spread

@@ -34,6 +34,9 @@ def _vec(v, mirror_z=True) -> str:
 def _pigment(channel) -> str:
     if isinstance(channel, model.ColorChannel):
         return f"pigment {{ rgb {_vec(channel.rgb, False)} }}"
+    if not isinstance(channel, model.MarbleChannel):
+        raise ValueError(f"POV-Ray export takes colour and marble channels only, not "
+                         f"{type(channel).__name__} (the benchmark's comparison is fig11a)")
     ramp = channel.ramp
     keys = [k / (len(ramp) - 1) if len(ramp) > 1 else 0.0 for k in range(len(ramp))]
     entries = " ".join(f"[{key!r} rgb {_vec(c, False)}]" for key, c in zip(keys, ramp))

@@ -161,3 +161,13 @@ def test_usable_from_xml(llvm):
     np.testing.assert_allclose(colour(tex, si),
                                colour(texture(S.MarbleChannel(octaves=4)), si) * [1, 0.95, 0.9],
                                atol=1e-6)
+
+
+@pytest.mark.parametrize("start", [0.0, 1.0])
+def test_a_weight_being_differentiated_is_not_folded_away_at_0_or_1(llvm, start):
+    tex = texture(S.Mix(RED, BLUE, start))
+    params = mi.traverse(tex)
+    dr.enable_grad(params["weight"])
+    params.update()
+    dr.backward(dr.sum(tex.eval(points(10)).x))
+    assert float(np.array(dr.grad(params["weight"]))[0]) == pytest.approx(10 * (0.1 - 0.8), rel=1e-5)

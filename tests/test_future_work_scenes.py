@@ -104,3 +104,20 @@ def test_a_python_built_expression_renders(llvm):
                        size=16)
     image = mimarble.render(scene)
     assert image.shape == (16, 16, 3) and np.isfinite(image).all() and image.max() > 0
+
+
+@pytest.mark.parametrize("command", ["render", "reference"])
+def test_an_image_that_does_not_decode_is_exit_2_at_its_file_string(tmp_path, command):
+    good = MAP.read_bytes()
+    (tmp_path / "broken.png").write_bytes(good[:200])      # a valid header, then nothing
+    scene = tmp_path / "s.scene"
+    scene.write_text('material "m" {\n  diffuse { image { file "broken.png" } }\n}\n'
+                     'sphere { material "m" }\nimage { width 8 height 8 }\n'
+                     'light { position < 5 5 5 > }\n')
+    out = tmp_path / "out.png"
+    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb")
+    result = subprocess.run([sys.executable, "-m", "mimarble", command, str(scene), "-o", str(out)],
+                            cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.startswith(f"{scene}:2:26: image file 'broken.png' cannot be decoded")
+    assert "Traceback" not in result.stderr and not out.exists()

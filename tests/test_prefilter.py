@@ -128,3 +128,38 @@ def test_a_prefiltered_marble_keeps_its_tables_through_ramp_edits(jit_variant):
     mean, _ = texture.phase_average(mi.Float([0.25]), mi.Float([1.0]))
     expected = phase_average([0.25], [1.0], "abs_sine", ((0, 0, 0), (0.5, 0.5, 0.5), (1, 1, 1)))
     np.testing.assert_allclose(np.array(mean).T, expected, atol=2e-5)
+
+
+def test_left_out_turbulence_octaves_add_their_mean(jit_variant):
+    pts = np.random.default_rng(8).uniform(-20, 20, (2000, 3)).astype(np.float32)
+    p = mi.Point3f(*(mi.Float(pts[:, a]) for a in range(3)))
+    footprint = dr.full(mi.Float, 2.0 ** -3, dr.width(p))    # margin 1: 3 whole octaves
+    F, _, _ = noise_gradient.fractal3_band_limited_gradient(p, 8, footprint, 1.0, turbulence=True)
+    kept = noise.fractal3(p, 3, turbulence=True)
+    mean_of_the_rest = noise_gradient.ABS_NOISE_MEAN * sum(2.0 ** -i for i in range(3, 8))
+    np.testing.assert_allclose(np.array(F), np.array(kept) + mean_of_the_rest, atol=1e-6)
+    # and E|N| is the reference noise's
+    n = reference_noise(np.random.default_rng(12).uniform(-100, 100, (400_000, 3)))
+    assert np.abs(n).mean() == pytest.approx(noise_gradient.ABS_NOISE_MEAN, rel=0.01)
+
+
+def test_turbulence_folded_inside_a_pixel_averages_the_fold(llvm):
+    # One octave, a footprint across N's zero crossing: F is the mean of |N| over the
+    # pixel's box of N, n²/W + W/4, checked against the box average of |n + s| directly.
+    pts = np.random.default_rng(9).uniform(-5, 5, (3000, 3)).astype(np.float32)
+    p = mi.Point3f(*(mi.Float(pts[:, a]) for a in range(3)))
+    dx, dy = mi.Vector3f(0.05, 0.0, 0.0), mi.Vector3f(0.0, 0.05, 0.0)
+    footprint = dr.full(mi.Float, 1e-6, dr.width(p))          # keep the octave whole
+    F, _, spread = noise_gradient.fractal3_band_limited_gradient(
+        p, 1, footprint, 0.0, turbulence=True, differentials=(dx, dy))
+    n, g = noise_gradient.noise3_gradient(p)
+    n, g = np.array(n), np.array(g).T
+    W = np.hypot(g[:, 0] * 0.05, g[:, 1] * 0.05)
+    s = np.linspace(-0.5, 0.5, 20001)[None, :] * W[:, None]
+    box_mean = np.abs(n[:, None] + s).mean(axis=1)
+    box_var = np.abs(n[:, None] + s).var(axis=1)
+    folded = np.abs(n) < W / 2
+    assert folded.sum() > 20
+    np.testing.assert_allclose(np.array(F)[folded], box_mean[folded], atol=2e-5)
+    np.testing.assert_allclose(np.array(spread)[folded], box_var[folded], atol=2e-6)
+    np.testing.assert_allclose(np.array(F)[~folded], np.abs(n)[~folded], atol=1e-6)

@@ -169,13 +169,14 @@ class ChannelExpression:
             for value in values[1:]:
                 product = product * value
             self.constant = _opaque(product)
-        # Structural decisions (a new one traces a new kernel):
+        # Structural decisions (a new one traces a new kernel); never for a value being
+        # differentiated, whose derivative needs the part that would be left out.
         self.zero_product = self.op == "multiply" and self.constant is not None \
-            and not np.any(_numbers(self.constant))
+            and not dr.grad_enabled(self.constant) and not np.any(_numbers(self.constant))
         self.mix_side = None          # "a" or "b" when the weight is the constant 0 or 1
         if self.op == "mix":
             weight = self.weight_value if self.weight is None else _constant(self.weight)
-            if weight is not None:
+            if weight is not None and not dr.grad_enabled(weight):
                 w = _numbers(weight)
                 self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
             self.mix_constants = constants
@@ -214,10 +215,11 @@ class ChannelExpression:
         return max(maxima) if w_max <= 1.0 else maxima[0] * (1.0 + w_max) + maxima[1] * w_max
 
     def mean(self):
-        """The mean luminance: exact for sums and constant-weight mixes (linear in the
-        operands' means); for products and varying weights, the average over
-        :data:`MEAN_POINTS` deterministic points (world points in [−16, 16]³, (u, v)
-        over the unit square)."""
+        """The mean luminance: exact for sums, grey constant weights and grey constant
+        factors (linear in the operands' means); otherwise the average over
+        :data:`MEAN_POINTS` deterministic points (world points in [−16, 16]³, (u, v) over
+        the unit square) — in the scalar variant, the operands' means combined as if
+        independent."""
         if self._mean is None:
             self._mean = self._compute_mean()
         return mi.Float(self._mean)
@@ -292,18 +294,25 @@ class ChannelExpression:
             w = _numbers(self.weight_value if self.weight is None else _constant(self.weight))
             if np.ptp(w) == 0.0:                       # a grey weight: linear in the means
                 return (1.0 - w[0]) * means[0] + w[0] * means[1]
-        if self.op == "multiply" and len(self.varying) <= 1:
-            c = np.ones(1) if self.constant is None else _numbers(self.constant)
-            if np.ptp(c) == 0.0 and self.varying:     # a grey factor: linear in the mean
-                return float(c[0]) * float(_numbers(self.varying[0].mean())[0])
+        if self.op == "multiply" and len(self.varying) <= 1:   # then there is a constant
             if not self.varying:
                 return _luminance(self.constant)
+            c = _numbers(self.constant)
+            if np.ptp(c) == 0.0:                       # a grey factor: linear in the mean
+                return float(c[0]) * float(_numbers(self.varying[0].mean())[0])
         return _sampled_mean(self)
 
 
 def _sampled_mean(texture) -> float:
     if not dr.is_jit_v(mi.Float):
-        return float(np.mean([_numbers(t.mean())[0] for t in texture.operands]))
+        # The scalar variant evaluates one point at a time: the operands' means combined
+        # as if independent (a product of means; a mix at the weight's mean) instead.
+        means = [float(_numbers(t.mean())[0]) for t in texture.operands]
+        if texture.op == "multiply":
+            return float(np.prod(means))
+        w = float(_numbers(texture.weight.mean())[0]) if texture.weight is not None else \
+            float(_numbers(texture.weight_value)[0])
+        return (1.0 - w) * means[0] + w * means[1]
     rng = np.random.default_rng(0)
     points = rng.uniform(-16.0, 16.0, (MEAN_POINTS, 3)).astype(np.float32)
     uv = rng.uniform(0.0, 1.0, (MEAN_POINTS, 2)).astype(np.float32)

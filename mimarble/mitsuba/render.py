@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -44,17 +45,34 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
+    check_images(scene)
     mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance,
                                             filter=filter))
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
     if not dr.is_jit_v(mi.Float):
+        if edge_spp:
+            warnings.warn(f"edge samples need a JIT variant (llvm_ad_rgb, cuda_ad_rgb); "
+                          f"{mi.variant()} renders without them", stacklevel=2)
         done = report(progress, "render")
         done(0, total)
         image = np.array(mi.render(mitsuba_scene), dtype=np.float32)[..., :3]
         done(total, total)
         return image
     return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp)
+
+
+def check_images(scene) -> None:
+    """Every image map decodes (the parser read only its header): else a SceneError at
+    its ``file`` string, before any work."""
+    for channel in scene.image_maps():
+        try:
+            mi.Bitmap(channel.location)
+        except Exception as e:   # Mitsuba's reader raises RuntimeError with libpng's reason
+            reason = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+            raise scene_language.SceneError.in_file(
+                scene.source, channel.pos,
+                f"image file '{channel.file}' cannot be decoded: {reason}") from None
 
 
 def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
@@ -85,8 +103,8 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     ``edge_spp`` (whitted mode): afterwards, every pixel on a silhouette — among
     its own samples and those of its 8 neighbours, the first shapes hit are not
     all the same (a miss counts as a shape) — is rendered again with
-    ``edge_spp`` = m² stratum centres, which replace its first samples.
-    Deterministic, like the rest.
+    ``edge_spp`` = m² stratum centres, which replace all of its ``spp`` samples
+    (so only an ``edge_spp`` above ``spp`` does anything). Deterministic, like the rest.
 
     Every number that varies between renders of one scene structure is opaque
     (pass offsets, samples per pixel, image width and height), so a scene
@@ -97,6 +115,8 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     one pass.
     """
     check_edge_spp(edge_spp, mode)
+    if edge_spp is not None and edge_spp <= spp:
+        edge_spp = None                                # fewer samples would not help a pixel
     pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
     tracer = PixelTracer(mitsuba_scene, mode)
     width, height = tracer.width, tracer.height
@@ -107,7 +127,10 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     shapes = np.zeros((2, pixels), dtype=np.uint32) if edge_spp else None
     done = report(progress, "render")
     samples_done, samples_total = 0, pixels * spp
-    done(0, samples_total)                             # a bar's delay counts from here
+    # With edge samples to come, the first passes report against one more sample than
+    # they take, so that a bar stays open until the edge pass has said how much it adds.
+    pending = 1 if edge_spp else 0
+    done(0, samples_total + pending)                   # a bar's delay counts from here
     pixels_per_pass = max(1, pass_samples // spp)
     samples_per_pass = min(spp, pass_samples)
     u32 = tracer.u32
@@ -131,10 +154,11 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
                 image[p0] = partial / spp
                 partial[:] = 0.0
         samples_done += lanes
-        done(samples_done, samples_total)
+        done(samples_done, samples_total + pending)
     if edge_spp:
         edges = silhouette_pixels(shapes, width, height)
         samples_total += len(edges) * edge_spp
+        done(samples_done, samples_total)
         for start in range(0, len(edges), max(1, pass_samples // edge_spp)):
             chunk = edges[start:start + max(1, pass_samples // edge_spp)]
             lanes = len(chunk) * edge_spp

@@ -20,9 +20,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from mimarble.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
-from mimarble.scene import Scene, load
+from mimarble.scene import Scene, SceneError, load
 
-from . import marble, noise, tracer
+from . import image_map, marble, noise, tracer
 from .marble import marble_color, ramp, stripe
 from .noise import fractal, fractal3, noise3
 from .tracer import (
@@ -76,4 +76,10 @@ def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
     """
     if isinstance(scene, (str, Path)):
         scene = load(scene)
+    for channel in scene.image_maps():      # decoded now: a bad file is a SceneError at it
+        try:
+            image_map.load_image(channel.location)
+        except ValueError as e:
+            raise SceneError.in_file(scene.source, channel.pos,
+                                     f"image file '{channel.file}' cannot be decoded: {e}") from None
     return _render(scene, spp=spp, progress=report(progress, "reference"))

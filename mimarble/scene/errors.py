@@ -50,6 +50,21 @@ class SceneError(Exception):
         src = lines[line - 1] if 1 <= line <= len(lines) else ""
         return cls(message, filename=filename, line=line, column=column, source_line=src.rstrip("\r"))
 
+    @classmethod
+    def in_file(cls, source: str | None, pos, message: str) -> "SceneError":
+        """An error found after parsing, at ``pos`` (line, column; None: unknown) of the
+        scene file ``source`` (None: built in Python), quoting its line when it can."""
+        line, column = (pos.line, pos.column) if pos is not None else (None, None)
+        src = None
+        if source and line is not None:
+            try:
+                with open(source, encoding="utf-8") as f:
+                    lines = f.read().lstrip("\ufeff").split("\n")
+                src = lines[line - 1].rstrip("\r") if line <= len(lines) else None
+            except (OSError, UnicodeDecodeError):
+                src = None
+        return cls(message, filename=source or "<scene>", line=line, column=column, source_line=src)
+
     def __reduce__(self):
         return (_rebuild, (self.message, self.filename, self.line, self.column, self.source_line))
 

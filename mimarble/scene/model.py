@@ -240,7 +240,8 @@ class ImageChannel:
     taken from the working directory). Looked up as Mitsuba's ``bitmap`` texture
     does by default: 8-bit sRGB decoded to linear, bilinear, repeating; (u, v) as
     Mitsuba's ``sphere`` defines them (u = φ/2π around the z axis, v = θ/π from +z;
-    v = 0 is the image's top row).
+    v = 0 is the image's top row). Parsed, ``pos`` is the file string's (where errors
+    about the file point), not the ``image`` keyword's.
     """
 
     file: str
@@ -412,6 +413,12 @@ class Scene:
             value = getattr(self, name)
             if not isinstance(value, tuple):
                 object.__setattr__(self, name, tuple(value))
+
+    def image_maps(self) -> tuple:
+        """Every distinct image map the materials use."""
+        found = [c for m in self.materials.values() for ch in m.channels().values()
+                 for c in walk(ch) if isinstance(c, ImageChannel)]
+        return tuple(dict.fromkeys(found))
 
     def material_of(self, sphere: Sphere) -> Material:
         """The material a sphere refers to."""

@@ -712,7 +712,8 @@ class _Builder:
         problem = image_file_problem(path)
         if problem:
             raise self.error(tok, f"image file '{name}': {problem}")
-        return ImageChannel(name, path, pos=_pos_of(st))
+        # Its position is the file string's, where every error about the file points.
+        return ImageChannel(name, path, pos=Pos(tok.line, tok.column))
 
     def marble(self, st: Tree) -> MarbleChannel:
         f = self.fields(st, "'marble' block")
