@@ -20,8 +20,8 @@ import sys
 from . import environment
 from .environment import EnvironmentProblem, use_variant
 
-__all__ = ["EnvironmentProblem", "marble", "noise", "render", "scene", "start", "to_mitsuba",
-           "use_variant", "write_image"]
+__all__ = ["EnvironmentProblem", "marble", "noise", "render", "scene", "start", "sweep",
+           "to_mitsuba", "use_variant", "write_image"]
 __version__ = "0.1.0"
 
 # Names that exist once start() has run.
@@ -68,6 +68,8 @@ def __getattr__(name):
             return globals()[name]
     elif name == "scene":                # the scene language imports neither Dr.Jit nor Mitsuba
         return importlib.import_module(f"{__name__}.scene")
+    elif name == "sweep":                # mimarble.sweeps.sweep: its frames start the package
+        return importlib.import_module(f"{__name__}.sweeps").sweep
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

@@ -315,6 +315,42 @@ def _gallery(args) -> int:
 MARBLE_FILTERS = ("none", "bandlimit", "prefilter")
 
 
+def _sweep(args) -> int:
+    from .sweeps import SweepError, frames, settings_from
+    if not args.set:
+        raise UsageError("a sweep needs at least one --set KEY=VALUES")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"-o {out}: exists and is not a folder")
+    if not out.parent.is_dir() if str(out.parent) else False:
+        raise UsageError(f"-o {out}: the folder it would go in, {out.parent}, does not exist")
+    if args.workers is not None and args.workers < 1:
+        raise UsageError(f"--workers {args.workers}: must be at least 1")
+    scene = _load_scene(args)
+    try:
+        settings = settings_from(args.set)
+        count = len(frames(scene, settings))        # every key and value checked up front
+    except SweepError as e:
+        raise UsageError(str(e)) from None
+    if args.spp is not None:
+        _check_spp(args.spp)
+    _start(args)
+    from .sweeps import sweep
+    start = time.perf_counter()
+    try:
+        index = sweep(scene, settings, out, spp=args.spp, workers=args.workers,
+                      scheduler=args.scheduler, compare=args.compare, progress=True)
+    except SweepError as e:
+        raise UsageError(str(e)) from None
+    failed = [f for f in index["frames"] if f["status"] != "done"]
+    print(f"{out}: {count} frames ({count - len(failed)} done, {len(failed)} failed), "
+          f"{time.perf_counter() - start:.1f} s; index {out / 'sweep.json'}"
+          + ("" if failed else f", contact sheet {out / 'contact.png'}"))
+    for f in failed:
+        print(f"  frame {f['index']} {f['values']}: {f['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mimarble",
@@ -400,6 +436,28 @@ def build_parser() -> argparse.ArgumentParser:
                   "with edge samples)")
     add_variant(p)
     p.set_defaults(run=_bench)
+
+    p = sub.add_parser("sweep", help="render every combination of parameter values, with an "
+                                     "index and a contact sheet (one process or Dask)")
+    p.add_argument("scene", help="scene file")
+    p.add_argument("--set", action="append", metavar="KEY=VALUES",
+                   help="a parameter and its values: v1,v2,… or start:stop:count; KEY is "
+                        "marble.K, MATERIAL.K or MATERIAL.CHANNEL.K (K: scale, period, "
+                        "distortion, octaves, function, axis, turbulence, filter, tolerance), "
+                        "camera.fov, image.samples or light.N.intensity; repeat for a grid")
+    p.add_argument("-o", "--output", required=True, help="folder for the images, sweep.json "
+                                                         "and contact.png (resumed if it holds "
+                                                         "this sweep)")
+    p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
+    group = p.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=int, help="render on a Dask LocalCluster of N processes")
+    group.add_argument("--scheduler", metavar="ADDRESS",
+                       help="render on a running Dask scheduler, e.g. tcp://host:8786")
+    p.add_argument("--compare", action="store_true",
+                   help="also each frame's RMSE and PSNR against the reference tracer")
+    add_size(p)
+    add_variant(p)
+    p.set_defaults(run=_sweep, mode="whitted")
 
     p = sub.add_parser("stress", help="float32 error of noise and marble against float64, "
                                       "beside the derived bound")

@@ -8,7 +8,7 @@ import sys
 DELAY_S = 1.5
 
 
-def report(progress, description: str):
+def report(progress, description: str, unit: str = "sample"):
     """``progress`` as a callable ``(done, total)``.
 
     True: a tqdm bar on stderr that shows itself after :data:`DELAY_S` and
@@ -25,7 +25,7 @@ def report(progress, description: str):
     def update(done, total):
         nonlocal bar
         if bar is None:
-            bar = tqdm(total=total, desc=description, unit="sample", unit_scale=True,
+            bar = tqdm(total=total, desc=description, unit=unit, unit_scale=unit == "sample",
                        delay=DELAY_S, leave=False, file=sys.stderr, disable=None)
         if bar.total != total:          # edge samples add work once the first pass is done
             bar.total = total

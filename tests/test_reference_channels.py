@@ -386,7 +386,8 @@ def test_render_of_a_uniform_image_equals_its_decoded_colour(tmp_path):
     np.testing.assert_allclose(textured, reference.render(plain), rtol=0, atol=1e-15)
 
 
-def test_render_with_a_missing_image_raises_value_error_naming_it(tmp_path):
+def test_render_with_a_missing_image_raises_a_scene_error_naming_it(tmp_path):
+    from mimarble.scene import SceneError
     missing = str(tmp_path / "maps" / "no-such-veins.png")
-    with pytest.raises(ValueError, match="no-such-veins.png"):
+    with pytest.raises(SceneError, match="no-such-veins.png"):
         reference.render(image_scene(missing, size=4))

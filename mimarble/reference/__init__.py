@@ -79,7 +79,9 @@ def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
     for channel in scene.image_maps():      # decoded now: a bad file is a SceneError at it
         try:
             image_map.load_image(channel.location)
-        except ValueError as e:
+        except ValueError as e:   # "image file '/abs/path': reason" → at the file string
+            reason = str(e).split("': ", 1)[-1]
             raise SceneError.in_file(scene.source, channel.pos,
-                                     f"image file '{channel.file}' cannot be decoded: {e}") from None
+                                     f"image file '{channel.file}' cannot be decoded: {reason}") \
+                from None
     return _render(scene, spp=spp, progress=report(progress, "reference"))

@@ -1,0 +1,145 @@
+"""Sweeps: settings, frames, one compile per structure, nothing lost, Dask."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble import scene as S
+from mimarble import sweeps
+from mimarble.gallery import resized
+from mimarble.mitsuba import to_mitsuba
+from mimarble.mitsuba.render import render_in_passes
+
+dr, mi = mimarble.dr, mimarble.mi
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def small(size=24):
+    return resized(S.load(ROOT / "scenes" / "fig11a.scene"), size)
+
+
+def png(path):
+    from PIL import Image
+    return np.asarray(Image.open(path))
+
+
+def test_settings_are_lists_or_ranges():
+    assert sweeps.parse_setting("marble.period=0.5,1,2,4").values == (0.5, 1, 2, 4)
+    assert sweeps.parse_setting("marble.distortion=1:8:4").values == pytest.approx(
+        (1.0, 3.3333333, 5.6666667, 8.0))
+    assert sweeps.parse_setting("marble.function=sine,cosine").values == ("sine", "cosine")
+    for bad in ("marble.period", "=1,2", "marble.period=1:2", "marble.period=1:2:0"):
+        with pytest.raises(sweeps.SweepError):
+            sweeps.parse_setting(bad)
+
+
+def test_keys_name_every_marble_one_material_or_one_channel():
+    scene = S.Scene(materials={"veins": S.Material("veins", ambient=S.MarbleChannel(),
+                                                   diffuse=S.Multiply((S.ColorChannel((1, 1, 1)),
+                                                                       S.MarbleChannel())))},
+                    lights=(S.Light((1, 2, 3)),))
+    every = sweeps.apply(scene, "marble.period", 2.0).materials["veins"]
+    assert every.ambient.period == 2.0 and every.diffuse.operands[1].period == 2.0
+    one = sweeps.apply(scene, "veins.diffuse.period", 3.0).materials["veins"]
+    assert one.ambient.period == 1.0 and one.diffuse.operands[1].period == 3.0
+    assert sweeps.apply(scene, "camera.fov", 20).camera.fov == 20.0
+    assert sweeps.apply(scene, "light.0.intensity", 0.5).lights[0].color == (0.5, 0.5, 0.5)
+    for key, words in (("marble.perod", "unknown key"), ("stone.period", "no material"),
+                       ("veins.glossy.period", "not a channel"), ("veins.specular.period", "no specular"),
+                       ("light.3.intensity", "does not exist")):
+        with pytest.raises(sweeps.SweepError, match=words):
+            sweeps.apply(scene, key, 1.0)
+
+
+def test_a_sweep_writes_every_frame_an_index_and_a_contact_sheet(llvm, tmp_path):
+    scene = small()
+    index = sweeps.sweep(scene, {"marble.period": [0.5, 2.0], "marble.distortion": [1.0, 3.0]},
+                         tmp_path, spp=1)
+    assert [f["status"] for f in index["frames"]] == ["done"] * 4
+    assert json.loads((tmp_path / "sweep.json").read_text()) == index
+    assert (tmp_path / "contact.png").exists()
+    # Each frame is the image of that frame's scene rendered on its own, bit for bit.
+    for frame in index["frames"]:
+        values = frame["values"]
+        alone = sweeps.apply(sweeps.apply(scene, "marble.period", values["marble.period"]),
+                             "marble.distortion", values["marble.distortion"])
+        expected = render_in_passes(mi.load_dict(to_mitsuba(alone, spp=1)), 1)
+        from mimarble.mitsuba.render import srgb8
+        assert np.array_equal(png(tmp_path / frame["file"]), srgb8(expected))
+
+
+def test_in_place_values_reuse_the_loaded_scene_and_its_kernels(llvm, tmp_path):
+    sweeps._CACHE.scenes.clear()
+    scene = small()
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+        sweeps.sweep(scene, {"marble.period": [0.7, 1.1, 1.9, 2.3]}, tmp_path / "a", spp=1)
+        kernels = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+    assert len(sweeps._CACHE.scenes) == 1               # one structure, loaded once
+    render_kernels = [k for k in kernels if k["operation_count"] > 500]
+    assert len(render_kernels) == 4 and all(k["cache_hit"] for k in render_kernels[1:])
+    sweeps.sweep(scene, {"marble.octaves": [3, 5]}, tmp_path / "b", spp=1)
+    assert len(sweeps._CACHE.scenes) == 3               # each octave count: a structure
+
+
+def test_an_interrupted_sweep_resumes_with_only_what_is_missing(llvm, tmp_path):
+    scene, setting = small(), {"marble.period": [0.5, 1.0, 1.5, 2.0]}
+    first = sweeps.sweep(scene, setting, tmp_path, spp=1, stop_after=2)
+    assert [f["status"] for f in first["frames"]] == ["done", "done", "todo", "todo"]
+    assert not (tmp_path / "contact.png").exists()
+    kept = {f["file"]: (tmp_path / f["file"]).stat().st_mtime_ns for f in first["frames"][:2]}
+    rendered = []
+    original = sweeps.render_frame
+    sweeps.render_frame = lambda job: rendered.append(job["index"]) or original(job)
+    try:
+        second = sweeps.sweep(scene, setting, tmp_path, spp=1)
+    finally:
+        sweeps.render_frame = original
+    assert rendered == [2, 3]
+    assert [f["status"] for f in second["frames"]] == ["done"] * 4
+    assert {f: (tmp_path / f).stat().st_mtime_ns for f in kept} == kept
+    assert (tmp_path / "contact.png").exists()
+
+
+def test_a_failing_frame_is_recorded_and_the_sweep_goes_on(llvm, tmp_path):
+    index = sweeps.sweep(small(), {"marble.octaves": [2, 70, 3]}, tmp_path, spp=1)
+    assert [f["status"] for f in index["frames"]] == ["done", "failed", "done"]
+    assert "octaves=70" in index["frames"][1]["error"] and "\n" not in index["frames"][1]["error"]
+    assert not (tmp_path / index["frames"][1]["file"]).exists()
+
+
+def test_another_sweeps_folder_is_refused(llvm, tmp_path):
+    sweeps.sweep(small(), {"marble.period": [1.0]}, tmp_path, spp=1)
+    with pytest.raises(sweeps.SweepError, match="another sweep"):
+        sweeps.sweep(small(), {"marble.period": [2.0]}, tmp_path, spp=1)
+
+
+def test_a_local_cluster_of_two_workers_renders_the_same_images(llvm, tmp_path):
+    pytest.importorskip("distributed")
+    scene, setting = small(), {"marble.period": [0.5, 1.0, 1.5], "marble.octaves": [3, 4]}
+    here = sweeps.sweep(scene, setting, tmp_path / "here", spp=1)
+    there = sweeps.sweep(scene, setting, tmp_path / "there", spp=1, workers=2)
+    assert [f["status"] for f in there["frames"]] == ["done"] * 6
+    for a, b in zip(here["frames"], there["frames"]):
+        assert np.array_equal(png(tmp_path / "here" / a["file"]), png(tmp_path / "there" / b["file"]))
+
+
+def test_the_command_checks_its_settings_before_any_work(tmp_path):
+    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb")
+    result = subprocess.run([sys.executable, "-m", "mimarble", "sweep", "scenes/fig11a.scene",
+                             "--set", "marble.perod=1,2", "-o", str(tmp_path / "out")],
+                            cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2 and "unknown key" in result.stderr
+    assert "Traceback" not in result.stderr and not (tmp_path / "out").exists()
+    result = subprocess.run([sys.executable, "-m", "mimarble", "sweep", "scenes/fig11a.scene",
+                             "--set", "marble.period=1,2", "--width", "16", "--height", "16",
+                             "-o", str(tmp_path / "out")],
+                            cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "0000_period-1.png", "0001_period-2.png", "contact.png", "sweep.json"]
