@@ -322,7 +322,7 @@ def _sweep(args) -> int:
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise UsageError(f"-o {out}: exists and is not a folder")
-    if not out.parent.is_dir() if str(out.parent) else False:
+    if not out.parent.is_dir():
         raise UsageError(f"-o {out}: the folder it would go in, {out.parent}, does not exist")
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers {args.workers}: must be at least 1")
