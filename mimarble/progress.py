@@ -25,7 +25,8 @@ def report(progress, description: str, unit: str = "sample"):
     def update(done, total):
         nonlocal bar
         if bar is None:
-            bar = tqdm(total=total, desc=description, unit=unit, unit_scale=unit == "sample",
+            bar = tqdm(total=total, initial=done, desc=description, unit=unit,
+                       unit_scale=unit == "sample",
                        delay=DELAY_S, leave=False, file=sys.stderr, disable=None)
         if bar.total != total:          # edge samples add work once the first pass is done
             bar.total = total

@@ -24,9 +24,12 @@ loads and compiles once.
 
 **Nothing lost.** ``sweep.json`` in the output folder lists every frame with its
 values, file, status, error and render time; it is rewritten whole (temporary
-file, rename) after every frame, images are written whole or not at all. Run the
-same sweep again and only what is missing is done (failed frames are tried again);
-a frame that fails is recorded with its error and the sweep goes on.
+file, rename) at most every half second and when the sweep ends or is interrupted;
+images are written whole or not at all, and a frame is done once its image is written
+and indexed. Run the same sweep again (same scene, sizes, settings, spp, variant) and
+only what is missing is done (failed frames are tried again); a frame that fails —
+rendering, writing, or its Dask worker lost — is recorded with its error and the sweep
+goes on.
 
 **Several processes, several machines** on Dask distributed: ``workers=N`` starts a
 ``LocalCluster`` of N single-threaded worker processes, ``scheduler=ADDRESS`` joins a
@@ -114,7 +117,10 @@ def _value(text: str):
 def settings_from(spec) -> tuple[Setting, ...]:
     """Settings from ``--set`` strings, or a mapping {key: values} (Python)."""
     if isinstance(spec, dict):
-        return tuple(Setting(k, tuple(v) if isinstance(v, (list, tuple, np.ndarray)) else (v,))
+        # NumPy values (np.linspace, np.arange) become Python ones: JSON and checks take them.
+        return tuple(Setting(k, tuple(np.asarray(v, dtype=object).ravel().tolist()
+                                      if isinstance(v, (list, tuple, np.ndarray)) else
+                                      [np.asarray(v).item()]))
                      for k, v in spec.items())
     return tuple(parse_setting(s) if isinstance(s, str) else s for s in spec)
 
@@ -123,14 +129,21 @@ def apply(scene, key: str, value):
     """The scene with ``key`` set to ``value`` (SweepError for a key it does not have)."""
     parts = key.split(".")
     if parts[0] == "camera" and parts[1:] == ["fov"]:
-        return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, fov=_number(key, value)))
+        fov = _number(key, value, above=0.0)
+        if not fov < 180.0:
+            raise SweepError(f"--set {key}: fov {value!r} must be below 180 degrees")
+        return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, fov=fov))
     if parts[0] == "image" and parts[1:] == ["samples"]:
         samples = _integer(key, value)
+        try:
+            scene_language.model.samples_per_axis(samples)
+        except ValueError as e:
+            raise SweepError(f"--set {key}: {e}") from None
         return dataclasses.replace(scene, image=dataclasses.replace(scene.image, samples=samples))
     if parts[0] == "light" and len(parts) == 3 and parts[2] == "intensity":
         lights = list(scene.lights)
         k = _index(key, parts[1], len(lights), "light")
-        grey = _number(key, value)
+        grey = _number(key, value, at_least=0.0)
         lights[k] = dataclasses.replace(lights[k], color=(grey, grey, grey))
         return dataclasses.replace(scene, lights=tuple(lights))
     name = parts[-1]
@@ -154,18 +167,27 @@ def apply(scene, key: str, value):
             if parts[1] not in channels:
                 raise SweepError(f"--set {key}: material {material_name!r} has no {parts[1]}")
             channels = {parts[1]: channels[parts[1]]}
-        if parts[0] != "marble" and not any(isinstance(c, scene_language.MarbleChannel)
-                                            for ch in channels.values()
-                                            for c in scene_language.walk(ch)):
+        if parts[0] != "marble" and not _has_marble(channels):
             raise SweepError(f"--set {key}: no marble there to change")
         materials[material_name] = dataclasses.replace(
             material, **{k: scene_language.replace_marbles(c, **change) for k, c in channels.items()})
+    if parts[0] == "marble" and not any(_has_marble(m.channels()) for m in materials.values()):
+        raise SweepError(f"--set {key}: the scene has no marble to change")
     return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
 
 
-def _number(key, value) -> float:
+def _has_marble(channels) -> bool:
+    return any(isinstance(c, scene_language.MarbleChannel)
+               for ch in channels.values() for c in scene_language.walk(ch))
+
+
+def _number(key, value, above: float | None = None, at_least: float | None = None) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise SweepError(f"--set {key}: {value!r} is not a finite number")
+    if above is not None and not value > above:
+        raise SweepError(f"--set {key}: {value!r} must be > {above:g}")
+    if at_least is not None and not value >= at_least:
+        raise SweepError(f"--set {key}: {value!r} must be ≥ {at_least:g}")
     return float(value)
 
 
@@ -189,8 +211,16 @@ def _marble_value(key, name, value):
         if value not in ("true", "false", True, False):
             raise SweepError(f"--set {key}: turbulence is true or false, not {value!r}")
         return value in ("true", True)
-    if name in ("function", "axis", "filter"):
+    choices = {"function": scene_language.MARBLE_FUNCTIONS, "axis": scene_language.AXES,
+               "filter": scene_language.MARBLE_FILTERS}.get(name)
+    if choices is not None:
+        if value not in choices:
+            raise SweepError(f"--set {key}: {value!r} is not one of {', '.join(choices)}")
         return str(value)
+    if name == "scale":
+        return _number(key, value, above=0.0)
+    if name == "tolerance":
+        return _number(key, value, at_least=0.0)
     return _number(key, value)
 
 
@@ -227,24 +257,26 @@ class _SceneCache:
     def __init__(self, size: int = 8):
         self.size, self.scenes = size, {}
 
-    def scene_for(self, frame_scene):
+    def scene_for(self, frame_scene, spp: int):
         import mitsuba as mi
         from .mitsuba.translate import to_mitsuba
-        scene_dict = to_mitsuba(frame_scene)
-        key, values = _structure(scene_dict)
+        scene_dict = to_mitsuba(frame_scene, spp=spp)
+        structure, values = _structure(scene_dict)
+        key = (mi.variant(), structure)
         if key not in self.scenes:
             if len(self.scenes) >= self.size:
                 self.scenes.pop(next(iter(self.scenes)))
             mitsuba_scene = mi.load_dict(scene_dict)
-            self.scenes[key] = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
+            self.scenes[key] = (mitsuba_scene, mi.traverse(mitsuba_scene))
             return mitsuba_scene
-        mitsuba_scene, params, current = self.scenes[key]
-        changed = {k: v for k, v in values.items() if current.get(k) != v}
-        if changed:
-            for name, value in changed.items():
+        mitsuba_scene, params = self.scenes[key]
+        try:   # every in-place value, every frame (cheap): nothing left from another frame
+            for name, value in values.items():
                 params[name] = value
             params.update()
-            current.update(changed)
+        except BaseException:
+            self.scenes.pop(key, None)   # a half-updated scene is never used again
+            raise
         return mitsuba_scene
 
 
@@ -267,16 +299,18 @@ def render_frame(job: dict) -> dict:
     """Render one frame: {"index", "scene", "spp", "compare"} → {"index", "image",
     "render_s", "error", metrics}. Runs where it is called — in a Dask worker too, which
     keeps its loaded scenes (and their compiled kernels) between frames."""
-    import mimarble
-    mimarble.start()
-    from .compare import image_metrics
-    from .mitsuba.render import render_in_passes
     out = {"index": job["index"], "image": None, "error": None, "render_s": None}
     try:
+        import mimarble
+        if job.get("variant"):
+            mimarble.use_variant(job["variant"])          # a worker renders as the client does
+        mimarble.start()
+        from .compare import image_metrics
+        from .mitsuba.render import render_in_passes
         frame_scene = job["scene"]
         spp = job["spp"] or frame_scene.image.samples
         start = time.perf_counter()
-        mitsuba_scene = _CACHE.scene_for(frame_scene)
+        mitsuba_scene = _CACHE.scene_for(frame_scene, spp)
         out["image"] = render_in_passes(mitsuba_scene, spp)
         out["render_s"] = time.perf_counter() - start
         if job.get("compare"):
@@ -309,6 +343,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     frames (what an interruption does; the index says what is left). Already done frames
     of the same sweep in ``out_dir`` are kept, not rendered again.
     """
+    import mimarble
     from .mitsuba.render import write_image
     from .progress import report
     scene = scene_or_path
@@ -317,19 +352,28 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     settings = settings_from(settings)
     if not settings:
         raise SweepError("a sweep needs at least one setting (--set KEY=VALUES)")
+    if spp is not None and any(s.key == "image.samples" for s in settings):
+        raise SweepError("image.samples is swept: leave out --spp (it would override it)")
     all_frames = frames(scene, settings)
+    if spp is None:                      # whitted renders an n×n grid: check every frame now
+        for frame in all_frames:
+            try:
+                scene_language.model.samples_per_axis(frame["scene"].image.samples)
+            except ValueError as e:
+                raise SweepError(f"the scene's samples: {e}; give --spp") from None
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    index = _open_index(out_dir, scene_or_path, settings, spp, compare, all_frames)
+    mimarble.start()
+    variant = mimarble.mi.variant()
+    index = _open_index(out_dir, scene_or_path, scene, settings, spp, compare, all_frames, variant)
     todo = [f for f in all_frames if not _done(index["frames"][f["index"]], out_dir)]
+    finished = len(all_frames) - len(todo)
     if stop_after is not None:
         todo = todo[:stop_after]
     done = report(progress, "sweep", unit="frame")
-    finished = len(all_frames) - len([f for f in all_frames
-                                      if not _done(index["frames"][f["index"]], out_dir)])
     done(finished, len(all_frames))
-    jobs = [{"index": f["index"], "scene": f["scene"], "spp": spp, "compare": compare}
-            for f in todo]
+    jobs = [{"index": f["index"], "scene": f["scene"], "spp": spp, "compare": compare,
+             "variant": variant} for f in todo]
     # Images are written by one background thread while the next frames render (PNG
     # encoding is a third of a 256² frame's time); the index, rewritten whole, at most
     # every INDEX_INTERVAL_S and at the end — a frame whose image is written but not yet
@@ -354,56 +398,78 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                     _write_index(out_dir, index)
                     last_index = time.perf_counter()
         finally:
-            for entry, result, future in pending:
-                future.result()
             _record_written(pending, wait=True)
             _write_index(out_dir, index)
-    if contact_sheet and all(_done(e, out_dir) for e in index["frames"]):
+    if contact_sheet and any(_done(e, out_dir) for e in index["frames"]) \
+            and all(e["status"] != "todo" for e in index["frames"]):
         write_contact_sheet(out_dir, index)
     return index
 
 
 def _record_written(pending, wait: bool = False) -> list:
-    """Mark the frames whose image is written as done; the rest stay pending."""
+    """Mark the frames whose image is written as done (or failed, if the write failed);
+    the rest stay pending."""
     still = []
     for entry, result, future in pending:
-        if wait or future.done():
-            future.result()                      # a write that failed raises here
-            entry.update(status="done", error=None, render_s=result["render_s"],
-                         **{k: result[k] for k in ("rmse", "psnr") if k in result})
-        else:
+        if not (wait or future.done()):
             still.append((entry, result, future))
+            continue
+        try:
+            future.result()
+        except Exception as e:           # disk full, permission: the frame failed, not the sweep
+            entry.update(status="failed", error=f"writing the image: {error_text(e)}",
+                         render_s=result["render_s"])
+            continue
+        entry.update(status="done", error=None, render_s=result["render_s"],
+                     **{k: result[k] for k in ("rmse", "psnr") if k in result})
     return still
 
 
 def _results(jobs, workers, scheduler):
-    """Each job's result as it completes: here, or on Dask."""
+    """Each job's result as it completes: here, or on Dask (a task that fails there —
+    a worker lost, say — is that frame's error, not the sweep's)."""
     if not workers and not scheduler:
         for job in jobs:
             yield render_frame(job)
         return
     from dask.distributed import Client, LocalCluster, as_completed
-    cluster = None
-    if scheduler is None:
-        cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
-    client = Client(cluster if cluster is not None else scheduler)
+    cluster = client = None
     try:
-        futures = client.map(render_frame, jobs, pure=False)
+        try:
+            if scheduler is None:
+                cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1,
+                                       processes=True, dashboard_address=None)
+            client = Client(cluster if cluster is not None else scheduler, timeout="20s")
+        except (OSError, ValueError, TimeoutError) as e:
+            where = f"the scheduler at {scheduler}" if scheduler else "a LocalCluster"
+            raise SweepError(f"cannot start or reach {where}: {e}") from None
+        futures = {client.submit(render_frame, job, pure=False): job["index"] for job in jobs}
         for future in as_completed(futures):
-            yield future.result()
+            index = futures.pop(future)
+            try:
+                result = future.result()
+            except Exception as e:
+                result = {"index": index, "image": None, "render_s": None,
+                          "error": f"on Dask: {error_text(e)}"}
+            future.release()                 # the worker can drop the image now
+            yield result
     finally:
-        client.close()
+        if client is not None:
+            client.close()
         if cluster is not None:
             cluster.close()
 
 
-def _open_index(out_dir: Path, source, settings, spp, compare, all_frames) -> dict:
-    """The index in ``out_dir`` (made, or read back for a resumed sweep of the same kind)."""
+def _open_index(out_dir: Path, source, scene, settings, spp, compare, all_frames,
+                variant) -> dict:
+    """The index in ``out_dir`` (made, or read back for a resumed sweep of the same kind:
+    the same scene — by content, sizes included —, settings, spp, comparison and variant)."""
+    import hashlib
     described = {"scene": str(source) if isinstance(source, (str, os.PathLike))
                  else getattr(source, "source", None) or "<scene>",
+                 "scene_digest": hashlib.sha256(repr(scene).encode()).hexdigest()[:16],
                  "settings": [{"key": s.key, "values": list(s.values)} for s in settings],
-                 "spp": spp, "compare": compare}
+                 "spp": spp, "compare": compare, "variant": variant}
     path = out_dir / INDEX
     if path.exists():
         try:
@@ -411,8 +477,10 @@ def _open_index(out_dir: Path, source, settings, spp, compare, all_frames) -> di
         except (OSError, json.JSONDecodeError) as e:
             raise SweepError(f"{path}: cannot read the sweep index ({e}); move it away to start "
                              f"again") from None
-        if {k: index.get(k) for k in described} != described:
-            raise SweepError(f"{out_dir} holds another sweep ({path}); write this one elsewhere")
+        same = ("scene_digest", "settings", "spp", "compare", "variant")
+        if {k: index.get(k) for k in same} != {k: described[k] for k in same}:
+            raise SweepError(f"{out_dir} holds another sweep ({path}: another scene, size, "
+                             f"setting, spp or variant); write this one elsewhere")
         return index
     settings_list = list(settings)
     index = dict(described, frames=[
@@ -467,9 +535,13 @@ def write_contact_sheet(out_dir, index: dict, cell: int = 160) -> Path:
     for k, entry in enumerate(entries):
         r, c = divmod(k, columns)
         x, y = left + c * cell + 4, top + r * row_height
-        image = Image.open(out_dir / entry["file"]).convert("RGB")
-        image.thumbnail((cell - 4, cell - 4))
-        sheet.paste(image, (x, y))
+        if _done(entry, out_dir):
+            image = Image.open(out_dir / entry["file"]).convert("RGB")
+            image.thumbnail((cell - 4, cell - 4))
+            sheet.paste(image, (x, y))
+        else:                                            # a failed frame: a grey cell
+            draw.rectangle((x, y, x + cell - 5, y + cell - 5), fill=(200, 200, 200))
+            draw.text((x + 6, y + cell // 2 - 6), "failed", fill="black")
         values = entry["values"]
         if len(settings) == 2:
             if r == 0:

@@ -143,3 +143,31 @@ def test_the_command_checks_its_settings_before_any_work(tmp_path):
     assert result.returncode == 0, result.stderr
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
         "0000_period-1.png", "0001_period-2.png", "contact.png", "sweep.json"]
+
+
+def test_values_are_checked_and_numpy_values_taken(llvm, tmp_path):
+    scene = small()
+    for key, value, words in (("marble.function", "cosin", "not one of"),
+                              ("marble.scale", 0.0, "must be > 0"),
+                              ("camera.fov", 200.0, "below 180"),
+                              ("image.samples", 3, "perfect square")):
+        with pytest.raises(sweeps.SweepError, match=words):
+            sweeps.frames(scene, sweeps.settings_from({key: [value]}))
+    with pytest.raises(sweeps.SweepError, match="leave out --spp"):
+        sweeps.sweep(scene, {"image.samples": [1, 4]}, tmp_path / "a", spp=1)
+    index = sweeps.sweep(scene, {"marble.octaves": np.arange(2, 4)}, tmp_path / "b", spp=1)
+    assert [f["values"]["marble.octaves"] for f in index["frames"]] == [2, 3]
+
+
+def test_a_frame_whose_image_cannot_be_written_fails_alone(llvm, tmp_path):
+    (tmp_path / "0001_period-2.png").mkdir()          # the image's name is taken by a folder
+    index = sweeps.sweep(small(), {"marble.period": [1.0, 2.0, 3.0]}, tmp_path, spp=1)
+    assert [f["status"] for f in index["frames"]] == ["done", "failed", "done"]
+    assert index["frames"][1]["error"].startswith("writing the image")
+    assert (tmp_path / "contact.png").exists()        # the failed cell is drawn grey
+
+
+def test_a_resumed_sweep_must_be_the_same_scene_at_the_same_size(llvm, tmp_path):
+    sweeps.sweep(small(24), {"marble.period": [1.0]}, tmp_path, spp=1)
+    with pytest.raises(sweeps.SweepError, match="another sweep"):
+        sweeps.sweep(small(32), {"marble.period": [1.0]}, tmp_path, spp=1)
