@@ -296,8 +296,9 @@ _CACHE = _SceneCache()
 
 
 def render_frame(job: dict) -> dict:
-    """Render one frame: {"index", "scene", "spp", "compare"} → {"index", "image",
-    "render_s", "error", metrics}. Runs where it is called — in a Dask worker too, which
+    """Render one frame: {"index", "scene", "spp", "compare", "variant", "threads",
+    "encode"} → {"index", "image" (linear, or 8-bit sRGB with "encode"), "render_s",
+    "error", metrics}. Runs where it is called — in a Dask worker too, which
     keeps its loaded scenes (and their compiled kernels) between frames."""
     out = {"index": job["index"], "image": None, "error": None, "render_s": None}
     try:
@@ -305,18 +306,23 @@ def render_frame(job: dict) -> dict:
         if job.get("variant"):
             mimarble.use_variant(job["variant"])          # a worker renders as the client does
         mimarble.start()
+        if job.get("threads"):                            # a LocalCluster's share of the cores
+            mimarble.dr.set_thread_count(job["threads"])
         from .compare import image_metrics
-        from .mitsuba.render import render_in_passes
+        from .mitsuba.render import render_in_passes, srgb8
         frame_scene = job["scene"]
         spp = job["spp"] or frame_scene.image.samples
         start = time.perf_counter()
         mitsuba_scene = _CACHE.scene_for(frame_scene, spp)
-        out["image"] = render_in_passes(mitsuba_scene, spp)
+        image = render_in_passes(mitsuba_scene, spp)
         out["render_s"] = time.perf_counter() - start
         if job.get("compare"):
             from . import reference
-            metrics = image_metrics(out["image"], reference.render(frame_scene, spp=spp))
+            metrics = image_metrics(image, reference.render(frame_scene, spp=spp))
             out.update(rmse=metrics["rmse"], psnr=metrics["psnr"])
+        # On Dask, 8-bit sRGB where the frame was rendered (in parallel, and a quarter of
+        # the bytes to send back); here, the writer thread converts it: the same bits.
+        out["image"] = srgb8(image) if job.get("encode") else image
     except Exception as e:   # recorded in the index; the sweep goes on
         out["error"] = error_text(e)
     return out
@@ -344,7 +350,6 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     of the same sweep in ``out_dir`` are kept, not rendered again.
     """
     import mimarble
-    from .mitsuba.render import write_image
     from .progress import report
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
@@ -372,10 +377,14 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
         todo = todo[:stop_after]
     done = report(progress, "sweep", unit="frame")
     done(finished, len(all_frames))
+    # A LocalCluster's workers share this machine's cores (Dr.Jit would start a thread per
+    # core in each); a remote scheduler's workers keep their own machines' defaults.
+    threads = max(1, (os.cpu_count() or 1) // int(workers)) if workers and not scheduler else None
     jobs = [{"index": f["index"], "scene": f["scene"], "spp": spp, "compare": compare,
-             "variant": variant} for f in todo]
+             "variant": variant, "threads": threads, "encode": bool(workers or scheduler)}
+            for f in todo]
     # Images are written by one background thread while the next frames render (PNG
-    # encoding is a third of a 256² frame's time); the index, rewritten whole, at most
+    # encoding takes a sixth of a 256² frame's time); the index, rewritten whole, at most
     # every INDEX_INTERVAL_S and at the end — a frame whose image is written but not yet
     # indexed is simply rendered again on resume.
     from concurrent.futures import ThreadPoolExecutor
@@ -387,7 +396,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                 entry = index["frames"][result["index"]]
                 if result["error"] is None:
                     pending.append((entry, result, writer.submit(
-                        write_image, out_dir / entry["file"], result["image"])))
+                        _write_frame, out_dir / entry["file"], result["image"])))
                 else:
                     entry.update(status="failed", error=result["error"],
                                  render_s=result["render_s"])
@@ -404,6 +413,13 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
             and all(e["status"] != "todo" for e in index["frames"]):
         write_contact_sheet(out_dir, index)
     return index
+
+
+def _write_frame(path, image) -> None:
+    """A frame's PNG, whole or not at all: 8-bit sRGB as it came from a worker, or the
+    linear image converted exactly as ``write_image`` does."""
+    from .mitsuba.render import write_image, write_rgb8
+    (write_rgb8 if image.dtype == np.uint8 else write_image)(path, image)
 
 
 def _record_written(pending, wait: bool = False) -> list:
