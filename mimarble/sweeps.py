@@ -340,14 +340,17 @@ def error_text(error: Exception) -> str:
 
 def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int | None = None,
           scheduler: str | None = None, compare: bool = False, progress=False,
-          contact_sheet: bool = True, stop_after: int | None = None) -> dict:
+          contact_sheet: bool = True, stop_after: int | None = None,
+          worker_threads: int | None = None) -> dict:
     """Render every combination of ``settings`` into ``out_dir``; returns the index.
 
     ``settings``: ``--set``-style strings, or {key: values}. ``workers`` / ``scheduler``:
     Dask (see the module docstring); neither: this process. ``compare``: each frame's
     RMSE and PSNR against the reference tracer. ``stop_after``: stop after that many
     frames (what an interruption does; the index says what is left). Already done frames
-    of the same sweep in ``out_dir`` are kept, not rendered again.
+    of the same sweep in ``out_dir`` are kept, not rendered again. ``worker_threads``:
+    Dr.Jit threads per Dask worker (default: a LocalCluster's share of this machine's
+    cores; a scheduler's workers keep their own).
     """
     import mimarble
     from .progress import report
@@ -379,7 +382,8 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     done(finished, len(all_frames))
     # A LocalCluster's workers share this machine's cores (Dr.Jit would start a thread per
     # core in each); a remote scheduler's workers keep their own machines' defaults.
-    threads = max(1, (os.cpu_count() or 1) // int(workers)) if workers and not scheduler else None
+    threads = worker_threads or (max(1, (os.cpu_count() or 1) // int(workers))
+                                 if workers and not scheduler else None)
     jobs = [{"index": f["index"], "scene": f["scene"], "spp": spp, "compare": compare,
              "variant": variant, "threads": threads, "encode": bool(workers or scheduler)}
             for f in todo]
