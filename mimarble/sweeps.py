@@ -459,7 +459,7 @@ def _results(jobs, workers, scheduler):
             if scheduler is None:
                 cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1,
                                        processes=True, dashboard_address=None)
-            client = Client(cluster if cluster is not None else scheduler, timeout="20s")
+            client = Client(cluster if cluster is not None else scheduler, timeout="10s")
         except (OSError, ValueError, TimeoutError) as e:
             where = f"the scheduler at {scheduler}" if scheduler else "a LocalCluster"
             raise SweepError(f"cannot start or reach {where}: {e}") from None

@@ -171,3 +171,21 @@ def test_a_resumed_sweep_must_be_the_same_scene_at_the_same_size(llvm, tmp_path)
     sweeps.sweep(small(24), {"marble.period": [1.0]}, tmp_path, spp=1)
     with pytest.raises(sweeps.SweepError, match="another sweep"):
         sweeps.sweep(small(32), {"marble.period": [1.0]}, tmp_path, spp=1)
+
+
+def test_compare_records_each_frames_error_against_the_reference(llvm, tmp_path):
+    index = sweeps.sweep(small(16), {"marble.period": [1.0, 2.0]}, tmp_path, spp=1, compare=True)
+    for frame in index["frames"]:
+        assert frame["psnr"] > 100 and frame["rmse"] < 1e-4   # whitted agrees with the reference
+
+
+def test_a_running_scheduler_is_joined_by_its_address(llvm, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        index = sweeps.sweep(small(16), {"marble.period": [1.0, 2.0]}, tmp_path, spp=1,
+                             scheduler=cluster.scheduler_address)
+    assert [f["status"] for f in index["frames"]] == ["done", "done"]
+    with pytest.raises(sweeps.SweepError, match="cannot start or reach"):
+        sweeps.sweep(small(16), {"marble.period": [1.0]}, tmp_path / "x", spp=1,
+                     scheduler="tcp://127.0.0.1:9")
