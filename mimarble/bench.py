@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from . import environment, kernel_cache, reference, stress
+from . import environment, files, kernel_cache, reference, stress
 from . import scene as scene_language
 from .compare import image_metrics
 from .gallery import resized
@@ -150,9 +150,7 @@ def converged(scene, spp: int, cache_dir: Path) -> np.ndarray:
         return np.load(path)
     image = reference.render(scene, spp=spp)
     cache_dir.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(f".tmp{os.getpid()}.npy")
-    np.save(tmp, image)
-    os.replace(tmp, path)
+    files.write_atomically(path, lambda tmp: np.save(tmp, image))
     return image
 
 
@@ -572,7 +570,5 @@ def plot(results: dict, path) -> None:
 
 
 def write_json(results: dict, path) -> None:
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(results, indent=1, default=float))
-    os.replace(tmp, path)
+    text = json.dumps(results, indent=1, default=float)
+    files.write_atomically(path, lambda tmp: Path(tmp).write_text(text))

@@ -51,6 +51,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import files
 from . import scene as scene_language
 
 MARBLE_KEYS = ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
@@ -515,11 +516,8 @@ def _done(entry, out_dir: Path) -> bool:
 
 
 def _write_index(out_dir: Path, index: dict) -> None:
-    path = out_dir / INDEX
-    tmp = path.with_name(f".{INDEX}.tmp{os.getpid()}")
-    tmp.write_text(json.dumps(index, indent=1))
-    os.replace(tmp, path)
-    return None
+    text = json.dumps(index, indent=1)
+    files.write_atomically(out_dir / INDEX, lambda tmp: Path(tmp).write_text(text))
 
 
 # ---------------------------------------------------------------------------
@@ -575,9 +573,7 @@ def write_contact_sheet(out_dir, index: dict, cell: int = 160) -> Path:
                 draw.text((x, y + cell - 2 + n * line), _label(setting, values[setting["key"]]),
                           fill="black")
     path = out_dir / CONTACT_SHEET
-    tmp = path.with_name(f".contact.tmp{os.getpid()}.png")
-    sheet.save(tmp, compress_level=1)
-    os.replace(tmp, path)
+    files.write_atomically(path, lambda tmp: sheet.save(tmp, compress_level=1))
     return path
 
 

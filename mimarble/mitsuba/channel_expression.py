@@ -158,7 +158,7 @@ class ChannelExpression:
         """Fold the constant operands again (their values may have changed)."""
         if self.weight_value is not None:
             dr.make_opaque(self.weight_value)
-        constants = [_constant(t) for t in self.operands]
+        self.constants = constants = [_constant(t) for t in self.operands]
         self.varying = [t for t, c in zip(self.operands, constants) if c is None]
         values = [c for c in constants if c is not None]
         self.constant = None
@@ -179,7 +179,6 @@ class ChannelExpression:
             if weight is not None and not dr.grad_enabled(weight):
                 w = _numbers(weight)
                 self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
-            self.mix_constants = constants
         self._mean = None
 
     def to_string(self):
@@ -280,14 +279,14 @@ class ChannelExpression:
         """Operand k of a mix: its folded constant, or its value at si."""
         if self.mix_side is not None and self.mix_side != "ab"[k]:
             return None
-        constant = self.mix_constants[k]
+        constant = self.constants[k]
         return constant if constant is not None else evaluate(self.operands[k], si, active)
 
     def _compute_mean(self) -> float:
         # Luminance, as marble's and Mitsuba's bitmap's mean() (its rgb averages the three
         # components instead: constants are taken by their luminance here).
         means = [float(_numbers(t.mean())[0]) if c is None else _luminance(c)
-                 for t, c in zip(self.operands, map(_constant, self.operands))]
+                 for t, c in zip(self.operands, self.constants)]
         if self.op == "add":
             return float(sum(means))
         if self.op == "mix" and (self.weight is None or not self.weight.is_spatially_varying()):
@@ -333,10 +332,8 @@ def _constant(texture):
 
 
 def _luminance(colour) -> float:
-    """Rec. 709 luminance (Mitsuba's ``luminance``) of a one-lane colour or number."""
-    c = _numbers(colour)
-    r, g, b = c[:3] if c.size >= 3 else (c[0],) * 3
-    return float(0.212671 * r + 0.715160 * g + 0.072169 * b)
+    """Mitsuba's ``luminance`` of a one-lane colour (or number), as a Python float."""
+    return float(_numbers(mi.luminance(mi.Color3f(colour)))[0])
 
 
 def _opaque(value):

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import os
-import tempfile
 import warnings
 from pathlib import Path
 
 import numpy as np
 
-from .. import environment
+from .. import environment, files
 from .. import scene as scene_language
 from ..image_formats import IMAGE_FORMATS
 from ..progress import report
@@ -45,9 +44,12 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
-    check_images(scene)
-    mitsuba_scene = mi.load_dict(to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance,
-                                            filter=filter))
+    scene_dict = to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance, filter=filter)
+    try:
+        mitsuba_scene = mi.load_dict(scene_dict)
+    except RuntimeError:
+        check_images(scene)              # an image map that does not decode: said at its file
+        raise
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
     if not dr.is_jit_v(mi.Float):
@@ -64,7 +66,8 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
 
 def check_images(scene) -> None:
     """Every image map decodes (the parser read only its header): else a SceneError at
-    its ``file`` string, before any work."""
+    its ``file`` string. Called when loading the scene failed, so a good image is not
+    decoded twice."""
     for channel in scene.image_maps():
         try:
             mi.Bitmap(channel.location)
@@ -377,12 +380,6 @@ def write_rgb8(path, pixels: np.ndarray) -> None:
     write_atomically(path, bitmap)
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 #: zlib level of the PNGs written: 1, the fastest (OpenCV's default too). Mitsuba's
 #: default 5 made writing fig11a's 500² PNG 48 ms against 19 ms for a file 17 % larger
 #: (193 → 226 kB; the dither leaves little to compress), on the AMD EPYC.
@@ -390,18 +387,9 @@ PNG_COMPRESSION = 1
 
 
 def write_atomically(path: Path, bitmap) -> None:
-    """Write under a temporary name in the same folder, then rename: whole or not at all."""
-    folder = path.parent if str(path.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=folder)
-    os.close(fd)
-    try:
-        if path.suffix.lower() == ".png":
-            bitmap.write(tmp, mi.Bitmap.FileFormat.PNG, PNG_COMPRESSION)
-        else:
-            bitmap.write(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())   # mkstemp makes 0600; a new image gets the usual mode
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
+    """Write ``bitmap`` whole or not at all (:func:`mimarble.files.write_atomically`)."""
+    if path.suffix.lower() == ".png":
+        files.write_atomically(path, lambda tmp: bitmap.write(tmp, mi.Bitmap.FileFormat.PNG,
+                                                              PNG_COMPRESSION))
+    else:
+        files.write_atomically(path, bitmap.write)

@@ -23,7 +23,8 @@ What Mitsuba's ``bitmap`` texture does by default (``filter_type="bilinear"``,
 Errors: a file that is missing, unreadable, or not a decodable 8-bit PNG or
 JPEG raises :class:`ValueError` naming the file.
 
-Imports NumPy, Pillow and the standard library only.
+Imports NumPy, Pillow, the standard library and the scene language's rule for an image
+map's file (``mimarble.scene.parser.image_file_problem``: exists, 8-bit PNG or JPEG).
 """
 
 from __future__ import annotations
@@ -33,6 +34,8 @@ import os
 
 import numpy as np
 from PIL import Image
+
+from mimarble.scene.parser import image_file_problem
 
 __all__ = [
     "SRGB8_TO_LINEAR",
@@ -53,11 +56,9 @@ def srgb_to_linear(c):
 SRGB8_TO_LINEAR = srgb_to_linear(np.arange(256, dtype=np.float64) / 255.0)
 SRGB8_TO_LINEAR.flags.writeable = False
 
-# Pillow modes of 8-bit files that convert to RGB without loss of meaning
-# ("1": a 1-bit image, which decoders expand to 0 / 255).
-_MODES = frozenset({"1", "L", "LA", "La", "P", "PA", "RGB", "RGBA", "RGBa", "RGBX", "YCbCr"})
+# Pillow modes of 8-bit files that convert to RGB without loss of meaning.
+_MODES = frozenset({"L", "LA", "La", "P", "PA", "RGB", "RGBA", "RGBa", "RGBX", "YCbCr"})
 _FORMATS = frozenset({"PNG", "JPEG", "MPO"})   # MPO: a JPEG with extra pictures (first one used)
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
 def load_image(path) -> np.ndarray:
@@ -85,11 +86,10 @@ def clear_cache() -> None:
 def _load(where: str, mtime_ns: int, size: int) -> np.ndarray:
     del mtime_ns, size                          # part of the cache key only
     try:
+        problem = image_file_problem(where)     # the scene language's rule for the file
+        if problem:
+            raise ValueError(problem)
         with open(where, "rb") as f:
-            head = f.read(33)
-            f.seek(0)
-            if head.startswith(_PNG_SIGNATURE) and len(head) >= 33 and head[24] > 8:
-                raise ValueError(f"a {head[24]}-bit PNG; image maps are 8-bit PNG or JPEG")
             with Image.open(f) as im:
                 if im.format not in _FORMATS:
                     raise ValueError(f"a {im.format or 'unknown'} image; "
