@@ -1,20 +1,26 @@
-"""``mimarble bench``: run time against error, and what skipping saves.
+"""``mimarble bench``: run time against error, and what skipping saves — the measuring.
+
+The benchmark's *runs* render every scene in every :class:`Mode` at every spp
+(a grid over modes and spp, not ``mimarble sweep``'s over scene parameters); then
+the paper's render times, and on fig11a the targets and the whole process.
 
 Every timing is a median of warm runs taken after a sync (LLVM kernel launches
 are asynchronous; converting the image to NumPy waits for it), with the first
 render's compile time reported apart from Dr.Jit's kernel history. Errors are
 against a *converged* image: the float64 reference tracer at many samples per
-pixel, cached on disk (``~/.cache/mimarble``) because it takes seconds to minutes.
+pixel, cached on disk (:func:`mimarble.files.cache_folder`) because it takes
+seconds to minutes.
+
+The results are a JSON-ready dict: mimarble/bench_report.py prints it,
+mimarble/bench_plot.py draws it, mimarble/machine.py names its machine.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import hashlib
-import json
 import os
 import statistics
-import sys
 import time
 from pathlib import Path
 
@@ -23,19 +29,23 @@ import numpy as np
 from . import environment, files, kernel_cache, reference, stress
 from . import scene as scene_language
 from .compare import image_metrics
-from .gallery import resized
-from .mitsuba.render import edge_mask, render_in_passes
+from .machine import machine_facts
+from .mitsuba.render import render_in_passes
+from .mitsuba.silhouettes import edge_mask
 from .mitsuba.translate import marble_tolerance, to_mitsuba
+from .progress import report
+from .scene_edits import filling_the_view, resized, with_constant_colours, with_marbles
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-#: Edge samples of the sweep's prefilter+edges mode unless --edge-spp says otherwise.
+#: Edge samples of the runs' prefilter+edges mode unless --edge-spp says otherwise.
 DEFAULT_EDGE_SPP = 64
 
 
 @dataclasses.dataclass(frozen=True)
 class Mode:
-    """How a sweep renders: every marble's ``filter``, and edge samples (None: none)."""
+    """How the benchmark renders a scene: every marble's ``filter``, and edge samples
+    (None: none)."""
 
     name: str
     filter: str = "none"
@@ -43,7 +53,7 @@ class Mode:
 
 
 def modes(filter: str | None = None, edge_spp: int | None = None) -> tuple[Mode, ...]:
-    """The sweep's modes: plain, bandlimit, prefilter and prefilter with edge samples;
+    """The runs' modes: plain, bandlimit, prefilter and prefilter with edge samples;
     with ``filter``, that filter alone (with edge samples when ``edge_spp`` is given)."""
     if filter is None:
         return (Mode("plain"), Mode("bandlimit", "bandlimit"), Mode("prefilter", "prefilter"),
@@ -63,40 +73,6 @@ PAPER_SECONDS = {
     "fig10a": 0.8, "fig10b": 1.0, "fig10c": 1.4, "fig10d": 2.0,
     "fig11a": 2.8, "fig11b": 6.3, "fig11c": 2.1, "fig11d": 2.1,
 }
-
-
-# ---------------------------------------------------------------------------
-# Scene variations
-
-def with_marbles(scene, **changes):
-    """The scene with ``changes`` applied to every marble channel of every material."""
-    materials = {}
-    for name, material in scene.materials.items():
-        channels = {k: scene_language.replace_marbles(c, **changes)
-                    for k, c in material.channels().items()}
-        materials[name] = dataclasses.replace(material, **channels)
-    return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
-
-
-def with_constant_colours(scene):
-    """Every marble channel replaced by a constant colour (its ramp keys' mean): the same
-    shading work without the texture — for timing only (top-level marbles: the targets'
-    scene, fig11a, has no expressions)."""
-    materials = {}
-    for name, material in scene.materials.items():
-        channels = {k: scene_language.ColorChannel(tuple(np.mean(c.ramp, axis=0).tolist()))
-                    for k, c in material.channels().items()
-                    if isinstance(c, scene_language.MarbleChannel)}
-        materials[name] = dataclasses.replace(material, **channels)
-    return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
-
-
-def filling_the_view(scene):
-    """The camera's fov narrowed until the first sphere just fills the frame."""
-    sphere = scene.spheres[0]
-    distance = float(np.linalg.norm(np.subtract(scene.camera.eye, sphere.center)))
-    fov = 2 * np.degrees(np.arcsin(min(sphere.radius / distance, 1.0)))
-    return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, fov=float(fov)))
 
 
 # ---------------------------------------------------------------------------
@@ -158,26 +134,6 @@ def hit_fraction(image_alpha_free: np.ndarray, background) -> float:
     return float(np.mean(np.any(image_alpha_free != np.asarray(background, np.float32), axis=-1)))
 
 
-class Progress:
-    """A one-line progress bar on stderr."""
-
-    def __init__(self, total: int, enabled: bool = True):
-        self.total, self.done, self.enabled, self.start = total, 0, enabled, time.perf_counter()
-
-    def step(self, label: str):
-        self.done += 1
-        if not self.enabled:
-            return
-        width = 30
-        filled = int(width * self.done / self.total)
-        elapsed = time.perf_counter() - self.start
-        sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] {self.done}/{self.total} "
-                         f"{elapsed:5.0f} s  {label:<40.40}")
-        sys.stderr.flush()
-        if self.done == self.total:
-            sys.stderr.write("\n")
-
-
 # ---------------------------------------------------------------------------
 # The benchmark
 
@@ -194,19 +150,23 @@ def targets_scene(scene_paths):
 def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=5,
               targets=None, paper=True, cache_dir=None, progress=True, povray=True,
               tolerance=None, modes=MODES) -> dict:
-    """The sweeps, the paper comparison, and (with ``targets``, a scene path) the targets.
+    """The runs (every scene in every mode at every spp), the paper comparison, and
+    (with ``targets``, a scene path) the targets.
 
     ``tolerance``: every marble's error budget for our renders (None: each scene's
     default); the converged reference is always the full sum. ``modes``: the
-    :class:`Mode` of each sweep. Each run also has its RMSE inside the silhouettes
+    :class:`Mode` of each scene's runs. Each run also has its RMSE inside the silhouettes
     (``interior_rmse``: pixels whose 3×3 neighbourhood sees one shape, at 16 spp).
+    ``cache_dir``: where converged references are kept (default
+    :func:`mimarble.files.cache_folder`). ``progress``: as :func:`mimarble.progress.report`
+    takes it, counting steps.
     """
-    cache_dir = Path(cache_dir or Path.home() / ".cache" / "mimarble")
+    cache_dir = Path(cache_dir or files.cache_folder())
     scenes = [(Path(p).stem, scene_language.load(p)) for p in scene_paths]
     steps = len(scenes) * (1 + len(modes) * len(spps))
     steps += sum(1 for name, _ in scenes if name in PAPER_SECONDS) if paper else 0
-    steps += 9 if targets else 0
-    bar = Progress(steps, progress)
+    steps += 8 if targets else 0           # measure_targets' 7 steps, then the whole process
+    step = _stepper(report(progress, "bench", unit="step"), steps)
     results = {"machine": machine_facts(), "size": size, "converged_spp": converged_spp,
                "repeats": repeats, "tolerance": tolerance, "runs": [], "paper": [],
                "modes": [dataclasses.asdict(m) for m in modes], "targets": {}}
@@ -215,7 +175,7 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
         small = resized(scene, size)
         truth = converged(small, converged_spp, cache_dir)
         interior = ~edge_mask(mi.load_dict(to_mitsuba(small, spp=16)), 16)
-        bar.step(f"{name}: converged reference")
+        step(f"{name}: converged reference")
         for mode in modes:
             variant = with_marbles(small, filter=mode.filter, tolerance=tolerance)
             for spp in spps:
@@ -228,7 +188,7 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
                     "rmse": metrics["rmse"], "psnr": metrics["psnr"],
                     "interior_rmse": float(np.sqrt(np.mean(
                         np.square(timing.image - truth)[interior])))})
-                bar.step(f"{name}: {mode.name} {spp} spp")
+                step(f"{name}: {mode.name} {spp} spp")
     results["speedup_at_plain16_rmse"] = speedups_at_equal_error(results["runs"])
 
     if paper:
@@ -244,16 +204,30 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
                 "scene": name, "spp": scene.image.samples, "ours_s": ours.run_ms / 1000,
                 "paper_s": PAPER_SECONDS[name], "ratio": ours.run_ms / 1000 / PAPER_SECONDS[name],
                 "reference_s": ref_s})
-            bar.step(f"{name}: paper comparison")
+            step(f"{name}: paper comparison")
 
     if targets:
-        results["targets"] = measure_targets(targets, repeats, cache_dir, bar, tolerance)
+        results["targets"] = measure_targets(targets, repeats, cache_dir, step, tolerance)
         results["process"] = process_times(targets, repeats)
-        bar.step("whole process: help, malformed scene, render warm and cold")
+        step("whole process: help, malformed scene, render warm and cold")
         if povray:
             results["povray"] = against_povray(targets, repeats,
                                                results["process"]["render_warm_s"])
     return results
+
+
+def _stepper(update, total: int):
+    """``step(label)``: one more of ``total`` steps done, ``label`` the one that finished;
+    reported through ``update(done, total, label)`` (:func:`mimarble.progress.report`),
+    starting now from 0."""
+    done = 0
+    update(done, total)
+
+    def step(label: str) -> None:
+        nonlocal done
+        done += 1
+        update(done, total, label)
+    return step
 
 
 def _process_seconds(args, repeats: int, expect: int = 0, fresh_caches=False) -> float:
@@ -315,9 +289,10 @@ def against_povray(scene_path, repeats, ours_process_s) -> dict | None:
             "process_over_ours": theirs["process_s"] / ours_process_s}
 
 
-def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict:
+def measure_targets(scene_path, repeats, cache_dir, step, tolerance=None) -> dict:
     """The issue's targets on fig11a at 500×500, the sphere filling the view (its marbles
-    at ``tolerance``, None: the scene's default)."""
+    at ``tolerance``, None: the scene's default); ``step(label)`` after each of its 7
+    steps."""
     base = with_marbles(filling_the_view(resized(scene_language.load(scene_path), 500)),
                         tolerance=tolerance)
     t = {}
@@ -328,7 +303,7 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
     for mode in TARGET_MODES:
         t8 = run(with_marbles(base, octaves=8, filter=mode.filter)).run_ms
         t32 = run(with_marbles(base, octaves=32, filter=mode.filter)).run_ms
-        bar.step(f"targets: octaves 32 vs 8 ({mode.name})")
+        step(f"targets: octaves 32 vs 8 ({mode.name})")
         t[f"octaves32_over_8_{mode.name}"] = {"t8_ms": t8, "t32_ms": t32, "ratio": t32 / t8}
     # What the error budget costs in colour at 32 octaves: the texture at its tolerance
     # against the float64 reference's full sum (mimarble.stress.tolerance_error).
@@ -340,7 +315,7 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
 
     marble8 = run(with_marbles(base, octaves=8))
     constant = run(with_constant_colours(base))
-    bar.step("targets: marble vs constant")
+    step("targets: marble vs constant")
     t["marble8_over_constant"] = {"marble_ms": marble8.run_ms, "constant_ms": constant.run_ms,
                                   "ratio": marble8.run_ms / constant.run_ms}
 
@@ -353,13 +328,13 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
     cores = os.cpu_count() or 1
     # On a busy machine the difference can vanish in the noise: then there is no rate.
     rate = hits * 24 / ((many - no_noise) / 1000) / cores if many > no_noise else None
-    bar.step("targets: octave evaluations per second")
+    step("targets: octave evaluations per second")
     t["octave_evals_per_s_per_core"] = {"rate": rate, "hits": hits, "cores": cores,
                                         "t24_ms": many, "t0_ms": no_noise}
 
     # Time to RMSE ≤ 0.01 against the converged image, per mode.
     truth = converged(base, 64, cache_dir)
-    bar.step("targets: converged reference at 500x500")
+    step("targets: converged reference at 500x500")
     reach = {}
     for mode in TARGET_MODES:
         curve = []
@@ -371,7 +346,7 @@ def measure_targets(scene_path, repeats, cache_dir, bar, tolerance=None) -> dict
                 break
         first = next((c for c in curve if c["rmse"] <= 0.01), None)
         reach[mode.name] = {"curve": curve, "ms_to_rmse_0.01": first["run_ms"] if first else None}
-        bar.step(f"targets: time to RMSE 0.01 ({mode.name})")
+        step(f"targets: time to RMSE 0.01 ({mode.name})")
     plain, limited = reach["plain"]["ms_to_rmse_0.01"], reach["bandlimit"]["ms_to_rmse_0.01"]
     t["rmse_0.01"] = {"by_mode": reach,
                       "speedup": plain / limited if plain and limited else None}
@@ -396,179 +371,3 @@ def speedups_at_equal_error(runs) -> dict:
                 "rmse": best["rmse"], "plain16_ms": plain16["run_ms"],
                 "plain16_rmse": plain16["rmse"], "speedup": plain16["run_ms"] / best["run_ms"]}
     return out
-
-
-def machine_facts() -> dict:
-    """The machine every figure belongs to: CPU, cores, and what LLVM compiles for."""
-    import platform
-    facts = {"variant": mi.variant(), "cores": os.cpu_count(), "python": platform.python_version(),
-             "mitsuba": mi.__version__, "drjit": dr.__version__, "machine": platform.machine(),
-             "processor": _cpu_name()}
-    if mi.variant().startswith("llvm_"):
-        from . import llvm_target
-        outcome = llvm_target.configure()
-        target = outcome.target
-        facts["llvm_target"] = None if target is None else {
-            "cpu": target.cpu, "vector_width": target.vector_width, "how": outcome.how,
-            "features": [f for f in target.features.split(",")
-                         if f.lstrip("+-") in ("avx2", "avx512f", "fast-gather", "fma")]}
-    return facts
-
-
-def machine_line(facts: dict) -> str:
-    """One line naming the machine, for every printed table."""
-    line = f"{facts.get('processor', 'unknown CPU')}, {facts['cores']} cores, {facts['variant']}"
-    target = facts.get("llvm_target")
-    if target:
-        line += (f"; LLVM target {target['cpu']}, vector width {target['vector_width']}, "
-                 f"{' '.join(target['features'])}")
-    return line
-
-
-def _cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown"
-
-
-# ---------------------------------------------------------------------------
-# Reports
-
-def _speedup_lines(speedups: dict) -> list[str]:
-    """Each mode's speed-up over plain 16 spp at no more RMSE: per scene, mean, worst."""
-    modes = sorted({m for by_mode in speedups.values() for m in by_mode})
-    if not modes:
-        return []
-    lines = ["", "Speed-up over plain 16 spp at equal or lower RMSE (fastest run that gets there):"]
-    for mode in modes:
-        values = [by_mode.get(mode) for by_mode in speedups.values()]
-        reached = [v["speedup"] for v in values if v]
-        worst = "not reached on every scene" if len(reached) < len(values) else \
-            f"worst {min(reached):.2f}×"
-        mean = f"mean {np.mean(reached):.2f}× over {len(reached)} of {len(values)} scenes" \
-            if reached else "reached on no scene"
-        lines.append(f"  {mode:15}: {mean}, {worst}   target ≥ 4× (prefilter+edges)")
-    return lines
-
-
-def _process_lines(p, povray) -> list[str]:
-    against = (f"   POV-Ray's whole process {povray['process_s']:.2f} s: target faster"
-               if povray else "")
-    return ["", f"Whole process, `python -m mimarble …` (medians of {p['repeats']}):",
-            f"  --help: {p['help_s']:.3f} s   target < 0.15",
-            f"  a malformed scene (FILE:LINE:COL): {p['malformed_scene_s']:.3f} s   target < 0.15",
-            f"  render fig11a 500², 1 spp, warm caches: {p['render_warm_s']:.2f} s{against}",
-            f"  the same, empty kernel and parser caches (a new user): {p['render_cold_s']:.2f} s"]
-
-
-def _povray_lines(p) -> list[str]:
-    return ["", f"Against {p['version']} on the same kind of marble sphere (fig11a, 500², 1 sample):",
-            f"  render: POV-Ray trace {p['trace_s'] * 1000:.0f} ms, ours {p['ours_ms']:.1f} ms "
-            f"(POV-Ray / ours {p['trace_over_ours']:.1f}×; target ≥ 10)",
-            f"  whole process, warm: POV-Ray {p['process_s']:.2f} s, `mimarble render` "
-            f"{p['ours_process_s']:.2f} s (POV-Ray / ours {p['process_over_ours']:.2f}×)"]
-
-
-def format_report(results: dict) -> str:
-    lines = [f"mimarble bench — {machine_line(results['machine'])}",
-             f"{results['size']}², error against the float64 reference at "
-             f"{results['converged_spp']} spp; times are medians of {results['repeats']} warm runs", ""]
-    lines.append(f"{'scene':8} {'mode':15} {'spp':>4} {'run ms':>8} {'compile ms':>10} "
-                 f"{'new kernels':>11} {'RMSE':>8} {'PSNR dB':>8} {'interior':>8}")
-    for r in results["runs"]:
-        lines.append(f"{r['scene']:8} {r['mode']:15} {r['spp']:>4} {r['run_ms']:>8.1f} "
-                     f"{r['compile_ms']:>10.1f} {r['kernels_compiled']:>11} {r['rmse']:>8.4f} "
-                     f"{r['psnr']:>8.1f} {r.get('interior_rmse', float('nan')):>8.4f}")
-    lines += _speedup_lines(results.get("speedup_at_plain16_rmse") or {})
-    if results["paper"]:
-        lines += ["", "Against the paper's render column (500×500, the scene's own spp):",
-                  f"{'scene':8} {'spp':>4} {'ours s':>8} {'paper s':>8} {'ours/paper':>10} "
-                  f"{'reference s':>11}"]
-        for r in results["paper"]:
-            lines.append(f"{r['scene']:8} {r['spp']:>4} {r['ours_s']:>8.3f} {r['paper_s']:>8.1f} "
-                         f"{r['ratio']:>10.4f} {r['reference_s']:>11.2f}")
-    t = results.get("targets")
-    if t:
-        lines += ["", "Targets (fig11a, 500×500, sphere filling the view, 1 spp):"]
-        for mode in (m.name for m in TARGET_MODES):
-            r = t[f"octaves32_over_8_{mode}"]
-            lines.append(f"  time(octaves 32)/time(octaves 8), {mode:9}: {r['ratio']:.2f} "
-                         f"({r['t32_ms']:.1f} / {r['t8_ms']:.1f} ms)   target ≤ 1.3")
-        r = t.get("tolerance_error_32")
-        if r:
-            lines.append(f"  at 32 octaves, tolerance {r['tolerance']:.3g}: {r['octaves_evaluated']} "
-                         f"octaves evaluated, max colour error against the float64 full sum "
-                         f"{r['max_error']:.3g} (allowed: tolerance + float32 "
-                         f"{r['float32_bound']:.2g} + octaves past 25 {r['skipped_bound']:.2g})")
-        r = t["marble8_over_constant"]
-        lines.append(f"  time(marble, 8 octaves)/time(constant colour): {r['ratio']:.2f} "
-                     f"({r['marble_ms']:.1f} / {r['constant_ms']:.1f} ms)   target ≤ 3.0, stretch 2.0")
-        r = t["octave_evals_per_s_per_core"]
-        rate = f"{r['rate'] / 1e6:.0f} M" if r["rate"] else "not measurable (noisy machine)"
-        lines.append(f"  octave evaluations per second per core in the render: {rate} "
-                     f"(24 octaves vs none: {r['t24_ms']:.1f} - {r['t0_ms']:.1f} ms over "
-                     f"{r['hits']:.0f} hits, {r['cores']} cores)   target ≥ 100 M, stretch 200 M")
-        r = t["rmse_0.01"]
-        for mode in (m.name for m in TARGET_MODES):
-            curve = ", ".join(f"{c['spp']} spp {c['run_ms']:.0f} ms RMSE {c['rmse']:.4f}"
-                              for c in r["by_mode"][mode]["curve"])
-            lines.append(f"  RMSE ≤ 0.01, {mode:9}: {curve}")
-        speedup = r["speedup"]
-        lines.append("  band-limited speed-up to RMSE ≤ 0.01: "
-                     + (f"{speedup:.2f}×" if speedup else "not reached by both modes")
-                     + "   target ≥ 4×")
-    if results.get("process"):
-        lines += _process_lines(results["process"], results.get("povray"))
-    if results.get("povray"):
-        lines += _povray_lines(results["povray"])
-    return "\n".join(lines)
-
-
-def plot(results: dict, path) -> None:
-    """Error against run time, one curve per mode (mean over scenes per spp), Pareto front."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7, 5))
-    runs = results["runs"]
-    palette = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
-    names = list(dict.fromkeys(r["mode"] for r in runs))
-    colours = dict(zip(names, palette * len(names)))
-    for mode in names:
-        mine = [r for r in runs if r["mode"] == mode]
-        ax.scatter([r["run_ms"] for r in mine], [r["rmse"] for r in mine], s=8, alpha=0.3,
-                   color=colours[mode])
-        spps = sorted({r["spp"] for r in mine})
-        xs = [np.mean([r["run_ms"] for r in mine if r["spp"] == s]) for s in spps]
-        ys = [np.mean([r["rmse"] for r in mine if r["spp"] == s]) for s in spps]
-        ax.plot(xs, ys, "-o", color=colours[mode], label=f"{mode} (mean over scenes)")
-        for x, y, s in zip(xs, ys, spps):
-            ax.annotate(f"{s} spp", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
-    points = sorted((r["run_ms"], r["rmse"]) for r in runs)
-    front, best = [], float("inf")
-    for x, y in points:
-        if y < best:
-            front.append((x, y))
-            best = y
-    ax.step(*zip(*front), where="post", color="black", lw=1, label="Pareto front (all runs)")
-    ax.set_xscale("log")
-    ax.set_yscale("log")
-    ax.set_xlabel("render time per image (ms, median)")
-    ax.set_ylabel("RMSE against converged float64 reference")
-    ax.set_title(f"mimarble: error against time ({results['size']}², {results['machine']['variant']})")
-    ax.legend()
-    ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def write_json(results: dict, path) -> None:
-    text = json.dumps(results, indent=1, default=float)
-    files.write_atomically(path, lambda tmp: Path(tmp).write_text(text))

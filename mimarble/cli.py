@@ -13,6 +13,8 @@ import sys
 import time
 from pathlib import Path
 
+from .marble_parameters import FILTERS, SWEEPABLE
+
 
 def _start(args) -> None:
     """Load Dr.Jit and Mitsuba and set the variant, now that the command needs them.
@@ -91,11 +93,11 @@ def _output_path(args, default_suffix=".png") -> Path:
 
 def _load_scene(args):
     """The scene file, with ``--width``/``--height`` applied, and warnings for an empty scene."""
-    import dataclasses
     import warnings
 
     from . import scene as scene_language
     from .scene import LIMITS
+    from .scene_edits import with_image_size
     scene = scene_language.load(args.scene)
     lo, hi = LIMITS["image_size"]
     size = {}
@@ -105,8 +107,7 @@ def _load_scene(args):
             if not lo <= value <= hi:
                 raise UsageError(f"--{option} {value}: must be in {lo}..{hi}")
             size[option] = value
-    if size:
-        scene = dataclasses.replace(scene, image=dataclasses.replace(scene.image, **size))
+    scene = with_image_size(scene, **size)
     if not scene.spheres:
         warnings.warn(f"{args.scene}: the scene has no spheres: the image is the background")
     elif not scene.lights and not any(scene.ambient):
@@ -151,7 +152,7 @@ def _spp(args, scene) -> int:
 
 
 def _write(out: Path, image, eight_bit: bool = False) -> None:
-    from .mitsuba.render import write_image, write_rgb8
+    from .mitsuba.image_output import write_image, write_rgb8
     _check_folder(out)
     try:
         (write_rgb8 if eight_bit else write_image)(out, image)
@@ -262,12 +263,15 @@ def _bench(args) -> int:
                               paper=not args.no_paper, povray=not args.no_povray,
                               tolerance=args.tolerance,
                               modes=bench.modes(args.filter, args.edge_spp))
-    print(bench.format_report(results))
+    from .bench_report import format_report
+    from .files import write_json
+    print(format_report(results))
     try:
         if args.json:
-            bench.write_json(results, args.json)
+            write_json(results, args.json)
         if args.plot:
-            bench.plot(results, args.plot)
+            from .bench_plot import plot_error_against_time
+            plot_error_against_time(results, args.plot)
     except OSError as e:
         raise UsageError(f"could not write the results: {e}") from None
     return 0
@@ -279,8 +283,8 @@ def _stress(args) -> int:
     if args.json:
         _check_folder(args.json)
     _start(args)
+    from .files import write_json
     from .stress import format_report, run_stress
-    from .bench import write_json
     data = run_stress(points=args.points)
     print(format_report(data))
     if args.json:
@@ -308,11 +312,6 @@ def _gallery(args) -> int:
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{folder}: could not write the gallery: {e}") from None
     return 0
-
-
-#: mimarble.scene.model.MARBLE_FILTERS, written out: --help must not import the scene
-#: package (lark) to list them (tests/test_cli.py checks that they agree).
-MARBLE_FILTERS = ("none", "bandlimit", "prefilter")
 
 
 def _sweep(args) -> int:
@@ -371,14 +370,15 @@ def build_parser() -> argparse.ArgumentParser:
                             "stability.md)")
 
     def add_filter(p, what):
-        p.add_argument("--filter", choices=MARBLE_FILTERS,
+        p.add_argument("--filter", choices=FILTERS,
                        help="every marble's pixel filter: none (the colour at the sample), "
                             "bandlimit (sub-pixel octaves left out), prefilter (the colour "
                             f"averaged over the pixel's phase); {what}")
         p.add_argument("--edge-spp", type=_edge_spp, metavar="N",
                        help="render pixels on a silhouette again with N samples, a perfect "
                             "square (whitted mode)" + ("" if what.startswith("default: the")
-                                                       else "; default 64 in the sweep"))
+                                                       else "; default 64 in the benchmark's "
+                                                            "prefilter+edges mode"))
 
     def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
@@ -442,8 +442,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene file")
     p.add_argument("--set", action="append", metavar="KEY=VALUES",
                    help="a parameter and its values: v1,v2,… or start:stop:count; KEY is "
-                        "marble.K, MATERIAL.K or MATERIAL.CHANNEL.K (K: scale, period, "
-                        "distortion, octaves, function, axis, turbulence, filter, tolerance), "
+                        "marble.K, MATERIAL.K or MATERIAL.CHANNEL.K "
+                        f"(K: {', '.join(SWEEPABLE)}), "
                         "camera.fov, image.samples or light.N.intensity; repeat for a grid")
     p.add_argument("-o", "--output", required=True, help="folder for the images, sweep.json "
                                                          "and contact.png (resumed if it holds "
@@ -486,13 +486,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _edge_spp(text: str) -> int:
     """``--edge-spp``: a perfect square ≥ 1 (argparse reports the error as a usage error)."""
+    from .scene.model import samples_per_axis
     try:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1 or round(value ** 0.5) ** 2 != value:
+    try:
+        samples_per_axis(value)
+    except ValueError:
         raise argparse.ArgumentTypeError(f"{value} must be a perfect square ≥ 1 (1, 4, 9, 16, …): "
-                                         f"the edge samples are an n×n grid")
+                                         f"the edge samples are an n×n grid") from None
     return value
 
 

@@ -15,7 +15,11 @@ refused. So the library must be chosen *before* ``drjit`` is imported:
 loaded, so Dr.Jit disables its LLVM backend instead of aborting.
 
 This module imports neither ``drjit`` nor ``mitsuba`` at module level: call
-:func:`prepare_llvm` first, import them afterwards.
+:func:`prepare_llvm` first, import them afterwards (:func:`import_drjit_and_mitsuba`
+does both). Nor does it import any module of mimarble at module level (``./go``
+runs it as a plain file to look for a libLLVM before the package is installed);
+inside functions it imports only mimarble/llvm_target.py, which imports nothing
+of this module back (it reaches drjit-core through mimarble/drjit_core.py).
 """
 
 from __future__ import annotations
@@ -278,14 +282,6 @@ def skip_mitsuba_ad_integrators() -> bool:
         full = f"mitsuba.python.ad.integrators.{name}"
         sys.modules.setdefault(full, types.ModuleType(full))
     return True
-
-
-def drjit_core():
-    """drjit-core's shared library through ctypes, for the calls Dr.Jit's Python API lacks
-    (the LLVM target, the kernel cache's folder). Raises OSError when it cannot be loaded."""
-    import ctypes
-    dr, _ = import_drjit_and_mitsuba()
-    return ctypes.CDLL(os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so"))
 
 
 def llvm_backend_up() -> bool:

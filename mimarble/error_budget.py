@@ -1,13 +1,9 @@
 """The error budget: the octaves of the marble's noise that no output can show.
 
-With φ the marble's phase and t(φ) its stripe (``mimarble/marble.py``)::
-
-    abs_sine:  t = |sin(π φ)|,      φ = period·v_a + distortion·F(v)    |dt/dφ| ≤ π
-    sine:      t = ½(sin φ + 1),    φ = period·v_a + distortion·F(v)    |dt/dφ| ≤ ½
-    cosine:    t = ½(cos φ + 1),    φ = v_a + distortion·F(v)           |dt/dφ| ≤ ½
-
-the colour is ramp(t), piecewise linear between K colours at keys k/(K−1), so
-each component moves by at most R = (K−1)·max_k |c_{k+1} − c_k| (over k and the
+With φ the marble's phase, linear in distortion·F, and t(φ) its stripe, whose slope
+|dt/dφ| is at most S (π for abs_sine, ½ for sine and cosine: each stripe function's
+``slope_bound``, mimarble/stripes.py), the colour is ramp(t), piecewise linear
+between K colours at keys k/(K−1), so each component moves by at most R = (K−1)·max_k |c_{k+1} − c_k| (over k and the
 three components) per unit of t. The fractal sum F = Σ_{i<K'} N(2^i v)/2^i (or
 |N|, turbulence) has |N| ≤ B = 1.0364, so leaving out octaves k…K'−1 moves F by
 at most T(k) = B·Σ_{i=k}^{K'−1} 2^−i (K' = min(octaves, 25): float32 evaluates no
@@ -37,16 +33,13 @@ from __future__ import annotations
 import math
 
 from .noise import MAX_OCTAVES_EVALUATED, NOISE_BOUND
+from .stripes import STRIPES
 
 #: A linear change that moves an 8-bit sRGB value, before quantisation, by at most half a code.
 HALF_CODE_VALUE = 0.5 / (255 * 12.92)
 
 #: The ``marble`` plugin's default tolerance (lighting Λ = 1).
 DEFAULT_TOLERANCE = HALF_CODE_VALUE
-
-#: S: the largest |dt/dφ| of each stripe function.
-PHASE_SLOPE = {"abs_sine": math.pi, "sine": 0.5, "cosine": 0.5}
-
 
 def ramp_lipschitz(colours) -> float:
     """R: the largest change of a colour component per unit of t (0 for one colour)."""
@@ -66,7 +59,7 @@ def colour_change_bound(first: int, last: int, distortion: float, colours, funct
     """How far octaves first…last−1 can move any colour component: S·R·|distortion|·T."""
     if first >= last:
         return 0.0
-    return (PHASE_SLOPE[function] * ramp_lipschitz(colours) * abs(float(distortion))
+    return (STRIPES[function].slope_bound * ramp_lipschitz(colours) * abs(float(distortion))
             * tail_bound(first, last))
 
 

@@ -1,13 +1,21 @@
-"""Files written whole or not at all: under a temporary name in the same folder, then renamed.
+"""Where mimarble keeps its files, and how it writes them: whole or not at all.
 
-Every file mimarble writes goes through :func:`write_atomically` — images, the
-benchmark's JSON and cached reference images, a sweep's index and contact sheet —
-so an interruption or an error never leaves half a file where a whole one was or
-would be.
+Every file mimarble writes goes through :func:`write_atomically` — under a temporary
+name in the same folder, then renamed — images, the benchmark's and the stress
+test's JSON (:func:`write_json`) and cached reference images, a sweep's index and
+contact sheet — so an interruption or an error never leaves half a file where a
+whole one was or would be.
+
+Files kept between processes (the scene parser's tables, the benchmark's converged
+reference images) live in :func:`cache_folder`, the user's own cache folder.
+
+Standard library only: the scene package and the command line read it before
+anything heavy is loaded.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from pathlib import Path
@@ -34,3 +42,21 @@ def write_atomically(path, write) -> None:
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def write_json(data, path) -> None:
+    """``data`` as indented JSON, written whole; NumPy numbers are written as floats."""
+    text = json.dumps(data, indent=1, default=float)
+    write_atomically(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def cache_folder() -> Path:
+    """mimarble's folder in the user's own cache: ``$XDG_CACHE_HOME/mimarble``, by default
+    ``~/.cache/mimarble`` (the XDG base directory rule). Not created here: a caller
+    creates it when it writes, and copes when it cannot.
+
+    The user's own folder, not a shared temporary one, because what is cached is read
+    back and trusted (a pickled parser, reference images): another user must not be
+    able to plant it.
+    """
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "mimarble"

@@ -2,17 +2,12 @@
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from pathlib import Path
 
 from . import scene as scene_language
 from .mitsuba import render, write_image
-
-
-def resized(scene, size: int):
-    """The same scene at size×size pixels (the paper's images are square)."""
-    return dataclasses.replace(scene, image=dataclasses.replace(scene.image, width=size, height=size))
+from .scene_edits import resized
 
 
 def make_gallery(scene_paths, out_dir, size: int = 160, mode: str = "whitted"):

@@ -1,9 +1,10 @@
 """The LLVM target Dr.Jit compiles CPU kernels for: told where gathers are cheap.
 
-The noise is gathers (7 per octave). LLVM's cost model for AMD Zen says vector
-gathers are slow and lowers each one to scalar loads, 8 per AVX2 vector; on
-Intel AVX-512 CPUs it emits ``vpgatherdd``. Measured on a 2-core AMD EPYC
-(znver1 target, AVX2; docs/benchmarks.md): ``fractal3`` at 8 octaves 41 → 60 M
+The noise is gathers (5 per octave: mimarble/noise.py, ``corner_hashes``).
+LLVM's cost model for AMD Zen says vector gathers are slow and lowers each one
+to scalar loads, 8 per AVX2 vector; on Intel AVX-512 CPUs it emits
+``vpgatherdd``. Measured on a 2-core AMD EPYC (znver1 target, AVX2;
+docs/benchmarks.md): ``fractal3`` at 8 octaves 41 → 60 M
 octave-evals/s/core with ``+fast-gather``, fig11a 500² 4 spp 150 → 100 ms,
 fig11b 286 → 172 ms (the AMD EPYC of issue 12, znver3: 2.3× on the noise), the
 same values bit for bit. On Intel CPUs from Skylake on, LLVM already assumes fast gathers, so the
@@ -18,9 +19,11 @@ feature changes nothing there. Hence the rule:
   ``-fast-gather``), a vector width; an empty part keeps what was detected.
 
 drjit-core exports the calls as C++ symbols of ``libdrjit-core.so``
-(``jit_llvm_set_target`` and the three getters); when they are missing (another
-Dr.Jit version) the default stays and :func:`describe` says so. The setting
-must be made before the first kernel is compiled for it to apply everywhere;
+(``jit_llvm_set_target`` and the three getters, opened by mimarble/drjit_core.py);
+when they are missing (another Dr.Jit version) the default stays and
+:func:`configure`'s outcome says so. The setting must be made once Dr.Jit is
+imported and before the first kernel is compiled, for it to apply everywhere:
+``mimarble.environment.import_drjit_and_mitsuba`` calls :func:`configure` then.
 Dr.Jit's kernel cache keys on it, so kernels compiled either way never mix.
 Images are bit-identical with and without ``+fast-gather``; another vector width
 leaves the noise exact and moves shaded colours by float32 rounding (≤ 1.1e-5
@@ -33,6 +36,9 @@ import ctypes
 import dataclasses
 import os
 import platform
+import sys
+
+from . import drjit_core
 
 TARGET_ENV = "MIMARBLE_LLVM_TARGET"
 FAST_GATHER = "+fast-gather"
@@ -68,8 +74,7 @@ class _Core:
     """drjit-core's target calls through ctypes; raises OSError/AttributeError when absent."""
 
     def __init__(self):
-        from .environment import drjit_core
-        lib = drjit_core()
+        lib = drjit_core.library()
         self._set = getattr(lib, _SET_TARGET)
         self._set.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
         self._set.restype = None
@@ -118,10 +123,17 @@ _outcome: Outcome | None = None
 
 
 def configure() -> Outcome:
-    """Decide and set the target once, before kernels are compiled; later calls report it."""
+    """Decide and set the target once, before kernels are compiled; later calls report it.
+
+    Before Dr.Jit is imported there is no target to read yet: the outcome then
+    says so and nothing is decided, so that the call the import makes
+    (``mimarble.environment.import_drjit_and_mitsuba``) decides.
+    """
     global _outcome
     if _outcome is not None:
         return _outcome
+    if "drjit" not in sys.modules:
+        return Outcome(None, "not decided yet: Dr.Jit is not imported")
     try:
         core = _Core()
         detected = core.read()

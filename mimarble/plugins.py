@@ -9,17 +9,37 @@ and again whenever the variant changes (a Mitsuba variant callback).
 
 from __future__ import annotations
 
+import numpy as np
+
 from . import environment
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
+
+def numbers(value) -> np.ndarray:
+    """The components of a one-lane (or scalar) Dr.Jit value, as float64 NumPy: what a
+    plugin reads back of its own parameters (one lane each) after ``mi.traverse`` edits."""
+    if isinstance(value, (int, float)):
+        return np.array([float(value)])
+    return np.ravel(np.array(dr.detach(value), dtype=np.float64))
+
+
+def first_number(value) -> float:
+    """The single value of a one-lane Dr.Jit array or a number (NaN when empty)."""
+    values = numbers(value)
+    return float(values[0]) if values.size else float("nan")
+
+
+def luminance(colour) -> float:
+    """Mitsuba's ``luminance`` of a colour (or a number), as a Python float."""
+    return first_number(mi.luminance(mi.Color3f(colour)))
+
+
 def transform_matrix(transform):
     """A Mitsuba transform's 4×4 matrix as float64 NumPy, in every variant (a JIT
     transform holds one matrix as width-1 arrays; a scalar one holds floats)."""
-    import numpy as np
     m = transform.matrix
-    return np.array([[float(dr.ravel(m[i][j])[0]) if dr.is_jit_v(type(m)) else float(m[i][j])
-                      for j in range(4)] for i in range(4)])
+    return np.array([[first_number(m[i][j]) for j in range(4)] for i in range(4)])
 
 
 # kind -> (mitsuba base class name, registration function name)

@@ -28,14 +28,12 @@ the ramp colours (C = W·c, W built here in float64), so it follows ``mi.travers
 edits and carries gradients to the ramp. An interval across pieces is the two end
 partials plus C differences; across periods adds whole periods C_end.
 
+Over a whole period the mean is C_end, the texture's mean colour (:func:`period_mean`).
 The float64 twin (numerical quadrature, nothing shared) is
 :mod:`mimarble.reference.prefilter`.
 """
 
 from __future__ import annotations
-
-import math
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -44,58 +42,15 @@ from . import environment
 dr, mi = environment.import_drjit_and_mitsuba()
 
 
-@dataclass(frozen=True)
-class StripeShape:
-    """t as a function of y = φ/period + offset: sin πx, or sin² πx (``squared``)."""
-
-    period: float
-    offset: float
-    squared: bool
-
-    def y(self, phase):
-        if self.period == 1.0 and self.offset == 0.0:
-            return phase
-        return phase * (1.0 / self.period) + self.offset
-
-    # float64 NumPy, for the table
-
-    def inverse(self, t: np.ndarray) -> np.ndarray:
-        """The rising x ∈ [0, ½] where T(x) = t."""
-        return np.arcsin(np.sqrt(t) if self.squared else t) / math.pi
-
-    def antiderivative(self, x: np.ndarray) -> np.ndarray:
-        """∫_0^x T."""
-        if self.squared:
-            return x / 2 - np.sin(2 * math.pi * x) / (4 * math.pi)
-        return (1 - np.cos(math.pi * x)) / math.pi
-
-    # Dr.Jit, in the kernel
-
-    def stripe(self, x):
-        s = dr.sin(dr.pi * x)
-        return s * s if self.squared else s
-
-    def integral(self, a, b):
-        """∫_a^b T, without cancellation as b → a."""
-        if self.squared:
-            return 0.5 * (b - a) - dr.cos(dr.pi * (a + b)) * dr.sin(dr.pi * (b - a)) * (0.5 / dr.pi)
-        return (2.0 / dr.pi) * dr.sin((0.5 * dr.pi) * (a + b)) * dr.sin((0.5 * dr.pi) * (b - a))
-
-
-SHAPES = {
-    "abs_sine": StripeShape(1.0, 0.0, False),
-    "sine": StripeShape(2 * math.pi, 0.25, True),
-    "cosine": StripeShape(2 * math.pi, 0.5, True),
-}
-
 #: Intervals of more periods than this are the period's mean (n_hi − n_lo stays exact).
 _MANY_PERIODS = float(2 ** 20)
 
 
-def piece_table(function: str, size: int) -> tuple[np.ndarray, np.ndarray]:
-    """(B, W) for a ramp of ``size`` ≥ 2 colours: the 2(K−1)+1 piece boundaries B_j in
-    [0, 1] and the weights W (2(K−1)+1, K) with C_j = ∫_0^{B_j} f = Σ_k W_jk c_k."""
-    shape, last = SHAPES[function], size - 1
+def piece_table(shape, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """(B, W) for a stripe ``shape`` (mimarble/stripes.py) and a ramp of ``size`` ≥ 2
+    colours: the 2(K−1)+1 piece boundaries B_j in [0, 1] and the weights W (2(K−1)+1, K)
+    with C_j = ∫_0^{B_j} f = Σ_k W_jk c_k."""
+    last = size - 1
     keys = np.arange(size) / last
     rising = shape.inverse(keys)
     rising[-1] = 0.5
@@ -113,25 +68,35 @@ def piece_table(function: str, size: int) -> tuple[np.ndarray, np.ndarray]:
     return boundaries, weights
 
 
-class PhaseAverage:
-    """ramp∘t averaged over phase intervals, for one marble's function and ramp.
+def period_mean(shape, colours) -> np.ndarray:
+    """The mean colour over a period of phase, C_end (float64, exact): what the texture
+    averages to where its phase is spread uniformly. One colour: that colour."""
+    colours = np.asarray(colours, dtype=np.float64).reshape(-1, 3)
+    if len(colours) == 1:
+        return colours[0]
+    return piece_table(shape, len(colours))[1][-1] @ colours
 
-    ``piece(t)`` → (i, f) and ``colour(i)`` → c_i are the marble's own ramp lookups,
-    so the ramp is read exactly as the unfiltered texture reads it.
+
+class PhaseAverage:
+    """ramp∘t averaged over phase intervals, for one stripe function and ramp.
+
+    The ramp (mimarble/ramp.py) is read through its own ``piece`` and ``colour``, so
+    exactly as the unfiltered texture reads it.
     """
 
-    def __init__(self, function: str, size: int, piece, colour):
-        self.shape = SHAPES[function]
-        self.last = size - 1
-        self.piece, self.colour = piece, colour
-        boundaries, self.weights = piece_table(function, size)
+    def __init__(self, stripe, ramp):
+        self.shape = stripe.shape
+        self.last = ramp.size - 1
+        self.ramp = ramp
+        boundaries, self.weights = piece_table(self.shape, ramp.size)
         self.boundaries = mi.Float(boundaries)
+        self.update()
 
-    def update(self, ramp) -> None:
+    def update(self) -> None:
         """C = W·c from the ramp as it is now (a Color3f of K entries; gradients flow)."""
         cumulative = dr.zeros(mi.Color3f, self.weights.shape[0])
         for k in range(self.weights.shape[1]):
-            c_k = dr.gather(mi.Color3f, ramp, mi.UInt32(k))
+            c_k = dr.gather(mi.Color3f, self.ramp.colours, mi.UInt32(k))
             cumulative += mi.Float(self.weights[:, k]) * c_k
         dr.eval(cumulative)
         self.cumulative = cumulative
@@ -179,8 +144,8 @@ class PhaseAverage:
 
     def _piece_at(self, x):
         """((α_i, β_i), j) of the piece holding x ∈ [0, 1)."""
-        i, _ = self.piece(self.shape.stripe(x))
+        i, _ = self.ramp.piece(self.shape.stripe(x))
         j = dr.select(x < 0.5, i, 2 * self.last - 1 - i)
-        below, above = self.colour(i), self.colour(i + 1)
+        below, above = self.ramp.colour(i), self.ramp.colour(i + 1)
         step = above - below
         return (below - mi.Float(i) * step, step * float(self.last)), j

@@ -30,10 +30,13 @@ import time
 import numpy as np
 
 from . import environment
+from . import error_budget
+from .finite_arithmetic import finite_product
 from .noise import MAX_OCTAVES_EVALUATED, NOISE_BOUND, fractal3
 from .reference import marble as reference_marble
 from .reference import noise as reference_noise
 from .scene.model import FIG5_RAMP, MarbleChannel
+from .stripes import STRIPES
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -79,13 +82,10 @@ def input_error_factor(scale: float) -> int:
     return 1 + (not _is_float32(scale)) + (not _is_power_of_two(float(np.float32(scale))))
 
 
-def fractal_error_bound(magnitude: float, octaves: int, scale: float = 1.0,
-                        turbulence: bool = False) -> float:
-    """Bound on |F₃₂(fl(scale)·fl(p)) − F₆₄(scale·p)| for ‖p‖∞ ≤ ``magnitude``.
-
-    ``turbulence`` does not change it (| |a| − |b| | ≤ |a − b|).
+def fractal_error_bound(magnitude: float, octaves: int, scale: float = 1.0) -> float:
+    """Bound on |F₃₂(fl(scale)·fl(p)) − F₆₄(scale·p)| for ‖p‖∞ ≤ ``magnitude``; the same
+    for turbulence (| |a| − |b| | ≤ |a − b|).
     """
-    del turbulence
     k_eval = min(int(octaves), MAX_OCTAVES_EVALUATED)
     if k_eval == 0:
         return 0.0
@@ -122,23 +122,21 @@ def colour_error_bound(magnitude: float, channel: MarbleChannel = PAPER_MARBLE) 
     uses_noise = distortion != 0.0 and channel.octaves > 0
     dF = fractal_error_bound(magnitude, channel.octaves, scale) if uses_noise else 0.0
     f_max = 2 * NOISE_BOUND if uses_noise else 0.0
-    cosine = channel.function == "cosine"
-    p_eff = 1.0 if cosine else abs(period)
+    stripe = STRIPES[channel.function]
+    p_eff = abs(period) if stripe.uses_period else 1.0
     a = p_eff * v                             # |period·v_a|
     b = abs(distortion) * f_max               # |distortion·F|
-    c_p = 0 if cosine else 1 + (not _is_float32(period))
+    c_p = 1 + (not _is_float32(period)) if stripe.uses_period else 0
     c_d = 1 + (not _is_float32(distortion))
     d_phi = p_eff * dv + abs(distortion) * dF + U * (c_p * a + c_d * b + (a + b))
-    if channel.function == "abs_sine":
-        x_max = math.pi * (a + b)
-        dx = math.pi * d_phi + 2 * U * x_max  # π rounded to float32 (0.47 U), the product (U)
-        dt = dx + _sin_error(x_max)
-    else:                                     # ½(sin x + 1), ½(cos x + 1): x = φ
-        x_max = a + b
-        dt = 0.5 * (d_phi + _sin_error(x_max)) + U
+    # t = A·f(ω·φ) (mimarble/stripes.py). ω = π is not a float32: its rounding (0.47 U)
+    # and the product ω·φ (U) add 2U·x; A = ½ adds the rounding of ½(f + 1) (U).
+    x_max = stripe.angular_frequency * (a + b)
+    dx = stripe.angular_frequency * d_phi + (2 * U * x_max if stripe.angular_frequency != 1.0
+                                             else 0.0)
+    dt = stripe.amplitude * (dx + _sin_error(x_max)) + (U if stripe.amplitude != 1.0 else 0.0)
     dt = min(dt, 1.0)
-    steps = np.abs(np.diff(ramp, axis=0))
-    lipschitz = (len(ramp) - 1) * float(steps.max())
+    lipschitz = error_budget.ramp_lipschitz(ramp)
     spread = float((ramp.max(axis=0) - ramp.min(axis=0)).max())
     return min(lipschitz * (dt + U), spread) + 4 * U * c_max + storage
 
@@ -214,7 +212,6 @@ def tolerance_error(channel: MarbleChannel, tolerance: float, points: int = 1 <<
     error there (:func:`colour_error_bound`), plus what the octaves past
     ``MAX_OCTAVES_EVALUATED`` (never evaluated in float32) can add.
     """
-    from . import error_budget
     with _jit_variant():
         tex = _texture(channel, tolerance)
         pts = _sample(np.random.default_rng(seed), magnitude, points)
@@ -236,21 +233,19 @@ def _colour_f32(tex, pts64):
 
 
 def _colour_f64(tex, pts64, channel):
-    """What a ``precision="double"`` texture would give: the same code on Float64.
+    """What a ``precision="double"`` texture would give: its formula on Float64.
 
-    scale, period and distortion are held as Float64 (as such an option would
-    store them); the ramp colours stay float32. The point is the float32 one
-    Mitsuba provides, so its rounding is still there.
+    scale, period and distortion as Float64 (as such an option would store them); the
+    ramp colours stay float32. The point is the float32 one Mitsuba provides, so its
+    rounding is still there.
     """
     _, _, Float64, Array3f64 = _types()
-    saved = tex.scale, tex.period, tex.distortion
-    try:
-        tex.period, tex.distortion = Float64(channel.period), Float64(channel.distortion)
-        p = _array3(Array3f64, Float64, pts64.astype(np.float32).astype(np.float64))
-        colour = tex.ramp_at(tex.stripe(p * Float64(channel.scale)))
-        return np.array(colour, dtype=np.float64).T
-    finally:
-        tex.scale, tex.period, tex.distortion = saved
+    p = _array3(Array3f64, Float64, pts64.astype(np.float32).astype(np.float64))
+    v = p * Float64(channel.scale)
+    F = fractal3(v, tex.octaves_evaluated, tex.turbulence) if tex.needs_noise else None
+    noise = 0.0 if F is None else finite_product(Float64(channel.distortion), F)
+    phase = tex.stripe.phase(v[tex.axis_index], Float64(channel.period), noise)
+    return np.array(tex.ramp(tex.stripe.t(phase)), dtype=np.float64).T
 
 
 def _reference_terms(v64, k_max):
@@ -421,12 +416,12 @@ def format_report(data: dict) -> str:
     return "\n".join(lines)
 
 
-if __name__ == "__main__":   # python -m mimarble.stress
-    print(format_report(run_stress()))
-
-
 def _cpu() -> str:
     """The machine a timing belongs to (CPU model and cores)."""
-    from .bench import machine_facts
+    from .machine import machine_facts
     facts = machine_facts()
     return f"{facts['processor']}, {facts['cores']} cores"
+
+
+if __name__ == "__main__":   # python -m mimarble.stress
+    print(format_report(run_stress()))

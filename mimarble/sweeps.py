@@ -5,22 +5,22 @@
     mimarble.sweep("scenes/fig11a.scene", {"marble.period": [0.5, 1, 2, 4]}, "out/")
 
 A setting is ``KEY=v1,v2,…`` or ``KEY=start:stop:count`` (``count`` values from
-``start`` to ``stop``, both included). Keys (:func:`apply`):
+``start`` to ``stop``, both included). A key is a key path of the scene
+(:func:`mimarble.scene_edits.with_value`): ``marble.K``, ``MATERIAL.K`` or
+``MATERIAL.CHANNEL.K`` for K a sweepable marble parameter
+(``marble_parameters.SWEEPABLE``), ``camera.fov``, ``image.samples`` or
+``light.N.intensity``.
 
-* ``marble.K`` — K of every marble; ``MATERIAL.K`` — of the marbles of one
-  material; ``MATERIAL.CHANNEL.K`` — of the marbles in one channel (inside
-  expressions too). K: ``scale``, ``period``, ``distortion``, ``octaves``,
-  ``function``, ``axis``, ``turbulence``, ``filter``, ``tolerance``.
-* ``camera.fov``; ``image.samples``; ``light.N.intensity`` (light N's colour, grey).
-
-Frames are the combinations of all settings (the last varies fastest).
+Frames are the combinations of all settings (the last varies fastest). Every frame's
+scene is made before the first render, so a bad key or value (checked by the marble's
+parameter table) is an error before any work.
 
 **One compile per structure.** Frames are rendered through a cache of loaded Mitsuba
 scenes keyed by their *structure* — the scene dict with the values a sweep can
-change in place masked out — so frames that differ only in ``scale``, ``period`` or
-``distortion`` reuse one scene: the new values go in through ``mi.traverse`` (they are
-opaque: the compiled kernels are reused). Another structure (octaves, function, …)
-loads and compiles once.
+change in place (``marble_parameters.IN_PLACE``) masked out — so frames that differ
+only in ``scale``, ``period`` or ``distortion`` reuse one scene: the new values go in
+through ``mi.traverse`` (they are opaque: the compiled kernels are reused). Another
+structure (octaves, function, …) loads and compiles once.
 
 **Nothing lost.** ``sweep.json`` in the output folder lists every frame with its
 values, file, status, error and render time; it is rewritten whole (temporary
@@ -53,11 +53,9 @@ import numpy as np
 
 from . import files
 from . import scene as scene_language
+from .marble_parameters import IN_PLACE
+from .scene_edits import KeyPathError, with_value
 
-MARBLE_KEYS = ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
-               "filter", "tolerance")
-#: Marble values changed in place through ``mi.traverse`` (opaque in the kernel).
-IN_PLACE = ("scale", "period", "distortion")
 INDEX = "sweep.json"
 #: The index is rewritten at most this often while frames come in (and at the end).
 INDEX_INTERVAL_S = 0.5
@@ -126,113 +124,18 @@ def settings_from(spec) -> tuple[Setting, ...]:
     return tuple(parse_setting(s) if isinstance(s, str) else s for s in spec)
 
 
-def apply(scene, key: str, value):
-    """The scene with ``key`` set to ``value`` (SweepError for a key it does not have)."""
-    parts = key.split(".")
-    if parts[0] == "camera" and parts[1:] == ["fov"]:
-        fov = _number(key, value, above=0.0)
-        if not fov < 180.0:
-            raise SweepError(f"--set {key}: fov {value!r} must be below 180 degrees")
-        return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, fov=fov))
-    if parts[0] == "image" and parts[1:] == ["samples"]:
-        samples = _integer(key, value)
-        try:
-            scene_language.model.samples_per_axis(samples)
-        except ValueError as e:
-            raise SweepError(f"--set {key}: {e}") from None
-        return dataclasses.replace(scene, image=dataclasses.replace(scene.image, samples=samples))
-    if parts[0] == "light" and len(parts) == 3 and parts[2] == "intensity":
-        lights = list(scene.lights)
-        k = _index(key, parts[1], len(lights), "light")
-        grey = _number(key, value, at_least=0.0)
-        lights[k] = dataclasses.replace(lights[k], color=(grey, grey, grey))
-        return dataclasses.replace(scene, lights=tuple(lights))
-    name = parts[-1]
-    if name not in MARBLE_KEYS or len(parts) not in (2, 3):
-        raise SweepError(f"--set {key}: unknown key; use marble.K, MATERIAL.K, MATERIAL.CHANNEL.K "
-                         f"(K one of {', '.join(MARBLE_KEYS)}), camera.fov, image.samples or "
-                         f"light.N.intensity")
-    change = {name: _marble_value(key, name, value)}
-    materials = dict(scene.materials)
-    targets = list(materials) if parts[0] == "marble" and len(parts) == 2 else [parts[0]]
-    for material_name in targets:
-        if material_name not in materials:
-            raise SweepError(f"--set {key}: no material {material_name!r} "
-                             f"(materials: {', '.join(materials) or 'none'})")
-        material = materials[material_name]
-        channels = material.channels()
-        if len(parts) == 3:
-            if parts[1] not in ("ambient", "diffuse", "specular"):
-                raise SweepError(f"--set {key}: {parts[1]!r} is not a channel "
-                                 f"(ambient, diffuse, specular)")
-            if parts[1] not in channels:
-                raise SweepError(f"--set {key}: material {material_name!r} has no {parts[1]}")
-            channels = {parts[1]: channels[parts[1]]}
-        if parts[0] != "marble" and not _has_marble(channels):
-            raise SweepError(f"--set {key}: no marble there to change")
-        materials[material_name] = dataclasses.replace(
-            material, **{k: scene_language.replace_marbles(c, **change) for k, c in channels.items()})
-    if parts[0] == "marble" and not any(_has_marble(m.channels()) for m in materials.values()):
-        raise SweepError(f"--set {key}: the scene has no marble to change")
-    return dataclasses.replace(scene, materials=scene_language.FrozenMap(materials))
-
-
-def _has_marble(channels) -> bool:
-    return any(isinstance(c, scene_language.MarbleChannel)
-               for ch in channels.values() for c in scene_language.walk(ch))
-
-
-def _number(key, value, above: float | None = None, at_least: float | None = None) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise SweepError(f"--set {key}: {value!r} is not a finite number")
-    if above is not None and not value > above:
-        raise SweepError(f"--set {key}: {value!r} must be > {above:g}")
-    if at_least is not None and not value >= at_least:
-        raise SweepError(f"--set {key}: {value!r} must be ≥ {at_least:g}")
-    return float(value)
-
-
-def _integer(key, value) -> int:
-    number = _number(key, value)
-    if not number.is_integer():
-        raise SweepError(f"--set {key}: {value!r} is not an integer")
-    return int(number)
-
-
-def _index(key, text, count, what) -> int:
-    if not text.isdigit() or int(text) >= count:
-        raise SweepError(f"--set {key}: {what} {text} does not exist (the scene has {count})")
-    return int(text)
-
-
-def _marble_value(key, name, value):
-    if name == "octaves":
-        return _integer(key, value)
-    if name == "turbulence":
-        if value not in ("true", "false", True, False):
-            raise SweepError(f"--set {key}: turbulence is true or false, not {value!r}")
-        return value in ("true", True)
-    choices = {"function": scene_language.MARBLE_FUNCTIONS, "axis": scene_language.AXES,
-               "filter": scene_language.MARBLE_FILTERS}.get(name)
-    if choices is not None:
-        if value not in choices:
-            raise SweepError(f"--set {key}: {value!r} is not one of {', '.join(choices)}")
-        return str(value)
-    if name == "scale":
-        return _number(key, value, above=0.0)
-    if name == "tolerance":
-        return _number(key, value, at_least=0.0)
-    return _number(key, value)
-
-
 def frames(scene, settings) -> list[dict]:
     """Every combination: [{"index", "values": {key: value}, "scene"}] (last setting fastest).
-    Each frame's scene is built here, so a bad key or value fails before any render."""
+    Each frame's scene is built here, so a bad key or value fails before any render
+    (SweepError ``--set KEY: …``)."""
     out = []
     for index, combination in enumerate(itertools.product(*(s.values for s in settings))):
         frame_scene = scene
         for setting, value in zip(settings, combination):
-            frame_scene = apply(frame_scene, setting.key, value)
+            try:
+                frame_scene = with_value(frame_scene, setting.key, value)
+            except KeyPathError as e:
+                raise SweepError(f"--set {e}") from None
         out.append({"index": index, "values": dict(zip((s.key for s in settings), combination)),
                     "scene": frame_scene})
     return out
@@ -310,7 +213,8 @@ def render_frame(job: dict) -> dict:
         if job.get("threads"):                            # a LocalCluster's share of the cores
             mimarble.dr.set_thread_count(job["threads"])
         from .compare import image_metrics
-        from .mitsuba.render import render_in_passes, srgb8
+        from .mitsuba.image_output import srgb8
+        from .mitsuba.render import render_in_passes
         frame_scene = job["scene"]
         spp = job["spp"] or frame_scene.image.samples
         start = time.perf_counter()
@@ -423,7 +327,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
 def _write_frame(path, image) -> None:
     """A frame's PNG, whole or not at all: 8-bit sRGB as it came from a worker, or the
     linear image converted exactly as ``write_image`` does."""
-    from .mitsuba.render import write_image, write_rgb8
+    from .mitsuba.image_output import write_image, write_rgb8
     (write_rgb8 if image.dtype == np.uint8 else write_image)(path, image)
 
 
@@ -516,8 +420,7 @@ def _done(entry, out_dir: Path) -> bool:
 
 
 def _write_index(out_dir: Path, index: dict) -> None:
-    text = json.dumps(index, indent=1)
-    files.write_atomically(out_dir / INDEX, lambda tmp: Path(tmp).write_text(text))
+    files.write_json(index, out_dir / INDEX)
 
 
 # ---------------------------------------------------------------------------

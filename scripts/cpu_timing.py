@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 _CHILD = r"""
 import json, sys, time, numpy as np, mimarble
-from mimarble import bench
+from mimarble.machine import machine_facts, machine_line
 dr, mi = mimarble.dr, mimarble.mi
 repeats = int(sys.argv[1])
 def median(f):
@@ -31,7 +31,7 @@ def median(f):
         dr.sync_thread(); t = time.perf_counter(); f(); dr.sync_thread()
         times.append(time.perf_counter() - t)
     return sorted(times)[len(times) // 2]
-out = {"machine": bench.machine_line(bench.machine_facts())}
+out = {"machine": machine_line(machine_facts())}
 for name in ("fig10a", "fig10d", "fig11a", "fig11b"):
     scene = mimarble.scene.load(f"scenes/{name}.scene")
     for spp in (1, 4):

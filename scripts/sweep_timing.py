@@ -32,10 +32,11 @@ os.environ["DRJIT_CACHE_DIR"] = tempfile.mkdtemp(prefix="drjit-sweep-")
 import numpy as np  # noqa: E402
 
 import mimarble  # noqa: E402
-from mimarble import bench, sweeps  # noqa: E402
+from mimarble import sweeps  # noqa: E402
 from mimarble import scene as S  # noqa: E402
-from mimarble.gallery import resized  # noqa: E402
+from mimarble.machine import machine_facts  # noqa: E402
 from mimarble.mitsuba.render import render_in_passes  # noqa: E402
+from mimarble.scene_edits import resized  # noqa: E402
 
 dr, mi = mimarble.dr, mimarble.mi
 ROOT = Path(__file__).resolve().parent.parent
@@ -75,7 +76,7 @@ def main(out_json=None):
     one_process_s = statistics.median([one_process_runs[0]]
                                       + [t + compile_s for t in one_process_runs[1:]])
     # A render as `mimarble render -o x.png` does it: the image written too.
-    from mimarble.mitsuba.render import write_image
+    from mimarble.mitsuba.image_output import write_image
     runs = []
     for k in range(9):
         dr.sync_thread()
@@ -107,7 +108,7 @@ def main(out_json=None):
         for a, b in zip(here["frames"], there["frames"]))
 
     results = {
-        "machine": bench.machine_facts(), "frames": FRAMES, "size": 256, "spp": spp,
+        "machine": machine_facts(), "frames": FRAMES, "size": 256, "spp": spp,
         "repeats": REPEATS, "compile_s": compile_s, "warm_render_s": warm_s,
         "one_process_s": one_process_s, "one_process_runs_s": one_process_runs,
         "dask_runs_s": dask_runs,

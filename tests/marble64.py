@@ -1,4 +1,4 @@
-"""The marble formula of DESIGN.md in float64 NumPy, on the tests' own noise (perlin64)."""
+"""The marble formula of docs/design.md in float64 NumPy, on the tests' own noise (perlin64)."""
 
 import numpy as np
 

@@ -6,11 +6,14 @@ import pytest
 
 import mimarble
 from mimarble import noise
-from mimarble.bench import with_marbles
-from mimarble.gallery import resized
 from mimarble.mitsuba import to_mitsuba
+from mimarble.scene_edits import resized, with_marbles
 
 dr, mi = mimarble.dr, mimarble.mi
+
+
+def band_limited(p, octaves, footprint, turbulence=False):
+    return noise.fractal_sum(p, octaves, turbulence, band=noise.band_limit(footprint, octaves)).value
 
 
 def points(n=5000, seed=0):
@@ -22,7 +25,7 @@ def test_zero_footprint_keeps_every_octave_bit_for_bit(jit_variant):
     p = points()
     for octaves in (1, 8, 32):
         full = np.array(noise.fractal3(p, octaves))
-        looped = np.array(noise.fractal3_band_limited(p, octaves, dr.zeros(mi.Float, dr.width(p))))
+        looped = np.array(band_limited(p, octaves, dr.zeros(mi.Float, dr.width(p))))
         np.testing.assert_array_equal(looped, full)
 
 
@@ -31,16 +34,20 @@ def test_footprint_drops_the_sub_pixel_octaves(jit_variant):
     # footprint 2^-5: n = margin − 1 + 5 whole octaves, and no fraction to fade in
     kept = noise.BAND_LIMIT_MARGIN - 1 + 5
     footprint = dr.full(mi.Float, 2.0 ** -5, dr.width(p))
-    limited = np.array(noise.fractal3_band_limited(p, 32, footprint))
+    limited = np.array(band_limited(p, 32, footprint))
     np.testing.assert_array_equal(limited, np.array(noise.fractal3(p, kept)))
     assert not np.array_equal(limited, np.array(noise.fractal3(p, kept + 1)))
 
 
-def test_unrolled_weighted_form_equals_the_loop(jit_variant):
+def test_unrolled_sum_for_derivatives_equals_the_loop(jit_variant):
+    """With derivatives the band-limited sum is unrolled (reverse mode cannot go through
+    a symbolic loop): the same weights, the same value."""
     p = points(seed=2)
     footprint = mi.Float(np.random.default_rng(3).uniform(1e-4, 0.3, dr.width(p)).astype(np.float32))
-    looped = np.array(noise.fractal3_band_limited(p, 12, footprint, turbulence=True))
-    unrolled = np.array(noise.fractal3_weighted(p, 12, footprint, turbulence=True))
+    looped = np.array(band_limited(p, 12, footprint, turbulence=True))
+    tracked = mi.Point3f(p)
+    dr.enable_grad(tracked)
+    unrolled = np.array(dr.detach(band_limited(tracked, 12, footprint, turbulence=True)))
     np.testing.assert_allclose(looped, unrolled, atol=1e-6)
 
 
@@ -86,6 +93,6 @@ def test_invalid_footprints_terminate_with_a_defined_octave_count(jit_variant):
     full = np.array(noise.fractal3(p, 8))
     for bad in (float("nan"), -1.0):                  # no usable footprint: every octave
         footprint = dr.full(mi.Float, bad, dr.width(p))
-        np.testing.assert_array_equal(np.array(noise.fractal3_band_limited(p, 8, footprint)), full)
+        np.testing.assert_array_equal(np.array(band_limited(p, 8, footprint)), full)
     infinite = dr.full(mi.Float, float("inf"), dr.width(p))   # all detail sub-pixel: none
-    assert np.all(np.array(noise.fractal3_band_limited(p, 8, infinite)) == 0)
+    assert np.all(np.array(band_limited(p, 8, infinite)) == 0)

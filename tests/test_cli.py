@@ -108,12 +108,6 @@ def test_prefilter_with_edge_samples_renders(tmp_path, small_scene):
     assert np.isfinite(np.array(mimarble.mi.Bitmap(str(out)))).all()
 
 
-def test_the_filters_listed_in_help_are_the_scene_languages():
-    from mimarble import cli
-    from mimarble.scene import MARBLE_FILTERS
-    assert cli.MARBLE_FILTERS == MARBLE_FILTERS
-
-
 def test_written_image_has_the_usual_file_mode(tmp_path, small_scene):
     out = tmp_path / "mode.png"
     assert mimarble_cli("render", small_scene, "-o", out).returncode == 0

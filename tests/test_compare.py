@@ -11,7 +11,7 @@ import pytest
 import mimarble
 from mimarble import reference
 from mimarble.compare import image_metrics
-from mimarble.gallery import resized
+from mimarble.scene_edits import resized
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = sorted(glob.glob(os.path.join(ROOT, "scenes", "*.scene")))

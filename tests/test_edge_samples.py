@@ -6,8 +6,9 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.gallery import resized
-from mimarble.mitsuba import to_mitsuba
+from mimarble.mitsuba import silhouettes, to_mitsuba
+from mimarble.mitsuba.pixel_tracer import PixelTracer
+from mimarble.scene_edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
 render_module = importlib.import_module("mimarble.mitsuba.render")
@@ -17,7 +18,7 @@ def test_a_pixel_is_an_edge_when_its_neighbourhood_sees_two_shapes():
     ids = np.zeros((5, 6), dtype=np.uint32)
     ids[:, 3:] = 7                                    # a vertical boundary between columns 2, 3
     shapes = np.stack([ids.ravel(), ids.ravel()])
-    edges = render_module.silhouette_pixels(shapes, 6, 5)
+    edges = silhouettes.silhouette_pixels(shapes, 6, 5)
     mask = np.zeros(30, dtype=bool)
     mask[edges] = True
     expected = np.zeros((5, 6), dtype=bool)
@@ -27,7 +28,7 @@ def test_a_pixel_is_an_edge_when_its_neighbourhood_sees_two_shapes():
     shapes = np.zeros((2, 30), dtype=np.uint32)
     shapes[1, 14] = 1
     mask = np.zeros(30, dtype=bool)
-    mask[render_module.silhouette_pixels(shapes, 6, 5)] = True
+    mask[silhouettes.silhouette_pixels(shapes, 6, 5)] = True
     assert mask.sum() == 9 and mask.reshape(5, 6)[1:4, 1:4].all()
 
 
@@ -40,7 +41,7 @@ def test_edge_pixels_get_exactly_the_supersampled_pixels_and_the_rest_stay(llvm)
     once = render_module.render_in_passes(loaded(scene, 1), 1)
     sixteen = render_module.render_in_passes(loaded(scene, 16), 16)
     both = render_module.render_in_passes(loaded(scene, 1), 1, edge_spp=16)
-    edges = render_module.edge_mask(loaded(scene, 1), 1)
+    edges = silhouettes.edge_mask(loaded(scene, 1), 1)
     assert 0 < edges.mean() < 0.3
     np.testing.assert_array_equal(both[edges], sixteen[edges])
     np.testing.assert_array_equal(both[~edges], once[~edges])
@@ -62,7 +63,7 @@ def test_ray_differentials_reach_the_next_pixels_hit(llvm):
     # point; from the eye, the footprint on the surface is the step to the next pixel's hit.
     scene = resized(mimarble.scene.load("scenes/fig11a.scene"), 256)
     mitsuba_scene = loaded(scene, 1)
-    tracer = render_module.PixelTracer(mitsuba_scene, "whitted")
+    tracer = PixelTracer(mitsuba_scene, "whitted")
     pixel = mi.UInt32([100 * 256 + 100, 100 * 256 + 101, 101 * 256 + 100])
     ray, _ = tracer.ray(pixel, mi.UInt32([0, 0, 0]), 1, 0)
     si = mitsuba_scene.ray_intersect(ray)

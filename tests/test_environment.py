@@ -148,6 +148,18 @@ def test_doctor_reports_library_variant_and_versions():
     assert (result.returncode == 0) == expected_ok
 
 
+def test_drjit_core_is_opened_only_once_drjit_is_imported(monkeypatch):
+    """mimarble/drjit_core.py opens the imported Dr.Jit's libdrjit-core, and never imports
+    Dr.Jit itself (that is environment's job, which chooses the libLLVM first)."""
+    from mimarble import drjit_core, kernel_cache
+    lib = drjit_core.library()                  # `import mimarble` imported Dr.Jit
+    assert hasattr(lib, kernel_cache._CACHE_DIR)
+    assert kernel_cache.folder() is not None or not os.environ.get("HOME")
+    monkeypatch.delitem(sys.modules, "drjit")
+    with pytest.raises(OSError, match="not imported"):
+        drjit_core.library()
+
+
 def test_marble_is_registered_for_variants_set_after_import():
     previous = mimarble.mi.variant()
     try:

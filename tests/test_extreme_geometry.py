@@ -72,7 +72,7 @@ def test_a_ground_sphere_casts_no_acne_and_no_false_shadow(variant, radius):
 
 
 def _small(model):
-    from mimarble.gallery import resized
+    from mimarble.scene_edits import resized
     return resized(model, 24)
 
 

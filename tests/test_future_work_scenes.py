@@ -13,7 +13,7 @@ import mimarble
 from mimarble import reference
 from mimarble import scene as S
 from mimarble.compare import image_metrics
-from mimarble.gallery import resized
+from mimarble.scene_edits import resized
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted((ROOT / "scenes" / "future-work").glob("*.scene"))

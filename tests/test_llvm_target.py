@@ -37,6 +37,16 @@ def test_automatic_adds_fast_gather_only_where_avx2_lacks_it(monkeypatch):
     assert automatic(ZEN) is None
 
 
+def test_configure_decides_nothing_before_drjit_is_imported(monkeypatch):
+    """Without Dr.Jit there is no target to read: the outcome says so and is not kept, so
+    the call that environment.import_drjit_and_mitsuba makes after the import decides."""
+    monkeypatch.setattr(llvm_target, "_outcome", None)
+    monkeypatch.delitem(sys.modules, "drjit")
+    outcome = llvm_target.configure()
+    assert outcome.target is None and "not imported" in outcome.how
+    assert llvm_target._outcome is None
+
+
 def test_doctor_names_the_target():
     if not environment.llvm_backend_up():
         pytest.skip("no LLVM backend here")
@@ -50,7 +60,7 @@ def test_doctor_names_the_target():
 _RENDER = """
 import sys, numpy as np, mimarble
 from mimarble import llvm_target
-from mimarble.gallery import resized
+from mimarble.scene_edits import resized
 scene = resized(mimarble.scene.load(sys.argv[2]), 48)
 points = np.random.default_rng(5).uniform(-300, 300, (4096, 3))
 np.savez(sys.argv[1], image=mimarble.render(scene, spp=4),
@@ -83,9 +93,9 @@ def test_images_are_bit_identical_whatever_the_target(tmp_path):
 
 
 def test_benchmark_figures_name_the_machine_and_target(llvm):
-    from mimarble import bench
-    facts = bench.machine_facts()
-    line = bench.machine_line(facts)
+    from mimarble.machine import machine_facts, machine_line
+    facts = machine_facts()
+    line = machine_line(facts)
     assert facts["processor"] in line and f"{facts['cores']} cores" in line
     outcome = llvm_target.configure()
     if outcome.target is not None:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import marble as marble_module
+from mimarble.marble_parameters import ParameterError
 import marble64
 
 dr, mi = mimarble.dr, mimarble.mi
@@ -49,7 +49,9 @@ COLOUR_TOL = 2e-4
 @pytest.mark.parametrize("axis", AXES)
 def test_values_match_float64_formula(jit_variant, function, axis):
     params = dict(scale=1.7, period=1.3, distortion=3.0, octaves=12, function=function, axis=axis)
-    pts = random_points(4000, seed=hash((function, axis)) % 1000)
+    # A seed per case that every run draws alike (hash() of strings changes with
+    # PYTHONHASHSEED).
+    pts = random_points(4000, seed=10 * FUNCTIONS.index(function) + AXES.index(axis))
     ours = eval_at(texture(**params), pts)
     ref = marble64.colour(pts.astype(np.float64), **params)
     assert np.abs(ours - ref).max() <= COLOUR_TOL
@@ -282,10 +284,10 @@ def test_parameters_checked_after_traverse_updates(llvm):
     params = mi.traverse(tex)
     before = eval_at(tex, random_points(50, seed=15))
     params["octaves"] = 70
-    with pytest.raises(marble_module.MarbleParameterError, match="octaves=70"):
+    with pytest.raises(ParameterError, match="octaves must be in 0..64, found 70"):
         params.update()
     params["period"] = float("nan")
-    with pytest.raises(marble_module.MarbleParameterError, match="period=nan"):
+    with pytest.raises(ParameterError, match="period must be a finite number, found nan"):
         params.update()
     # the texture went back to its last valid values
     assert tex.octaves == 5 and float(tex.period[0]) == 1.0
@@ -316,6 +318,6 @@ def test_to_world_is_in_traverse_and_edits_apply(llvm):
     params.update()
     np.testing.assert_allclose(eval_at(moved, pts), eval_at(plain, pts), atol=1e-6)
     params["to_world"] = mi.Transform4f().scale([1.0, 0.0, 1.0])
-    with pytest.raises(marble_module.MarbleParameterError, match="singular"):
+    with pytest.raises(ParameterError, match="singular"):
         params.update()
     np.testing.assert_allclose(eval_at(moved, pts), eval_at(plain, pts), atol=1e-6)   # restored

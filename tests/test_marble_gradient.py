@@ -71,9 +71,12 @@ def finite_difference_marble():
         def eval_1_grad(self, si, active=True):
             step = 1e-3 / self.scale
             out = []
+            def colour(p):
+                moved = mi.SurfaceInteraction3f(si)
+                moved.p = p
+                return mi.luminance(self.eval(moved))
             for dp in (si.dp_du, si.dp_dv):
-                ahead = mi.luminance(self.colour_at(si.p + dp * step))
-                behind = mi.luminance(self.colour_at(si.p - dp * step))
+                ahead, behind = colour(si.p + dp * step), colour(si.p - dp * step)
                 out.append((ahead - behind) / (2 * step))
             return mi.Vector2f(*out)
     return FiniteDifferenceMarble

@@ -9,7 +9,7 @@ import perlin64
 
 dr, mi = mimarble.dr, mimarble.mi
 
-KNOWN = [  # float64 values of Perlin's reference implementation (DESIGN.md)
+KNOWN = [  # float64 values of Perlin's reference implementation (docs/design.md)
     ((3.14, 42, 7), 0.13691995878400012),
     ((-4.2, 10, 6), 0.14208000000000043),
     ((0.1, 0.1, 0.1), 0.1861607143544832),

@@ -6,7 +6,7 @@ import pytest
 
 import mimarble
 from mimarble import povray
-from mimarble.gallery import resized
+from mimarble.scene_edits import resized
 
 
 def test_scene_text_carries_the_scene():

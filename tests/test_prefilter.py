@@ -6,15 +6,15 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import noise, noise_gradient, prefilter
-from mimarble.bench import with_marbles
-from mimarble.gallery import resized
-from mimarble.marble import ramp_mean
+from mimarble import noise, prefilter
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import edge_mask, render_in_passes
+from mimarble.mitsuba.render import render_in_passes
+from mimarble.mitsuba.silhouettes import edge_mask
 from mimarble.reference.noise import noise3 as reference_noise
 from mimarble.reference.prefilter import phase_average
 from mimarble.scene.model import FIG5_RAMP, MARBLE_FUNCTIONS
+from mimarble.stripes import STRIPES
+from mimarble.scene_edits import resized, with_marbles
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -27,6 +27,16 @@ RAMPS = {
 
 def ramp_text(colours):
     return ", ".join(" ".join(repr(float(x)) for x in c) for c in colours)
+
+
+def prefilter_sum(p, octaves, footprint, margin, turbulence=False, differentials=None):
+    """(F, ∇F, σ²) as the prefilter takes them: the band-limited sum plus the mean and
+    the variance of the octaves it leaves out."""
+    band = noise.band_limit(footprint, octaves, margin)
+    s = noise.fractal_sum(p, octaves, turbulence, band=band, gradient=True,
+                          differentials=differentials)
+    mean, variance = noise.left_out(band, octaves, turbulence)
+    return s.value + mean, s.gradient, variance + s.spread
 
 
 def marble(**props):
@@ -45,8 +55,8 @@ def test_phase_average_is_the_quadrature_of_the_float64_twin(jit_variant, functi
     phase = rng.uniform(-20, 20, 300)
     # From far below float32's resolution of the phase to many periods.
     width = np.concatenate([10 ** rng.uniform(-7, 1.5, 296), [0.0, 1e-9, 3.0, 100.0]])
-    mean, defined = texture.phase_average(mi.Float(phase), mi.Float(width))
-    point = texture.ramp_at(texture.stripe_of_phase(mi.Float(phase)))
+    mean, defined = texture.pixel_filter.average(mi.Float(phase), mi.Float(width))
+    point = texture.ramp(texture.stripe.t(mi.Float(phase)))
     ours = np.array(dr.select(defined, mean, point)).T
     expected = phase_average(phase, width, function, colours)
     np.testing.assert_allclose(ours, expected, atol=2e-5)
@@ -54,18 +64,22 @@ def test_phase_average_is_the_quadrature_of_the_float64_twin(jit_variant, functi
 
 
 @pytest.mark.parametrize("function", MARBLE_FUNCTIONS)
-def test_a_period_of_the_table_is_the_textures_mean_colour(function):
+def test_a_period_of_the_table_is_the_mean_over_a_period_by_quadrature(function):
     colours = np.array(RAMPS["random7"])
-    boundaries, weights = prefilter.piece_table(function, len(colours))
+    shape = STRIPES[function].shape
+    boundaries, weights = prefilter.piece_table(shape, len(colours))
     assert boundaries[0] == 0 and boundaries[-1] == 1 and np.all(np.diff(boundaries) > 0)
-    np.testing.assert_allclose(weights[-1] @ colours, ramp_mean(colours, function), atol=1e-6)
+    np.testing.assert_allclose(weights[-1] @ colours, prefilter.period_mean(shape, colours))
+    # the float64 twin's quadrature over one period of the phase
+    expected = phase_average([0.3], [shape.period], function, colours)[0]
+    np.testing.assert_allclose(prefilter.period_mean(shape, colours), expected, atol=1e-6)
 
 
 def test_the_noise_variances_are_those_of_the_reference_noise():
     points = np.random.default_rng(11).uniform(-100, 100, (400_000, 3))
     n = reference_noise(points)
-    assert n.var() == pytest.approx(noise_gradient.NOISE_VARIANCE, rel=0.03)
-    assert np.abs(n).var() == pytest.approx(noise_gradient.ABS_NOISE_VARIANCE, rel=0.03)
+    assert n.var() == pytest.approx(noise.NOISE_VARIANCE, rel=0.03)
+    assert np.abs(n).var() == pytest.approx(noise.ABS_NOISE_VARIANCE, rel=0.03)
 
 
 def test_band_limited_gradient_sum_keeps_the_leading_octaves_and_counts_the_rest(jit_variant):
@@ -73,11 +87,11 @@ def test_band_limited_gradient_sum_keeps_the_leading_octaves_and_counts_the_rest
     p = mi.Point3f(*(mi.Float(pts[:, a]) for a in range(3)))
     # margin 1 and footprint 2^-3: n = 1 − 1 + 3 = 3 whole octaves and nothing to fade in.
     footprint = dr.full(mi.Float, 2.0 ** -3, dr.width(p))
-    F, grad, variance = noise_gradient.fractal3_band_limited_gradient(p, 8, footprint, 1.0)
-    F3, grad3 = noise_gradient.fractal3_gradient(p, 3)
+    F, grad, variance = prefilter_sum(p, 8, footprint, 1.0)
+    F3, grad3, _ = noise.fractal_sum(p, 3, gradient=True)
     np.testing.assert_allclose(np.array(F), np.array(F3), atol=1e-6)
     np.testing.assert_allclose(np.array(grad), np.array(grad3), atol=1e-5)
-    left_out = noise_gradient.NOISE_VARIANCE * sum(4.0 ** -i for i in range(3, 8))
+    left_out = noise.NOISE_VARIANCE * sum(4.0 ** -i for i in range(3, 8))
     np.testing.assert_allclose(np.array(variance), left_out, rtol=1e-5)
 
 
@@ -113,10 +127,10 @@ def test_one_prefiltered_sample_is_closer_to_the_pixel_average_than_one_point(ll
 
 
 def test_the_old_bandlimit_parameter_says_what_replaced_it():
-    # mi.load_dict passes the plugin's MarbleParameterError on inside a RuntimeError.
+    # mi.load_dict passes the plugin's ParameterError on inside a RuntimeError.
     with pytest.raises(Exception, match='bandlimit was replaced by filter; write filter="bandlimit"'):
         mi.load_dict({"type": "marble", "bandlimit": True})
-    with pytest.raises(Exception, match="none, bandlimit, prefilter"):
+    with pytest.raises(Exception, match="none, bandlimit or prefilter"):
         mi.load_dict({"type": "marble", "filter": "blur"})
 
 
@@ -125,7 +139,7 @@ def test_a_prefiltered_marble_keeps_its_tables_through_ramp_edits(jit_variant):
     params = mi.traverse(texture)
     params["ramp"] = mi.Color3f([0.0, 0.5, 1.0], [0.0, 0.5, 1.0], [0.0, 0.5, 1.0])
     params.update()
-    mean, _ = texture.phase_average(mi.Float([0.25]), mi.Float([1.0]))
+    mean, _ = texture.pixel_filter.average(mi.Float([0.25]), mi.Float([1.0]))
     expected = phase_average([0.25], [1.0], "abs_sine", ((0, 0, 0), (0.5, 0.5, 0.5), (1, 1, 1)))
     np.testing.assert_allclose(np.array(mean).T, expected, atol=2e-5)
 
@@ -134,13 +148,13 @@ def test_left_out_turbulence_octaves_add_their_mean(jit_variant):
     pts = np.random.default_rng(8).uniform(-20, 20, (2000, 3)).astype(np.float32)
     p = mi.Point3f(*(mi.Float(pts[:, a]) for a in range(3)))
     footprint = dr.full(mi.Float, 2.0 ** -3, dr.width(p))    # margin 1: 3 whole octaves
-    F, _, _ = noise_gradient.fractal3_band_limited_gradient(p, 8, footprint, 1.0, turbulence=True)
+    F, _, _ = prefilter_sum(p, 8, footprint, 1.0, turbulence=True)
     kept = noise.fractal3(p, 3, turbulence=True)
-    mean_of_the_rest = noise_gradient.ABS_NOISE_MEAN * sum(2.0 ** -i for i in range(3, 8))
+    mean_of_the_rest = noise.ABS_NOISE_MEAN * sum(2.0 ** -i for i in range(3, 8))
     np.testing.assert_allclose(np.array(F), np.array(kept) + mean_of_the_rest, atol=1e-6)
     # and E|N| is the reference noise's
     n = reference_noise(np.random.default_rng(12).uniform(-100, 100, (400_000, 3)))
-    assert np.abs(n).mean() == pytest.approx(noise_gradient.ABS_NOISE_MEAN, rel=0.01)
+    assert np.abs(n).mean() == pytest.approx(noise.ABS_NOISE_MEAN, rel=0.01)
 
 
 def test_turbulence_folded_inside_a_pixel_averages_the_fold(llvm):
@@ -150,9 +164,8 @@ def test_turbulence_folded_inside_a_pixel_averages_the_fold(llvm):
     p = mi.Point3f(*(mi.Float(pts[:, a]) for a in range(3)))
     dx, dy = mi.Vector3f(0.05, 0.0, 0.0), mi.Vector3f(0.0, 0.05, 0.0)
     footprint = dr.full(mi.Float, 1e-6, dr.width(p))          # keep the octave whole
-    F, _, spread = noise_gradient.fractal3_band_limited_gradient(
-        p, 1, footprint, 0.0, turbulence=True, differentials=(dx, dy))
-    n, g = noise_gradient.noise3_gradient(p)
+    F, _, spread = prefilter_sum(p, 1, footprint, 0.0, turbulence=True, differentials=(dx, dy))
+    n, g = noise.noise3_gradient(p)
     n, g = np.array(n), np.array(g).T
     W = np.hypot(g[:, 0] * 0.05, g[:, 1] * 0.05)
     s = np.linspace(-0.5, 0.5, 20001)[None, :] * W[:, None]

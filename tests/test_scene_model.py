@@ -223,6 +223,18 @@ def test_grammar_is_shipped_next_to_the_parser():
     assert S.GRAMMAR_PATH.name == "scene.lark" and S.GRAMMAR_PATH.parent == Path(S.__file__).parent
 
 
+def test_marble_rules_and_keys_are_written_from_the_parameter_table():
+    import re
+
+    from mimarble.marble_parameters import PARAMETERS
+    from mimarble.scene.grammar import grammar_text
+    names = tuple(p.name for p in PARAMETERS)
+    assert S.BLOCK_KEYS["marble"] == names
+    assert not re.search(r"^_?marble(_key)?:", S.GRAMMAR_PATH.read_text(), re.M)  # not by hand
+    assert re.search(r"^_marble_key: " + re.escape(" | ".join(names)) + "$", grammar_text(), re.M)
+    assert S.LIMITS["octaves"] == (0, 64) and S.LIMITS["ramp_colours"] == (1, 256)
+
+
 PNG = str(Path(__file__).resolve().parent.parent / "scenes" / "future-work" / "maps" / "flagstones.png")
 
 

@@ -82,11 +82,16 @@ def check(text: str, line: int, column: int, fragment: str) -> SceneError:
         ('material "m" { diffuse { marble { scale 0 } } }', 1, 41, "scale must be > 0"),
         ('material "m" { diffuse { marble { scale -2 } } }', 1, 41, "scale must be > 0"),
         ('material "m" { diffuse { marble { period 1e309 } } }', 1, 42, "not finite"),
-        ('material "m" { diffuse { marble { function tan } } }', 1, 44, "unknown function 'tan'; expected abs_sine, sine or cosine"),
-        ('material "m" { diffuse { marble { axis w } } }', 1, 40, "unknown axis 'w'; expected x, y or z"),
-        ('material "m" { diffuse { marble { turbulence yes } } }', 1, 46, "unknown turbulence 'yes'; expected true or false"),
-        ('material "m" { diffuse { marble { function 3 } } }', 1, 44, "expected a function name"),
-        ('material "m" { diffuse { marble {\n ramp { } } } }', 2, 2, "empty ramp"),
+        ('material "m" { diffuse { marble { function tan } } }', 1, 44, "function must be one of abs_sine, sine or cosine, found tan"),
+        ('material "m" { diffuse { marble { axis w } } }', 1, 40, "axis must be one of x, y or z, found w"),
+        ('material "m" { diffuse { marble { turbulence yes } } }', 1, 46, "turbulence must be true or false, found yes"),
+        ('material "m" { diffuse { marble { function 3 } } }', 1, 44, "function must be one of abs_sine, sine or cosine, found number 3"),
+        ('material "m" { diffuse { marble {\n ramp { } } } }', 2, 2, "ramp is empty"),
+        ('material "m" { diffuse { marble { filter x } } }', 1, 42, "filter must be one of none, bandlimit or prefilter, found x"),
+        ('material "m" { diffuse { marble { axis 1 } } }', 1, 40, "axis must be one of x, y or z, found number 1"),
+        ('material "m" { diffuse { marble { tolerance -1 } } }', 1, 45, "tolerance must be ≥ 0, found -1"),
+        ('material "m" { diffuse { marble { tolerance 4e38 } } }', 1, 45, "too large"),
+        ('material "m" { diffuse { marble { bandlimit true } } }', 1, 35, "(it is now 'filter bandlimit'; filter must be one of"),
     ],
 )
 def test_validation_error_is_positioned(text, line, col, fragment):
@@ -97,7 +102,7 @@ def test_ramp_of_257_colours_points_at_the_extra_one():
     ramp = " ".join("<1 1 1>" for _ in range(257))
     text = f'material "m" {{ diffuse {{ marble {{ ramp {{ {ramp} }} }} }} }}'
     col = text.index("<1 1 1>") + 1 + 256 * len("<1 1 1> ")
-    check(text, 1, col, "a ramp has at most 256 colours, found 257")
+    check(text, 1, col, "ramp has 257 colours; it holds 1..256")
 
 
 def test_ramp_limits_are_inclusive():

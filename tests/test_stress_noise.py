@@ -24,7 +24,7 @@ import perlin64
 
 dr, mi = mimarble.dr, mimarble.mi
 
-B = 1.0364                      # sup |N|, stated in DESIGN.md (not read from the package)
+B = 1.0364                      # sup |N|, stated in docs/design.md (not read from the package)
 E = 4e-6                        # float32 arithmetic error of one noise (see test_noise.py)
 U = 2.0 ** -24
 L1 = 5.3                        # sup ‖∇N‖₁ (checked below against finite differences)

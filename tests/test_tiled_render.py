@@ -11,10 +11,11 @@ import pytest
 import mimarble
 from mimarble import cli, reference
 from mimarble import progress as progress_module
-from mimarble.gallery import resized
+from mimarble.mitsuba import image_output, passes
+from mimarble.scene_edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
-passes = importlib.import_module("mimarble.mitsuba.render")   # the module, not the function
+render_module = importlib.import_module("mimarble.mitsuba.render")   # the module, not the function
 
 
 def loaded(size, spp, mode="whitted", path="scenes/fig11a.scene", height=None):
@@ -36,7 +37,7 @@ def loaded(size, spp, mode="whitted", path="scenes/fig11a.scene", height=None):
 def test_passes_give_mitsubas_whitted_image(jit_variant, size, height, spp, pass_samples):
     scene, mitsuba_scene = loaded(size, spp, height=height)
     expected = np.array(mi.render(mitsuba_scene), dtype=np.float32)[..., :3]
-    image = passes.render_in_passes(mitsuba_scene, spp, "whitted", pass_samples=pass_samples)
+    image = render_module.render_in_passes(mitsuba_scene, spp, "whitted", pass_samples=pass_samples)
     assert image.shape == expected.shape and image.dtype == np.float32
     # Measured: spp 1 equal bit for bit; spp 4, 9, 16 differ by 1-2 float32 ulps (≤ 2.4e-7)
     # in some pixels: Mitsuba's image block sums samples in float32, the passes in float64.
@@ -48,9 +49,9 @@ def test_passes_give_mitsubas_whitted_image(jit_variant, size, height, spp, pass
 
 def test_every_full_pass_reuses_one_compiled_kernel(llvm):
     _, mitsuba_scene = loaded(40, 4)
-    passes.render_in_passes(mitsuba_scene, 4, pass_samples=1600)             # compiles
+    render_module.render_in_passes(mitsuba_scene, 4, pass_samples=1600)             # compiles
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-        passes.render_in_passes(mitsuba_scene, 4, pass_samples=1600)         # 4 passes
+        render_module.render_in_passes(mitsuba_scene, 4, pass_samples=1600)         # 4 passes
         history = dr.kernel_history()
     assert len(history) >= 4
     assert not [k for k in history if k.get("cache_hit") is False]
@@ -92,8 +93,8 @@ def test_a_one_pass_render_is_mitsubas_image(llvm):
 
 def test_path_mode_in_passes_is_deterministic_and_statistically_mitsubas(llvm):
     _, mitsuba_scene = loaded(64, 16, mode="path")
-    first = passes.render_in_passes(mitsuba_scene, 16, "path", pass_samples=10000)
-    again = passes.render_in_passes(mitsuba_scene, 16, "path", pass_samples=10000)
+    first = render_module.render_in_passes(mitsuba_scene, 16, "path", pass_samples=10000)
+    again = render_module.render_in_passes(mitsuba_scene, 16, "path", pass_samples=10000)
     assert np.array_equal(first, again)
     ours = first.astype(np.float64)
     theirs, other = (np.array(mi.render(mitsuba_scene, seed=s), dtype=np.float64)[..., :3]
@@ -110,7 +111,7 @@ def test_path_mode_in_one_pass_is_mi_render(llvm):
     """The same sampler seeding, film mapping and ray weights as Mitsuba's own render loop."""
     _, mitsuba_scene = loaded(24, 4, mode="path")
     expected = np.array(mi.render(mitsuba_scene, seed=0), dtype=np.float32)[..., :3]
-    image = passes.render_in_passes(mitsuba_scene, 4, "path", pass_samples=24 * 24 * 4)
+    image = render_module.render_in_passes(mitsuba_scene, 4, "path", pass_samples=24 * 24 * 4)
     np.testing.assert_allclose(image, expected, rtol=0, atol=1e-6)
 
 
@@ -128,12 +129,12 @@ def test_png_conversion_in_bands_is_mitsubas_conversion_of_the_whole_image(tmp_p
     x = np.random.default_rng(1).uniform(-0.2, 1.3, (600, 70, 3)).astype(np.float32)
     x[0, :3] = [np.nan, np.inf, -np.inf]
     expected = mitsuba_png_pixels(x)
-    assert np.array_equal(passes.srgb8(x), expected)
-    assert np.array_equal(passes.srgb8(x.astype(np.float64), rows_per_band=512), expected)
-    passes.write_image(tmp_path / "x.png", x)
+    assert np.array_equal(image_output.srgb8(x), expected)
+    assert np.array_equal(image_output.srgb8(x.astype(np.float64), rows_per_band=512), expected)
+    image_output.write_image(tmp_path / "x.png", x)
     assert np.array_equal(np.array(mi.Bitmap(str(tmp_path / "x.png"))), expected)
     with pytest.raises(ValueError, match="multiple of 256"):
-        passes.srgb8(x, rows_per_band=100)    # would not line up with Mitsuba's dither
+        image_output.srgb8(x, rows_per_band=100)    # would not line up with Mitsuba's dither
 
 
 def test_mitsubas_conversion_is_the_srgb_curve_dithered_by_under_one_code_value():
@@ -141,7 +142,7 @@ def test_mitsubas_conversion_is_the_srgb_curve_dithered_by_under_one_code_value(
     x = np.random.default_rng(2).uniform(0, 1, (256, 256, 3)).astype(np.float32)
     e = x.astype(np.float64)
     exact = 255 * np.where(e <= 0.0031308, 12.92 * e, 1.055 * e ** (1 / 2.4) - 0.055)
-    dithered = passes.srgb8(x).astype(int)
+    dithered = image_output.srgb8(x).astype(int)
     assert np.abs(dithered - exact).max() < 1.0 + 1e-3            # offsets in [−½, ½)
     assert np.mean(dithered != np.rint(exact)) > 0.1
     source, target = mi.Bitmap(x), mi.Bitmap(mi.Bitmap.PixelFormat.RGB, mi.Struct.Type.UInt8, [256, 256])

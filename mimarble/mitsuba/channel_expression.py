@@ -41,17 +41,16 @@ from __future__ import annotations
 
 import contextlib
 import operator
-import re
 
 import numpy as np
 
 from .. import environment
-from ..plugins import plugin
+from ..plugins import luminance, numbers, plugin
+from ..properties import numbered_properties
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
 OPERATIONS = ("add", "multiply", "mix")
-_OPERAND = re.compile(r"operand_(\d+)$")
 #: Points at which mean() averages an expression that is not linear in its
 #: operands (a product or a varying weight): deterministic, over [−16, 16]³ and the
 #: whole (u, v) square.
@@ -114,17 +113,15 @@ class ChannelExpression:
         if self.op not in OPERATIONS:
             raise ChannelExpressionError(f"channel_expression: op={self.op!r} must be one of "
                                          f"{', '.join(OPERATIONS)}")
-        numbered = sorted((int(m.group(1)), key) for key in props.keys()
-                          if (m := _OPERAND.match(key)))
-        if [k for k, _ in numbered] != list(range(len(numbered))):
-            raise ChannelExpressionError(
-                "channel_expression: operands must be operand_0, operand_1, … without gaps, got "
-                + (", ".join(key for _, key in numbered) or "none"))
+        try:
+            numbered = numbered_properties(props, "operand") or []
+        except ValueError as e:
+            raise ChannelExpressionError(f"channel_expression: operands {e}") from None
         count = len(numbered)
         if count < 2 or (self.op == "mix" and count != 2):
             need = "exactly two operands (a and b)" if self.op == "mix" else "two or more operands"
             raise ChannelExpressionError(f"channel_expression: {self.op} takes {need}, got {count}")
-        self.operands = [props.get_texture(key) for _, key in numbered]
+        self.operands = [props.get_texture(key) for key in numbered]
         self.weight, self.weight_value = None, None
         if self.op == "mix":
             if "weight" not in props:
@@ -172,12 +169,12 @@ class ChannelExpression:
         # Structural decisions (a new one traces a new kernel); never for a value being
         # differentiated, whose derivative needs the part that would be left out.
         self.zero_product = self.op == "multiply" and self.constant is not None \
-            and not dr.grad_enabled(self.constant) and not np.any(_numbers(self.constant))
+            and not dr.grad_enabled(self.constant) and not np.any(numbers(self.constant))
         self.mix_side = None          # "a" or "b" when the weight is the constant 0 or 1
         if self.op == "mix":
             weight = self.weight_value if self.weight is None else _constant(self.weight)
             if weight is not None and not dr.grad_enabled(weight):
-                w = _numbers(weight)
+                w = numbers(weight)
                 self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
         self._mean = None
 
@@ -208,7 +205,7 @@ class ChannelExpression:
         if self.op == "multiply":
             return float(np.prod(maxima))
         if self.weight is None:
-            w = float(_numbers(self.weight_value)[0])
+            w = float(numbers(self.weight_value)[0])
             return abs(1.0 - w) * maxima[0] + abs(w) * maxima[1]
         w_max = float(self.weight.max())
         return max(maxima) if w_max <= 1.0 else maxima[0] * (1.0 + w_max) + maxima[1] * w_max
@@ -285,20 +282,20 @@ class ChannelExpression:
     def _compute_mean(self) -> float:
         # Luminance, as marble's and Mitsuba's bitmap's mean() (its rgb averages the three
         # components instead: constants are taken by their luminance here).
-        means = [float(_numbers(t.mean())[0]) if c is None else _luminance(c)
+        means = [float(numbers(t.mean())[0]) if c is None else luminance(c)
                  for t, c in zip(self.operands, self.constants)]
         if self.op == "add":
             return float(sum(means))
         if self.op == "mix" and (self.weight is None or not self.weight.is_spatially_varying()):
-            w = _numbers(self.weight_value if self.weight is None else _constant(self.weight))
+            w = numbers(self.weight_value if self.weight is None else _constant(self.weight))
             if np.ptp(w) == 0.0:                       # a grey weight: linear in the means
                 return (1.0 - w[0]) * means[0] + w[0] * means[1]
         if self.op == "multiply" and len(self.varying) <= 1:   # then there is a constant
             if not self.varying:
-                return _luminance(self.constant)
-            c = _numbers(self.constant)
+                return luminance(self.constant)
+            c = numbers(self.constant)
             if np.ptp(c) == 0.0:                       # a grey factor: linear in the mean
-                return float(c[0]) * float(_numbers(self.varying[0].mean())[0])
+                return float(c[0]) * float(numbers(self.varying[0].mean())[0])
         return _sampled_mean(self)
 
 
@@ -306,11 +303,11 @@ def _sampled_mean(texture) -> float:
     if not dr.is_jit_v(mi.Float):
         # The scalar variant evaluates one point at a time: the operands' means combined
         # as if independent (a product of means; a mix at the weight's mean) instead.
-        means = [float(_numbers(t.mean())[0]) for t in texture.operands]
+        means = [float(numbers(t.mean())[0]) for t in texture.operands]
         if texture.op == "multiply":
             return float(np.prod(means))
-        w = float(_numbers(texture.weight.mean())[0]) if texture.weight is not None else \
-            float(_numbers(texture.weight_value)[0])
+        w = float(numbers(texture.weight.mean())[0]) if texture.weight is not None else \
+            float(numbers(texture.weight_value)[0])
         return (1.0 - w) * means[0] + w * means[1]
     rng = np.random.default_rng(0)
     points = rng.uniform(-16.0, 16.0, (MEAN_POINTS, 3)).astype(np.float32)
@@ -331,23 +328,11 @@ def _constant(texture):
     return texture.eval(si)
 
 
-def _luminance(colour) -> float:
-    """Mitsuba's ``luminance`` of a one-lane colour (or number), as a Python float."""
-    return float(_numbers(mi.luminance(mi.Color3f(colour)))[0])
-
-
 def _opaque(value):
     if dr.is_jit_v(mi.Float) and not dr.grad_enabled(value):
         value = mi.Color3f(value)
         dr.make_opaque(value)
     return value
-
-
-def _numbers(value) -> np.ndarray:
-    """The components of a one-lane (or scalar) Dr.Jit value, as float64 NumPy."""
-    if isinstance(value, (int, float)):
-        return np.array([float(value)])
-    return np.ravel(np.array(dr.detach(value), dtype=np.float64))
 
 
 def _full(value, width: int):

@@ -63,20 +63,11 @@ def texture_dict(channel, tolerance: float | None = None, operand=None) -> dict:
             weight = channel.weight
             out["weight"] = weight if isinstance(weight, float) else operand(weight)
         return out
-    return {
-        "type": "marble",
-        "scale": channel.scale,
-        "period": channel.period,
-        "distortion": channel.distortion,
-        "octaves": channel.octaves,
-        "function": channel.function,
-        "axis": channel.axis,
-        "turbulence": channel.turbulence,
-        "filter": channel.filter,
-        "tolerance": float(next(t for t in (tolerance, channel.tolerance,
-                                            error_budget.DEFAULT_TOLERANCE) if t is not None)),
-        "ramp": ", ".join(" ".join(repr(float(x)) for x in c) for c in channel.ramp),
-    }
+    out = {"type": "marble"}
+    out.update({p.name: p.property_value(value) for p, value in channel.items()})
+    out["tolerance"] = float(next(t for t in (tolerance, channel.tolerance,
+                                              error_budget.DEFAULT_TOLERANCE) if t is not None))
+    return out
 
 
 def marble_tolerance(scene: model.Scene, channel: model.MarbleChannel,
@@ -102,10 +93,6 @@ def _marble_gains(scene: model.Scene) -> dict:
             for marble in error_budget.marble_gains(channel):
                 gains[marble] = max(gains.get(marble, 1.0), total)
     return gains
-
-
-def _distance(a, b) -> float:
-    return math.dist(a, b)
 
 
 # The reference tracer accepts hits from t = 1e-6·(1 + max|eye_k|) on (T_MIN_REL).
@@ -306,7 +293,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     for k, light in enumerate(scene.lights):
         intensity = list(light.color)
         if mode == "path":
-            d2 = _distance(light.position, scene.camera.lookat) ** 2
+            d2 = math.dist(light.position, scene.camera.lookat) ** 2
             intensity = [c * math.pi * d2 for c in light.color]
         out[f"light_{k}"] = {"type": "point", "position": list(light.position),
                              "intensity": {"type": "rgb", "value": intensity}}

@@ -24,7 +24,7 @@ Errors: a file that is missing, unreadable, or not a decodable 8-bit PNG or
 JPEG raises :class:`ValueError` naming the file.
 
 Imports NumPy, Pillow, the standard library and the scene language's rule for an image
-map's file (``mimarble.scene.parser.image_file_problem``: exists, 8-bit PNG or JPEG).
+map's file (``mimarble.scene.image_header.image_file_problem``: exists, 8-bit PNG or JPEG).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ import os
 import numpy as np
 from PIL import Image
 
-from mimarble.scene.parser import image_file_problem
+from mimarble.scene.image_header import image_file_problem
 
 __all__ = [
     "SRGB8_TO_LINEAR",

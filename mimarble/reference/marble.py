@@ -1,7 +1,7 @@
 """The paper's marble channel (ChannelMarble) in float64 NumPy, on the reference noise.
 
 For a world-space point p and a :class:`mimarble.scene.MarbleChannel` ``m``
-(DESIGN.md, "The marble model")::
+(docs/design.md, "The marble model")::
 
     v = m.scale · p
     F = Σ_{i<octaves} N(2^i v) / 2^i                 (|N| when m.turbulence)

@@ -8,10 +8,13 @@
 ``load(path)`` and ``parse(text)`` raise :class:`SceneError` (``FILE:LINE:COL:
 message``, source line, caret) for every user error. This package imports only
 the standard library and lark: no mitsuba, drjit or numpy. The language is
-described in docs/scene-language.md and, formally, in ``scene.lark``.
+described in docs/scene-language.md and, formally, in ``scene.lark`` with the
+marble's rules, written from its parameter table (``grammar.py``).
 """
 
 from .errors import SceneError
+from .grammar import GRAMMAR_PATH
+from .keywords import BLOCK_KEYS, STATEMENTS
 from .model import (
     AXES,
     CHANNEL_TYPES,
@@ -41,7 +44,7 @@ from .model import (
     replace_marbles,
     walk,
 )
-from .parser import BLOCK_KEYS, GRAMMAR_PATH, LIMITS, STATEMENTS, load, parse
+from .parser import LIMITS, load, parse
 
 __all__ = [
     "load",

@@ -23,6 +23,8 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple, Union
 
+from .. import marble_parameters
+
 __all__ = [
     "Vec3",
     "RGB",
@@ -59,15 +61,12 @@ MarbleFunction = Literal["abs_sine", "sine", "cosine"]
 MarbleFilter = Literal["none", "bandlimit", "prefilter"]
 Axis = Literal["x", "y", "z"]
 
-#: The marble functions, in the order of the documentation.
-MARBLE_FUNCTIONS: tuple[str, ...] = ("abs_sine", "sine", "cosine")
-#: How a marble filters the pixel's footprint in Mitsuba (``marble`` plugin ``filter``).
-MARBLE_FILTERS: tuple[str, ...] = ("none", "bandlimit", "prefilter")
-#: The coordinate axes a marble may run along.
-AXES: tuple[str, ...] = ("x", "y", "z")
-
-#: The paper's Fig. 5 ramp: 8 colours from red <1 0 0> to orange <1 0.875 0>.
-FIG5_RAMP: tuple[RGB, ...] = tuple((1.0, k / 8.0, 0.0) for k in range(8))
+#: The marble functions, its filters and axes, and the Fig. 5 ramp (the marble's
+#: parameter table, mimarble/marble_parameters.py, declares them).
+MARBLE_FUNCTIONS: tuple[str, ...] = marble_parameters.FUNCTIONS
+MARBLE_FILTERS: tuple[str, ...] = marble_parameters.FILTERS
+AXES: tuple[str, ...] = marble_parameters.AXES
+FIG5_RAMP: tuple[RGB, ...] = marble_parameters.FIG5_RAMP
 
 
 class Pos(NamedTuple):
@@ -189,7 +188,7 @@ class ColorChannel:
 
 
 @dataclass(frozen=True)
-class MarbleChannel:
+class MarbleChannel(marble_parameters.MarbleParameters):
     """``marble { ... }``: the paper's marble (ChannelMarble).
 
     With ``v = scale * p`` (p in world space) and
@@ -198,6 +197,9 @@ class MarbleChannel:
         abs_sine: t = |sin(pi * (period * v_axis + distortion * F(v)))|
         sine:     t = 0.5 * (sin(period * v_axis + distortion * F(v)) + 1)
         cosine:   t = 0.5 * (cos(v_axis + distortion * F(v)) + 1)   (period unused)
+
+    Its fields are the rows of the marble's parameter table
+    (mimarble/marble_parameters.py: names, defaults, ranges), in order, then ``pos``.
 
     The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)``,
     piecewise linear, ``t`` clamped to [0, 1] (one colour: a constant).
@@ -209,21 +211,7 @@ class MarbleChannel:
     mimarble/error_budget.py); the reference tracer always renders the full marble.
     """
 
-    scale: float = 1.0
-    period: float = 1.0
-    distortion: float = 1.0
-    octaves: int = 8
-    function: MarbleFunction = "abs_sine"
-    axis: Axis = "x"
-    turbulence: bool = False
-    filter: MarbleFilter = "none"
-    tolerance: float | None = None
-    ramp: tuple[RGB, ...] = FIG5_RAMP
     pos: Pos | None = _pos()
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.ramp, tuple):
-            object.__setattr__(self, "ramp", tuple(tuple(c) for c in self.ramp))
 
     @property
     def axis_index(self) -> int:

@@ -2,9 +2,10 @@
 
 Two stages:
 
-1. Lark parses the text with ``scene.lark`` (LALR(1), basic lexer, positions
-   propagated). Lark's exceptions are translated here into :class:`SceneError`
-   with a human message; no Lark exception escapes.
+1. Lark parses the text with the grammar (``scene.lark`` and the marble's rules
+   written from its parameter table: grammar.py; LALR(1), basic lexer, positions
+   propagated). Lark's exceptions become :class:`SceneError` with a human message
+   (syntax_errors.py); no Lark exception escapes.
 
    The *basic* lexer rather than the contextual one: the contextual lexer only
    tries the terminals the parser accepts in the current state, so in a
@@ -13,7 +14,8 @@ Two stages:
    an unknown word is reported as such, at its first character.
 
 2. :class:`_Builder` walks the tree into the frozen model, checking what the
-   grammar does not: duplicates, arity, ranges, names, references.
+   grammar does not: duplicates, arity, ranges, names, references. A marble's
+   values are checked by the parameter table's own rules (``Parameter.check``).
 """
 
 from __future__ import annotations
@@ -21,21 +23,20 @@ from __future__ import annotations
 import functools
 import math
 import os
-import re
-from pathlib import Path
 
 from lark import Lark, Token, Tree
-from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.exceptions import UnexpectedInput
 
+from ..marble_parameters import (BOOLEAN, BY_NAME, CHOICE, COLOURS, PARAMETERS, Parameter,
+                                 ParameterError)
 from .errors import SceneError
+from .grammar import grammar_text
+from .image_header import image_file_problem
 from .model import (
-    AXES,
     Add,
     ImageChannel,
     Mix,
     Multiply,
-    MARBLE_FILTERS,
-    MARBLE_FUNCTIONS,
     Camera,
     ColorChannel,
     FrozenMap,
@@ -47,47 +48,17 @@ from .model import (
     Scene,
     Sphere,
 )
+from .syntax_errors import decoded, syntax_error
 
-__all__ = ["parse", "load", "BLOCK_KEYS", "STATEMENTS", "LIMITS"]
+__all__ = ["parse", "load", "LIMITS"]
 
-GRAMMAR_PATH = Path(__file__).with_name("scene.lark")
-
-#: Top-level statements, in documentation order.
-STATEMENTS = ("image", "camera", "ambient", "light", "material", "sphere")
-
-#: The keywords that start a channel.
-CHANNEL_KEYWORDS = ("color", "marble", "image", "add", "multiply", "mix")
-#: The blocks whose contents are channels.
-_CHANNEL_BLOCKS = ("ambient", "diffuse", "specular", "add", "multiply", "mix")
-
-#: The keywords allowed in each kind of block (keyed by the block's rule name: an image
-#: map is ``image_map``, written ``image { file "…" }`` like the image statement).
-BLOCK_KEYS: dict[str, tuple[str, ...]] = {
-    "image": ("width", "height", "samples", "background"),
-    "camera": ("eye", "lookat", "up", "fov"),
-    "light": ("position", "color"),
-    "material": ("ambient", "diffuse", "specular", "shininess"),
-    "ambient": CHANNEL_KEYWORDS,
-    "diffuse": CHANNEL_KEYWORDS,
-    "specular": CHANNEL_KEYWORDS,
-    "add": CHANNEL_KEYWORDS,
-    "multiply": CHANNEL_KEYWORDS,
-    "mix": CHANNEL_KEYWORDS + ("weight",),
-    "image_map": ("file",),
-    "marble": ("scale", "period", "distortion", "octaves", "function", "axis", "turbulence",
-               "filter", "tolerance", "ramp"),
-    "sphere": ("center", "radius", "material"),
-}
-
-#: Keys that were renamed, and what to write now (said in the error).
-_RENAMED_KEYS = {"bandlimit": " (it is now 'filter bandlimit'; also 'filter prefilter')"}
-
-#: Limits checked after parsing (documented in docs/scene-language.md).
+#: Limits checked after parsing (documented in docs/scene-language.md); the marble's
+#: are its parameter table's.
 LIMITS = {
     "image_size": (1, 16384),  # width and height, pixels
     "max_image_samples": 1 << 28,  # width * height * samples
-    "octaves": (0, 64),
-    "ramp_colours": (1, 256),
+    "octaves": BY_NAME["octaves"].bounds,
+    "ramp_colours": BY_NAME["ramp"].bounds,
     "max_abs_number": 3.4028234663852886e38,  # float32 max: the Mitsuba path is single precision
 }
 
@@ -96,18 +67,6 @@ _FLT_MAX = LIMITS["max_abs_number"]
 # Rule names whose keyword differs from the rule name.
 _RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image"}
 
-_PUNCT = {
-    "LBRACE": "'{'",
-    "RBRACE": "'}'",
-    "LESSTHAN": "'<'",
-    "MORETHAN": "'>'",
-    "COMMA": "','",
-    "NUMBER": "a number",
-    "STRING": 'a quoted name ("...")',
-    "WORD": "a name",
-    "$END": "end of file",
-}
-
 
 def _parser_cache_file(grammar: str) -> str | bool:
     """Where Lark keeps the built parser between processes, or False for no cache.
@@ -115,12 +74,14 @@ def _parser_cache_file(grammar: str) -> str | bool:
     Building the LALR tables takes ~0.15 s, three times the rest of a scene
     error's answer; Lark's cache keeps them as a pickle checked against the
     grammar's hash. The file lives in the user's own cache folder
-    (``$XDG_CACHE_HOME/mimarble``, default ``~/.cache/mimarble``), not in a shared
-    temporary folder where another user could plant one.
+    (:func:`mimarble.files.cache_folder`), not in a shared temporary folder where
+    another user could plant one.
     """
     import hashlib
     import lark
-    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "mimarble"
+
+    from ..files import cache_folder
+    root = cache_folder()
     try:
         root.mkdir(parents=True, exist_ok=True)
     except OSError:
@@ -131,7 +92,7 @@ def _parser_cache_file(grammar: str) -> str | bool:
 
 @functools.lru_cache(maxsize=None)
 def _lark() -> Lark:
-    grammar = GRAMMAR_PATH.read_text(encoding="utf-8")
+    grammar = grammar_text()
     return Lark(
         grammar,
         parser="lalr",
@@ -150,42 +111,6 @@ def _keyword_terminals() -> dict[str, str]:
         for t in _lark().terminals
         if t.pattern.type == "str" and t.pattern.value.isidentifier()
     }
-
-
-# --------------------------------------------------------------------------
-#  Image files (standard library only: the scene package imports no imaging library)
-# --------------------------------------------------------------------------
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-def image_file_problem(path: str) -> str | None:
-    """Why ``path`` cannot be an image map (None: it can): it must exist, be readable,
-    and be an 8-bit PNG or a JPEG (read from its header; decoding comes later)."""
-    try:
-        with open(path, "rb") as f:
-            head = f.read(33)
-    except FileNotFoundError:
-        return f"no such file (looked for {path})"
-    except IsADirectoryError:
-        return f"it is a directory ({path})"
-    except PermissionError:
-        return f"permission denied ({path})"
-    except OSError as e:
-        return f"cannot read it: {e.strerror or e} ({path})"
-    if head.startswith(_PNG_SIGNATURE):
-        if len(head) < 33 or head[12:16] != b"IHDR":
-            return "a truncated PNG (no IHDR header)"
-        width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
-        depth = head[24]
-        if width == 0 or height == 0:
-            return f"an empty PNG ({width}x{height})"
-        if depth != 8:
-            return f"a {depth}-bit PNG; image maps are 8-bit PNG or JPEG"
-        return None
-    if head.startswith(b"\xff\xd8\xff"):
-        return None
-    return "not a PNG or JPEG file; image maps are 8-bit PNG or JPEG"
 
 
 # --------------------------------------------------------------------------
@@ -220,7 +145,7 @@ def parse(text: str | bytes, filename: str = "<string>", *, source: str | None =
     the default ``"<string>"``.
     """
     if isinstance(text, (bytes, bytearray)):
-        text = _decode(bytes(text), filename)
+        text = decoded(bytes(text), filename)
     if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not part of the scene
         text = text[1:]
     if source is None and filename != "<string>":
@@ -228,215 +153,8 @@ def parse(text: str | bytes, filename: str = "<string>", *, source: str | None =
     try:
         tree = _lark().parse(text)
     except UnexpectedInput as e:
-        raise _syntax_error(e, text, filename) from None
+        raise syntax_error(e, text, filename, _keyword_terminals()) from None
     return _Builder(text, filename, source).scene(tree, source)
-
-
-def _decode(data: bytes, filename: str) -> str:
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as e:
-        start = e.start
-        line = data.count(b"\n", 0, start) + 1
-        line_start = data.rfind(b"\n", 0, start) + 1
-        line_end = data.find(b"\n", start)
-        if line_end < 0:
-            line_end = len(data)
-        column = len(data[line_start:start].decode("utf-8", "replace")) + 1
-        src = data[line_start:line_end].decode("utf-8", "replace").rstrip("\r")
-        if any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in src):
-            src = None   # control characters: a binary file, whose bytes would garble the terminal
-        raise SceneError(
-            f"invalid UTF-8 byte 0x{data[start]:02x}: scene files must be UTF-8 text",
-            filename=filename,
-            line=line,
-            column=column,
-            source_line=src,
-        ) from None
-
-
-# --------------------------------------------------------------------------
-#  Syntax errors: Lark exception -> SceneError with a human message
-# --------------------------------------------------------------------------
-
-
-def _describe(tok: Token) -> str:
-    if tok.type == "$END":
-        return "end of file"
-    if tok.type == "NUMBER":
-        return f"number {tok}"
-    if tok.type == "STRING":
-        return f"string {tok}"
-    if tok.type in _keyword_terminals():
-        return f"keyword '{tok}'"
-    return f"'{tok}'"
-
-
-def _expected_list(names) -> str:
-    kw = _keyword_terminals()
-    order = [k for ks in ((STATEMENTS,) + tuple(BLOCK_KEYS.values())) for k in ks]
-    words = sorted((kw[n] for n in names if n in kw), key=lambda w: (order.index(w) if w in order else 99, w))
-    words = list(dict.fromkeys(words))
-    rest = [_PUNCT.get(n, n) for n in sorted(names) if n not in kw]
-    items = [f"'{w}'" for w in words] + rest
-    if len(items) <= 1:
-        return "".join(items)
-    return ", ".join(items[:-1]) + " or " + items[-1]
-
-
-def _open_blocks(state) -> list[tuple[Token, str]]:
-    """The unclosed blocks at the error, outermost first: (opener keyword token, display name).
-
-    Read from the LALR value stack: a block already reduced is a Tree; one still
-    open leaves its '{' token (and, when the error came right after its '}',
-    that token too) on the stack.
-    """
-    stack = getattr(state, "value_stack", None) or []
-    blocks: list[tuple[Token, str]] = []
-    for i, item in enumerate(stack):
-        if not isinstance(item, Token):
-            continue
-        if item.type == "RBRACE" and blocks:
-            blocks.pop()
-        elif item.type == "LBRACE" and i > 0:
-            opener = stack[i - 1]
-            if isinstance(opener, Token) and opener.type == "STRING" and i > 1:
-                blocks.append((stack[i - 2], f"material {opener}"))
-            elif isinstance(opener, Token):
-                blocks.append((opener, f"'{opener}' block"))
-    return blocks
-
-
-def _eof_position(text: str) -> tuple[int, int]:
-    end = len(text.rstrip())
-    line = text.count("\n", 0, end) + 1
-    col = end - (text.rfind("\n", 0, end) + 1) + 1
-    return line, col
-
-
-def _syntax_error(e: UnexpectedInput, text: str, filename: str) -> SceneError:
-    def at(line, col, msg):
-        return SceneError.at(text, filename, line, col, msg)
-
-    if isinstance(e, UnexpectedCharacters):
-        pos = e.pos_in_stream
-        rest = text[pos:]
-        if rest.startswith("/*"):
-            return at(e.line, e.column, "unterminated block comment: '/*' has no matching '*/'")
-        if rest.startswith("*/"):
-            return at(e.line, e.column, "'*/' without a matching '/*'")
-        if rest.startswith('"'):
-            return at(e.line, e.column, "unterminated string: a name must close with '\"' on the same line")
-        if rest[:1] in "+-.0123456789" or (rest[:1].isalnum() and pos > 0 and text[pos - 1].isdigit()):
-            # A number glued to what precedes or follows it: 1-2, 1.2.3, 3abc, 1e
-            start = pos
-            while start > 0 and (text[start - 1].isalnum() or text[start - 1] in "._"):
-                start -= 1
-            m = re.match(r"[\w.+-]+", text[start:])
-            word = m.group(0) if m else rest[:1]
-            col = e.column - (pos - start)
-            return at(
-                e.line,
-                col,
-                f"malformed number '{word}': write numbers like 2, -0.5, .5 or 1e-3, "
-                "separated by spaces or commas (there is no arithmetic)",
-            )
-        ch = rest[:1]
-        shown = repr(ch) if ch.isprintable() else f"U+{ord(ch):04X}"
-        return at(e.line, e.column, f"unexpected character {shown}")
-
-    if isinstance(e, UnexpectedEOF):  # not raised by LALR, but be safe
-        line, col = _eof_position(text)
-        return at(line, col, "unexpected end of file")
-
-    assert isinstance(e, UnexpectedToken)
-    tok: Token = e.token
-    expected = set(e.expected or ())
-    # LALR merges look-ahead sets, so e.expected can list tokens that would fail
-    # after a reduction; the interactive parser tries each one and is exact.
-    ip = getattr(e, "interactive_parser", None)
-    if ip is not None:
-        try:
-            expected = set(ip.accepts()) or expected
-        except Exception:  # pragma: no cover - keep the coarse set
-            pass
-    state = getattr(e, "state", None)
-    blocks = _open_blocks(state)
-    stack = getattr(state, "value_stack", None) or []
-    prev = stack[-1] if stack else None
-    kwt = _keyword_terminals()
-    found = _describe(tok)
-
-    if tok.type == "$END":
-        line, col = _eof_position(text)
-        if blocks:
-            opener, name = blocks[-1]
-            return at(line, col, f"missing closing '}}' for {name} opened at {opener.line}:{opener.column}")
-        return at(line, col, f"unexpected end of file; expected {_expected_list(expected)}")
-
-    line, col = tok.line, tok.column
-
-    statement_keys = {n for n in expected if _keyword_terminals().get(n) in STATEMENTS}
-    if tok.type == "RBRACE" and not blocks and expected <= statement_keys | {"$END"}:
-        return at(line, col, "unexpected '}': no block is open here")
-
-    keys = {n for n in expected if n in kwt}
-    if keys and expected <= keys | {"RBRACE", "$END"}:
-        # A keyword is expected: top-level statement or a key inside a block.
-        allowed = _expected_list(keys)
-        if not blocks:
-            if tok.type == "WORD":
-                return at(line, col, f"unknown statement '{tok}'; a statement is one of {allowed}")
-            return at(line, col, f"unexpected {found} at top level; a statement is one of {allowed}")
-        opener, name = blocks[-1]
-        if opener in _CHANNEL_BLOCKS:
-            what = ("a channel: 'color < r g b >', 'marble { ... }', 'image { file \"...\" }', "
-                    "'add { ... }', 'multiply { ... }' or 'mix { ... }'")
-            if opener == "mix":
-                what += ", or 'weight W' last"
-            if tok.type == "RBRACE":
-                return at(line, col, f"empty {name}: expected {what}")
-            if str(tok) == "weight":
-                return at(line, col, "'weight' belongs in a mix block: mix { A B weight W }")
-            if tok.type == "WORD":
-                return at(line, col, f"unknown channel '{tok}' in {name}; expected {what}")
-            return at(line, col, f"unexpected {found} in {name}; expected {what}")
-        if tok.type == "WORD":
-            renamed = _RENAMED_KEYS.get(str(tok), "")
-            return at(line, col, f"unknown keyword '{tok}' in {name}{renamed}; allowed: {allowed}")
-        if tok.type in kwt:
-            return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: {allowed}")
-        return at(line, col, f"unexpected {found} in {name}; expected a keyword ({allowed}) or '}}'")
-
-    if expected == {"RBRACE"} and blocks:
-        opener, name = blocks[-1]
-        msg = f"expected '}}' to close {name} opened at {opener.line}:{opener.column}, found {found}"
-        if opener in ("ambient", "diffuse", "specular"):
-            msg += " (a component takes exactly one channel)"
-        return at(line, col, msg)
-
-    after = f" after '{prev}'" if isinstance(prev, Token) and prev.type in kwt else ""
-    if expected == {"NUMBER"}:
-        return at(line, col, f"expected a number{after}, found {found}")
-    if {"NUMBER", "MORETHAN"} <= expected:
-        return at(line, col, f"expected a number or '>' in vector, found {found}")
-    if expected == {"LESSTHAN"}:
-        return at(line, col, f"expected a vector '< x y z >'{after}, found {found}")
-    if expected == {"LESSTHAN", "RBRACE"}:
-        return at(line, col, f"expected a colour '< r g b >' or '}}' in ramp, found {found}")
-    if expected == {"STRING"}:
-        return at(line, col, f'expected a quoted material name like "marble"{after}, found {found}')
-    if expected == {"LBRACE"}:
-        return at(line, col, f"expected '{{'{after}, found {found}")
-    if expected == {"WORD"}:
-        choices = {
-            "function": "a function name: abs_sine, sine or cosine",
-            "axis": "an axis: x, y or z",
-            "turbulence": "true or false",
-            "filter": "a filter: none, bandlimit or prefilter",
-        }.get(str(prev), "a name")
-        return at(line, col, f"expected {choices}{after}, found {found}")
-    return at(line, col, f"unexpected {found}; expected {_expected_list(expected)}")
 
 
 # --------------------------------------------------------------------------
@@ -716,45 +434,35 @@ class _Builder:
         return ImageChannel(name, path, pos=Pos(tok.line, tok.column))
 
     def marble(self, st: Tree) -> MarbleChannel:
+        """``marble { … }``: each key given, read as its kind is written and checked by
+        its row of the parameter table; the error is at the value, in the table's words."""
         f = self.fields(st, "'marble' block")
-        kw: dict = {}
-        if "scale" in f:
-            tok = f["scale"].children[0]
-            kw["scale"] = self.number(tok)
-            if not kw["scale"] > 0:
-                raise self.error(tok, f"scale must be > 0, found {tok}")
-        for key in ("period", "distortion"):
-            if key in f:
-                kw[key] = self.number(f[key].children[0])
-        if "tolerance" in f:
-            tok = f["tolerance"].children[0]
-            kw["tolerance"] = self.number(tok)
-            if not kw["tolerance"] >= 0:
-                raise self.error(tok, f"tolerance must be ≥ 0, found {tok}")
-        if "octaves" in f:
-            lo, hi = LIMITS["octaves"]
-            kw["octaves"] = self.integer(f["octaves"].children[0], "octaves", lo, hi)
-        booleans = ("turbulence",)
-        for key, choices in (("function", MARBLE_FUNCTIONS), ("axis", AXES),
-                             ("turbulence", ("true", "false")), ("filter", MARBLE_FILTERS)):
-            if key in f:
-                tok = f[key].children[0]
-                if str(tok) not in choices:
-                    listed = ", ".join(choices[:-1]) + " or " + choices[-1]
-                    raise self.error(tok, f"unknown {key} '{tok}'; expected {listed}")
-                kw[key] = str(tok) == "true" if key in booleans else str(tok)
-        if "ramp" in f:
-            ramp_tree = f["ramp"]
-            vecs = [c for c in ramp_tree.children if isinstance(c, Tree)]
-            lo, hi = LIMITS["ramp_colours"]
-            if len(vecs) < lo:
-                raise self.error(
-                    ramp_tree, f"a ramp needs at least {lo} colours, found {len(vecs)}" + (" (empty ramp)" if not vecs else "")
-                )
-            if len(vecs) > hi:
-                raise self.error(vecs[hi], f"a ramp has at most {hi} colours, found {len(vecs)}")
-            kw["ramp"] = tuple(self.color(v, "ramp colour") for v in vecs)
-        return MarbleChannel(**kw, pos=_pos_of(st))
+        values = {}
+        for p in PARAMETERS:
+            if p.name not in f:
+                continue
+            value, where = self.marble_value(p, f[p.name])
+            try:
+                values[p.name] = p.check(value)
+            except ParameterError as e:
+                if p.kind == COLOURS:   # a count: the message says it
+                    raise self.error(where, str(e)) from None
+                raise self.error(where, f"{e}, found {where}") from None
+        return MarbleChannel(**values, pos=_pos_of(st))
+
+    def marble_value(self, p: Parameter, key: Tree):
+        """The value of a marble key as written, for ``p.check``, and where to point at
+        it: a number (finite, in float32's range), a word, or colours (each ≥ 0, as
+        every colour of the language; a wrong count points at the colour past the
+        most, or at the block)."""
+        if p.kind != COLOURS:
+            (tok,) = key.children
+            is_word = p.kind in (CHOICE, BOOLEAN)
+            return (str(tok) if is_word else self.number(tok)), tok
+        vecs = [c for c in key.children if isinstance(c, Tree)]
+        most = p.bounds[1]
+        where = vecs[most] if len(vecs) > most else key
+        return tuple(self.color(v, f"{p.name} colour") for v in vecs), where
 
     def sphere(self, st: Tree) -> tuple[Sphere, Token]:
         f = self.fields(st, "'sphere' block")

@@ -1,0 +1,320 @@
+"""The marble's parameters, declared once: name, type, default, range, and role.
+
+Everything that reads or writes a marble parameter is made from :data:`PARAMETERS`:
+the scene language's grammar and its checks (``mimarble/scene/parser.py``), the
+scene model's :class:`~mimarble.scene.model.MarbleChannel`, the ``marble`` plugin's
+reading, validation and ``mi.traverse`` keys (:meth:`MarbleParameters.from_properties`,
+``mimarble/marble.py``), the translator's texture dict, the sweep keys and the values a
+sweep changes in place (``mimarble/sweeps.py``) and the command line's choices. A new
+parameter is one row here plus the code that uses it.
+
+Roles:
+
+* ``differentiable``: an opaque Dr.Jit value the plugin exposes to ``mi.traverse`` as
+  differentiable; a new value (a sweep's, an optimiser's) reuses the compiled kernel.
+* ``structural``: a Python value that shapes the traced kernel; a new value traces a
+  new one. ``traversed`` ones are also in ``mi.traverse`` (not differentiable).
+
+This module imports neither Lark nor Dr.Jit: the command line reads it before either
+is loaded.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any
+
+from .properties import numbered_properties
+
+__all__ = ["Parameter", "ParameterError", "MarbleParameters", "PARAMETERS", "BY_NAME",
+           "SWEEPABLE", "IN_PLACE", "RENAMED", "FUNCTIONS", "AXES", "FILTERS", "FIG5_RAMP",
+           "MAX_OCTAVES", "MAX_RAMP_COLOURS", "parse_ramp", "ramp_text", "parameter_table"]
+
+#: The stripe functions (mimarble/stripes.py), in the order of the documentation.
+FUNCTIONS: tuple[str, ...] = ("abs_sine", "sine", "cosine")
+#: The coordinate axes a marble may run along.
+AXES: tuple[str, ...] = ("x", "y", "z")
+#: How a marble filters the pixel's footprint in Mitsuba (mimarble/pixel_filter.py).
+FILTERS: tuple[str, ...] = ("none", "bandlimit", "prefilter")
+#: The paper's Fig. 5 ramp: 8 colours from red <1 0 0> to orange <1 0.875 0>.
+FIG5_RAMP: tuple[tuple[float, float, float], ...] = tuple((1.0, k / 8.0, 0.0) for k in range(8))
+#: The largest octave count accepted (octaves past 25 cost nothing: mimarble/noise.py).
+MAX_OCTAVES = 64
+#: The most colours a ramp may hold.
+MAX_RAMP_COLOURS = 256
+
+NUMBER, INTEGER, CHOICE, BOOLEAN, COLOURS = "number", "integer", "choice", "boolean", "colours"
+DIFFERENTIABLE, STRUCTURAL = "differentiable", "structural"
+
+
+class ParameterError(ValueError):
+    """A value a parameter cannot take. The message names the parameter and says what it
+    must be (``scale must be > 0``); the caller says where it came from and what it was."""
+
+
+@dataclasses.dataclass(frozen=True)
+class Parameter:
+    """One marble parameter. ``kind`` is number, integer, choice, boolean or colours."""
+
+    name: str
+    kind: str
+    default: Any
+    doc: str
+    role: str = STRUCTURAL
+    traversed: bool = False
+    above: float | None = None          # number: > above
+    at_least: float | None = None       # number: ≥ at_least
+    bounds: tuple[int, int] | None = None   # integer: lo..hi; colours: count lo..hi
+    choices: tuple[str, ...] = ()       # choice
+
+    @property
+    def in_place(self) -> bool:
+        """Changed through ``mi.traverse`` without a new kernel."""
+        return self.role == DIFFERENTIABLE
+
+    @property
+    def is_traversed(self) -> bool:
+        return self.in_place or self.traversed
+
+    @property
+    def requirement(self) -> str:
+        """What a value must be, in words (``must be > 0``)."""
+        if self.kind == NUMBER:
+            if self.above is not None:
+                return f"must be > {self.above:g}"
+            if self.at_least is not None:
+                return f"must be ≥ {self.at_least:g}"
+            return "must be a finite number"
+        if self.kind == INTEGER:
+            return f"must be an integer in {self.bounds[0]}..{self.bounds[1]}"
+        if self.kind == CHOICE:
+            return f"must be one of {_listed(self.choices)}"
+        if self.kind == BOOLEAN:
+            return "must be true or false"
+        return f"must hold {self.bounds[0]}..{self.bounds[1]} finite colours"
+
+    def check(self, value):
+        """``value`` as this parameter holds it (float, int, str, bool or a tuple of RGB
+        tuples), or :class:`ParameterError`. Words are taken for choices and booleans
+        (``"true"``), integral floats for integers, strings and sequences for colours
+        (:func:`parse_ramp`). A number's problem names the bound it misses."""
+        if self.kind == COLOURS:
+            colours = parse_ramp(value, self.name)
+            lo, hi = self.bounds
+            if not lo <= len(colours) <= hi:
+                raise ParameterError(f"{self.name} has {len(colours)} colours; it holds "
+                                     f"{lo}..{hi}")
+            return colours
+        if self.kind == CHOICE:
+            if value not in self.choices:
+                raise ParameterError(f"{self.name} {self.requirement}")
+            return str(value)
+        if self.kind == BOOLEAN:
+            if not (isinstance(value, bool) or value in ("true", "false")):
+                raise ParameterError(f"{self.name} {self.requirement}")
+            return value in (True, "true")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not math.isfinite(value):
+            raise ParameterError(f"{self.name} must be a finite number")
+        if self.kind == INTEGER:
+            if not float(value).is_integer():
+                raise ParameterError(f"{self.name} must be an integer")
+            lo, hi = self.bounds
+            if not lo <= value <= hi:
+                raise ParameterError(f"{self.name} must be in {lo}..{hi}")
+            return int(value)
+        if (self.above is not None and not value > self.above) or \
+                (self.at_least is not None and not value >= self.at_least):
+            raise ParameterError(f"{self.name} {self.requirement}")
+        return float(value)
+
+    def property_value(self, value):
+        """The value as a Mitsuba property (``mi.load_dict``): colours as ``"r g b, …"``."""
+        return ramp_text(value) if self.kind == COLOURS else value
+
+
+def _listed(words) -> str:
+    return ", ".join(words[:-1]) + " or " + words[-1] if len(words) > 1 else "".join(words)
+
+
+PARAMETERS: tuple[Parameter, ...] = (
+    Parameter("scale", NUMBER, 1.0, above=0.0, role=DIFFERENTIABLE,
+              doc="Texture-space scale applied to the point before anything else: "
+                  "larger is finer."),
+    Parameter("period", NUMBER, 1.0, role=DIFFERENTIABLE,
+              doc="Stripe frequency along ``axis`` (unused by ``cosine``, whose paper "
+                  "formula has none)."),
+    Parameter("distortion", NUMBER, 1.0, role=DIFFERENTIABLE,
+              doc="Weight of the fractal noise in the phase."),
+    Parameter("octaves", INTEGER, 8, bounds=(0, MAX_OCTAVES), traversed=True,
+              doc="Number of noise octaves K. Octaves from 25 on are below float32 "
+                  "resolution and are not evaluated."),
+    Parameter("function", CHOICE, "abs_sine", choices=FUNCTIONS,
+              doc="``abs_sine`` (paper §3.2), ``sine`` (Fig. 1), ``cosine`` (Fig. 2)."),
+    Parameter("axis", CHOICE, "x", choices=AXES,
+              doc="The coordinate the stripes run along."),
+    Parameter("turbulence", BOOLEAN, False,
+              doc="Sum |N| instead of N (Perlin's turbulence)."),
+    Parameter("filter", CHOICE, "none", choices=FILTERS,
+              doc="How a pixel's footprint (from the integrator's ray differentials; "
+                  "``whitted`` has them) filters the marble: ``none``, the colour at the "
+                  "point; ``bandlimit``, octaves finer than the footprint left out "
+                  "(pbrt-v4's FBm clamp); ``prefilter``, the colour averaged over the "
+                  "pixel's interval of phase, exactly (mimarble/pixel_filter.py). Without "
+                  "differentials every filter is ``none``."),
+    Parameter("tolerance", NUMBER, None, at_least=0.0,
+              doc="Colour error allowed for leaving out fine octaves (a proven bound, "
+                  "mimarble/error_budget.py); 0 evaluates every octave. Default: the "
+                  "scene's, half an 8-bit sRGB code value through its lighting; the plugin "
+                  "alone, half a code value (error_budget.DEFAULT_TOLERANCE)."),
+    Parameter("ramp", COLOURS, FIG5_RAMP, bounds=(1, MAX_RAMP_COLOURS), role=DIFFERENTIABLE,
+              doc="Colours at evenly spaced keys k/(K−1), interpolated linearly (one "
+                  "colour: a constant). In a texture dict ``\"r g b, r g b, …\"`` "
+                  "(``#rrggbb`` too) or a list of triples; in XML also ``ramp_0``, "
+                  "``ramp_1``, … (XML cannot repeat a name)."),
+)
+
+BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
+#: What a sweep can vary (one value a frame).
+SWEEPABLE: tuple[str, ...] = tuple(p.name for p in PARAMETERS if p.kind != COLOURS)
+#: What a sweep changes in place, through ``mi.traverse`` (no new kernel).
+IN_PLACE: tuple[str, ...] = tuple(p.name for p in PARAMETERS if p.in_place and p.kind != COLOURS)
+#: Keys that were renamed: the old name, and the parameter that replaced it.
+RENAMED: dict[str, str] = {"bandlimit": "filter"}
+
+
+class _Values:
+    """The methods of :class:`MarbleParameters` (its fields come from the table)."""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.ramp, tuple):   # lists from Python: stored immutably
+            object.__setattr__(self, "ramp", tuple(tuple(c) for c in self.ramp))
+
+    @classmethod
+    def from_properties(cls, props, context: str = "marble"):
+        """Every parameter read from a mapping (a Mitsuba ``Properties``, a dict) and
+        checked; missing ones take their defaults. ``ParameterError`` names
+        ``context``, the parameter and the value."""
+        for old, new in RENAMED.items():
+            if old in props:
+                raise ParameterError(f"{context}: {old} was replaced by {new}; write "
+                                     f"{new}=\"{old}\" (or {_listed(BY_NAME[new].choices)})")
+        values = {}
+        for p in PARAMETERS:
+            try:
+                value = ramp_property(props) if p.kind == COLOURS else props.get(p.name, p.default)
+            except ParameterError as e:
+                raise ParameterError(f"{context}: {e}") from None
+            values[p.name] = checked(p, value, context)
+        return cls(**values)
+
+    def items(self):
+        """(parameter, value) for every row."""
+        return ((p, getattr(self, p.name)) for p in PARAMETERS)
+
+
+#: Values for every row of :data:`PARAMETERS`, as the rows hold them: a frozen dataclass
+#: whose fields are the rows, in order, with their defaults. Built by
+#: :meth:`from_properties` (checked) or directly (not checked; the scene language's
+#: ``MarbleChannel`` adds its source position).
+MarbleParameters = dataclasses.make_dataclass(
+    "MarbleParameters", [(p.name, Any, dataclasses.field(default=p.default)) for p in PARAMETERS],
+    bases=(_Values,), frozen=True)
+MarbleParameters.__module__ = __name__
+
+
+def checked(parameter: Parameter, value, context: str = "marble"):
+    """``parameter.check(value)``, with ``context`` and the value in the message; None
+    (a default of None, "decided elsewhere") passes."""
+    if value is None and parameter.default is None:
+        return None
+    try:
+        return parameter.check(value)
+    except ParameterError as e:
+        if parameter.kind == COLOURS:        # its messages quote the colour at fault
+            raise ParameterError(f"{context}: {e}") from None
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        raise ParameterError(f"{context}: {e}, found {shown}") from None
+
+
+# ---------------------------------------------------------------------------
+# Ramps as text and as Mitsuba properties
+
+def parse_ramp(value, name: str = "ramp") -> tuple[tuple[float, float, float], ...]:
+    """Colours from ``"r g b, r g b, …"``, ``"#rrggbb, …"``, one RGB triple or a
+    sequence of triples; ParameterError unless each is three finite numbers."""
+    if isinstance(value, str):
+        colours = [_colour_text(item.strip(), value, name) for item in value.split(",")]
+    elif _is_colour(value):             # <rgb name="ramp" …/>: one colour, a constant
+        colours = [tuple(float(value[i]) for i in range(3))]
+    else:
+        try:
+            colours = [tuple(float(x) for x in c) for c in value]
+        except (TypeError, ValueError):
+            raise ParameterError(f"{name} is not a list of colours") from None
+        if any(len(c) != 3 for c in colours):
+            raise ParameterError(f"{name} has a colour without 3 components")
+    if not colours:
+        raise ParameterError(f"{name} is empty; give at least one colour")
+    if not all(math.isfinite(x) for c in colours for x in c):
+        raise ParameterError(f"{name} has a non-finite component")
+    return tuple(colours)
+
+
+def _colour_text(item: str, whole: str, name: str) -> tuple[float, float, float]:
+    if item.startswith("#") and len(item) == 7:
+        try:
+            return tuple(int(item[i:i + 2], 16) / 255.0 for i in (1, 3, 5))
+        except ValueError:
+            pass
+    try:
+        numbers = tuple(float(x) for x in item.split())
+    except ValueError:
+        numbers = ()
+    if len(numbers) != 3:
+        raise ParameterError(f"{name} colour {item!r} in {whole!r} is not three numbers "
+                             f"'r g b' (colours are separated by commas)")
+    return numbers
+
+
+def _is_colour(value) -> bool:
+    """An RGB triple of numbers (a Mitsuba colour property), not a list of colours."""
+    try:
+        return len(value) == 3 and all(isinstance(float(value[i]), float) for i in range(3)) \
+            and not isinstance(value[0], (tuple, list))
+    except (TypeError, ValueError, IndexError):
+        return False
+
+
+def ramp_text(colours) -> str:
+    """``"r g b, r g b, …"``, every float as Python writes it (exact)."""
+    return ", ".join(" ".join(repr(float(x)) for x in c) for c in colours)
+
+
+def ramp_property(props):
+    """The ramp as given: ``ramp`` (a string, a list, or one ``rgb``), or ``ramp_0``,
+    ``ramp_1``, … (one ``<rgb>`` each)."""
+    try:
+        keys = numbered_properties(props, "ramp")
+    except ValueError as e:
+        raise ParameterError(str(e)) from None
+    if keys is None:
+        return props.get("ramp", BY_NAME["ramp"].default)
+    if "ramp" in props:
+        raise ParameterError("give either ramp or ramp_0, ramp_1, …, not both")
+    return [props[key] for key in keys]
+
+
+def parameter_table() -> str:
+    """The parameters as a reStructuredText list-table (the plugin's docstring)."""
+    rows = []
+    for p in PARAMETERS:
+        default = "the Fig. 5 ramp" if p.kind == COLOURS else repr(p.default)
+        role = "differentiable" if p.in_place else \
+            "structural, in ``mi.traverse``" if p.traversed else "structural"
+        rows.append(f"   * - ``{p.name}``\n     - {p.kind} ({default}; {role})\n"
+                    f"     - {p.requirement[0].upper() + p.requirement[1:]}. {p.doc}")
+    return ".. list-table::\n   :header-rows: 1\n\n   * - Parameter\n     - Type\n" \
+           "     - Description\n" + "\n".join(rows)

@@ -1,0 +1,88 @@
+"""From a sample's pixel and index to its camera ray and its radiance.
+
+A sample is named by two integers, the pixel (row-major, ``y·width + x``) and its
+index ``sub`` among the pixel's ``spp``, so that a pass of any run of pixels or of
+samples is one ``arange`` away (mimarble/mitsuba/passes.py). Whitted mode puts
+sample ``sub`` at the centre of stratum ``(sub mod n, ⌊sub / n⌋)`` of an n×n grid
+(spp = n²); path mode draws it from the scene's sampler. Every number that differs
+between renders (width, spp, the pass's seed) is opaque, so one kernel serves them all.
+"""
+
+from __future__ import annotations
+
+from .. import environment
+from ..scene.model import samples_per_axis
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+
+class PixelTracer:
+    """Radiance of samples given by pixel index and sample index within the pixel."""
+
+    def __init__(self, mitsuba_scene, mode: str):
+        self.scene = mitsuba_scene
+        self.sensor = mitsuba_scene.sensors()[0]
+        self.integrator = mitsuba_scene.integrator()
+        self.width, self.height = (int(x) for x in self.sensor.film().crop_size())
+        self.whitted = mode == "whitted"
+        self.sampler = self.sensor.sampler().clone()
+        # Mitsuba's perspective camera starts a ray at the near clip plane but its two
+        # differential rays at that same point, not at the eye: pixel footprints came out
+        # (t − near)/t of their size (half, for fig11a). They start at the eye here.
+        self.eye = mi.Point3f(self.sensor.world_transform().translation())
+        f32 = self.f32
+        self.columns = self.u32(self.width)
+        # Reciprocals, as Dr.Jit makes of a division by a constant: Mitsuba's own image bit for bit.
+        self.inv_film = mi.Point2f(f32(1.0 / self.width), f32(1.0 / self.height))
+
+    @staticmethod
+    def u32(value):
+        return dr.opaque(mi.UInt32, value)
+
+    @staticmethod
+    def f32(value):
+        return dr.opaque(mi.Float, value)
+
+    def ray(self, pixel, sub, spp: int, seed: int):
+        """(ray with differentials, weight) of sample ``sub`` of ``spp`` in ``pixel``."""
+        u32, f32 = self.u32, self.f32
+        y = pixel // self.columns
+        x = pixel - y * self.columns
+        if self.whitted:
+            n = samples_per_axis(spp)
+            per_axis = u32(n)
+            offset = (mi.Point2f(mi.Float(sub % per_axis), mi.Float(sub // per_axis)) + 0.5) \
+                * f32(1.0 / n)
+        else:
+            self.sampler.seed(u32(seed), dr.width(pixel))
+            offset = self.sampler.next_2d()
+        position = (mi.Point2f(mi.Float(x), mi.Float(y)) + offset) * self.inv_film
+        ray, weight = self.sensor.sample_ray_differential(
+            mi.Float(self.sensor.shutter_open()), 0.0, position, mi.Point2f(0.5))
+        if ray.has_differentials:
+            ray.scale_differential(f32(1.0 / spp ** 0.5))
+            ray.o_x = ray.o_y = self.eye
+        return ray, weight
+
+    def trace(self, pixel, sub, spp: int, seed: int, with_shapes: bool):
+        """(weighted radiance, first shape hit or 0, when ``with_shapes``) of each lane:
+        sample ``sub`` of ``spp`` in pixel ``pixel``. The shape comes from the
+        integrator's own intersection where it offers one (``whitted``'s
+        ``sample_and_shape``), else from a second ``ray_intersect``."""
+        ray, weight = self.ray(pixel, sub, spp, seed)
+        shape = None
+        if with_shapes and hasattr(self.integrator, "sample_and_shape"):
+            radiance, _, _, shape = self.integrator.sample_and_shape(
+                self.scene, self.sampler, ray, None, True)
+        else:
+            radiance = self.integrator.sample(self.scene, self.sampler, ray, None, True)[0]
+            if with_shapes:
+                shape = self._shape(ray)
+        return weight * radiance, shape
+
+    def first_shape(self, pixel, sub, spp: int):
+        """The id of the first shape each (whitted) sample hits, 0 for a miss."""
+        return self._shape(self.ray(pixel, sub, spp, 0)[0])
+
+    def _shape(self, ray):
+        return dr.reinterpret_array(mi.UInt32, self.scene.ray_intersect(ray).shape)

@@ -1,0 +1,121 @@
+"""How the marble fills a pixel: ``filter none | bandlimit | prefilter``, one class each.
+
+Each turns a texture point (mimarble/texture_mapping.py) into a colour through the
+marble's phase, stripe and ramp — at the point, or over the pixel's footprint::
+
+    none:       ramp(t(φ(v)))                     F with every octave the budget keeps
+    bandlimit:  ramp(t(φ(v)))                     F without the octaves finer than the
+                                                  pixel (pbrt-v4's FBm clamp), the last faded
+    prefilter:  mean of ramp∘t over the pixel's   F and ∇F without the octaves finer than
+                interval of phase                 the pixel; their spread widens the interval
+
+The texture chooses one when its parameters change (:func:`choose`); ``marble`` is the
+texture (mimarble/marble.py), read for its parameters as they are now.
+"""
+
+from __future__ import annotations
+
+import math
+
+from . import environment
+from .noise import band_limit, fractal3, fractal_sum, left_out
+from .prefilter import PhaseAverage
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+#: Octaves the prefilter keeps past pbrt's Nyquist cut (noise.band_limit), and the
+#: weight of the left-out octaves' phase variance in the squared box width (12: a box of
+#: that variance). Chosen by measurement: docs/benchmarks.md, "Prefiltered marble".
+PREFILTER_MARGIN = 2.0
+PHASE_SPREAD_WIDENING = 12.0
+#: Two-point Gauss–Legendre on [−½, ½] (nodes ±1/(2√3), weights ½), across the pixel's
+#: short side: on fig11a with 2 octaves, unlit, 1 spp interior RMSE 0.0013 against 0.0019
+#: for one box of the same variance (√(a² + b²)); equal with 8 octaves.
+GAUSS_NODE = 0.5 / math.sqrt(3.0)
+
+
+class PointSample:
+    """``none``: the colour at the point."""
+
+    needs_footprint = False
+
+    def __init__(self, marble):
+        self.marble, self.ramp_size = marble, marble.ramp.size
+
+    def noise(self, point):
+        m = self.marble
+        return fractal3(point.v, m.octaves_evaluated, m.turbulence)
+
+    def colour(self, point):
+        m = self.marble
+        phase = m.phase(point.v, self.noise(point) if m.needs_noise else None)
+        return m.ramp(m.stripe.t(phase))
+
+    def changed(self) -> None:
+        """The ramp's colours changed (a ``mi.traverse`` edit)."""
+
+
+class BandLimit(PointSample):
+    """``bandlimit``: the octaves finer than the pixel left out of F."""
+
+    needs_footprint = True
+
+    def noise(self, point):
+        m = self.marble
+        band = band_limit(point.footprint, m.octaves_evaluated)
+        return fractal_sum(point.v, m.octaves_evaluated, m.turbulence, band=band).value
+
+
+class Prefilter(PointSample):
+    """``prefilter``: the colour averaged over the pixel.
+
+    Across the pixel's box (x, y ∈ [−½, ½]) the phase is, to first order,
+    φ + a·x + b·y with a = ∇φ·∂v/∂x, b = ∇φ·∂v/∂y, ∇φ = period·e_a + distortion·∇F.
+    Along the longer of the two it is a box of phase of width max(|a|, |b|), averaged
+    exactly (mimarble/prefilter.py); across the shorter, two-point Gauss–Legendre. The
+    octaves finer than the footprint (past :data:`PREFILTER_MARGIN`) are left out of F;
+    their spread of phase, variance distortion²·σ², widens the box by
+    :data:`PHASE_SPREAD_WIDENING`·σ² in the square. Where the box is below float32's
+    resolution of the phase, the colour at the point.
+    """
+
+    needs_footprint = True
+
+    def __init__(self, marble):
+        super().__init__(marble)
+        self.average = PhaseAverage(marble.stripe, marble.ramp)
+
+    def changed(self) -> None:
+        self.average.update()
+
+    def colour(self, point):
+        m, v = self.marble, point.v
+        if m.needs_noise:
+            octaves = m.octaves_evaluated
+            band = band_limit(point.footprint, octaves, PREFILTER_MARGIN)
+            F = fractal_sum(v, octaves, m.turbulence, band=band, gradient=True,
+                            differentials=(point.dv_dx, point.dv_dy))
+            mean, variance = left_out(band, octaves, m.turbulence)
+            value = F.value + mean if m.turbulence else F.value
+            phase = m.phase(v, value)
+            grad_phase = m.phase_gradient(F.gradient * m.distortion)
+            spread = dr.square(m.distortion) * (variance + F.spread)
+        else:
+            phase, grad_phase, spread = m.phase(v, None), m.phase_gradient(None), 0.0
+        a, b = dr.abs(dr.dot(grad_phase, point.dv_dx)), dr.abs(dr.dot(grad_phase, point.dv_dy))
+        long, short = dr.maximum(a, b), dr.minimum(a, b)
+        width = dr.sqrt(dr.square(long) + PHASE_SPREAD_WIDENING * spread)
+        below, below_defined = self.average(phase - GAUSS_NODE * short, width)
+        above, above_defined = self.average(phase + GAUSS_NODE * short, width)
+        return dr.select(below_defined & above_defined, 0.5 * (below + above),
+                         m.ramp(m.stripe.t(phase)))
+
+
+def choose(marble, name: str):
+    """The filter ``name`` for ``marble``: every filter needs the integrator's ray
+    differentials, which only the JIT variants carry into a texture; the scalar variant
+    takes the colour at the point."""
+    if not dr.is_jit_v(mi.Float) or marble.ramp.size == 1:   # (one colour: a constant)
+        return PointSample(marble)
+    return {"none": PointSample, "bandlimit": BandLimit, "prefilter": Prefilter}[name](marble)
+

@@ -1,0 +1,81 @@
+"""The marble's colour ramp: K colours at keys k/(K−1), piecewise linear in t ∈ [0, 1].
+
+    ramp(t) = lerp(c_i, c_{i+1}, f),   x = clamp(t, 0, 1)·(K−1),  i = ⌊x⌋ ∈ 0..K−2,  f = x − i
+    ramp′(t) = (K−1)·(c_{i+1} − c_i)   (0 outside [0, 1])
+
+The colours live where the variant wants them — one ``Color3f`` of K entries in JIT
+variants (gathered in the kernel, opaque, differentiable, edited in place by
+``mi.traverse``), a list of colours in the scalar variant — and nowhere else.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import environment
+from .prefilter import period_mean
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+
+class Ramp:
+    """The colours, their lookups in the kernel, and their facts (size, mean, maximum)."""
+
+    def __init__(self, colours):
+        self.colours = mi.Color3f(*zip(*colours)) if dr.is_jit_v(mi.Float) else \
+            [mi.Color3f(c) for c in colours]
+        self.changed()
+
+    def changed(self) -> None:
+        """Read the size again (after ``mi.traverse`` wrote new colours) and keep the
+        colours opaque: a new value reuses the compiled kernel."""
+        self.size = len(self.colours) if isinstance(self.colours, list) else \
+            dr.width(self.colours)
+        if dr.is_jit_v(mi.Float):
+            dr.make_opaque(self.colours)
+
+    def numpy(self) -> np.ndarray:
+        """The colours as float64 (K, 3)."""
+        if isinstance(self.colours, list):
+            return np.array([[c[0], c[1], c[2]] for c in self.colours], dtype=np.float64)
+        return np.array(self.colours, dtype=np.float64).T   # Color3f converts as (3, K)
+
+    def mean(self, stripe) -> np.ndarray:
+        """The mean colour where the phase of ``stripe`` is spread uniformly."""
+        return period_mean(stripe.shape, self.numpy())
+
+    # In the kernel
+
+    def __call__(self, t):
+        """ramp(t). The gather index is in 0..K−2 by construction, whatever t is: a NaN t
+        (whose ⌊x⌋ converts to 2^31 on x86, an out-of-bounds read that kills the process
+        on AVX2 machines) reads key 0, and the NaN reaches the colour through f. One
+        colour is a constant (its index must not come from ⌊t·0⌋ − 1)."""
+        if self.size == 1:
+            return self.constant(dr.width(t))
+        index, f = self.piece(t)
+        return dr.lerp(self.colour(index), self.colour(index + 1), f)
+
+    def constant(self, width: int):
+        """The first colour, ``width`` lanes of it (a one-colour ramp everywhere)."""
+        return self.colour(dr.zeros(mi.UInt32, width) if dr.is_jit_v(mi.Float) else 0)
+
+    def piece(self, t):
+        """(i, f): t on the ramp's piece i (0..K−2, NaN-proof, see :meth:`__call__`) at f."""
+        last = self.size - 1
+        x = dr.clip(t, 0.0, 1.0) * last
+        i = dr.floor(x)
+        i = dr.select((i >= 0.0) & (i <= last - 1), i, dr.select(i > 0.0, last - 1, 0.0))
+        return dr.uint32_array_t(type(x))(i), x - i
+
+    def slope(self, t):
+        """ramp′(t): (K−1)·(c_{i+1} − c_i) on the piece t falls in, 0 outside [0, 1]."""
+        index, _ = self.piece(t)
+        step = self.colour(index + 1) - self.colour(index)
+        return dr.select((t >= 0.0) & (t <= 1.0), step * float(self.size - 1), 0.0)
+
+    def colour(self, index):
+        """c_index."""
+        if isinstance(self.colours, list):
+            return self.colours[index]
+        return dr.gather(mi.Color3f, self.colours, index)

@@ -1,0 +1,51 @@
+"""The scene language's grammar: the text of ``scene.lark`` and the marble block's rules,
+written from the marble's parameter table.
+
+The marble's keys and the syntax of their values are facts of the table
+(mimarble/marble_parameters.py): one rule a row, its value written as its kind says. So
+a new parameter is a new key of the language without an edit here or in ``scene.lark``,
+and the grammar cannot disagree with what the builder checks or the plugin reads.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .. import marble_parameters
+from ..marble_parameters import PARAMETERS
+
+__all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "marble_rules", "grammar_text"]
+
+#: The hand-written part of the grammar: everything but the marble block's rules.
+GRAMMAR_PATH = Path(__file__).with_name("scene.lark")
+
+#: How a value of each kind of parameter is written. Words are any name here; which
+#: names a choice takes is checked after parsing, so that a wrong one gets a message
+#: that lists the right ones, at the word.
+VALUE_SYNTAX: dict[str, str] = {
+    marble_parameters.NUMBER: "NUMBER",
+    marble_parameters.INTEGER: "NUMBER",
+    marble_parameters.CHOICE: "WORD",
+    marble_parameters.BOOLEAN: "WORD",
+    marble_parameters.COLOURS: '"{" vector* "}"',
+}
+
+
+def marble_rules() -> str:
+    """The marble block's rules in Lark's notation: the block, its keys, one rule a key."""
+    width = max(len(p.name) for p in PARAMETERS) + 1
+    rules = [
+        "// The marble block, written from mimarble/marble_parameters.py by",
+        "// mimarble/scene/grammar.py (each value's range: after parsing).",
+        'marble: "marble" "{" _marble_key* "}"',
+        "_marble_key: " + " | ".join(p.name for p in PARAMETERS),
+    ]
+    for p in PARAMETERS:
+        rule = f'{p.name + ":":<{width}} "{p.name}" {VALUE_SYNTAX[p.kind]}'
+        rules.append(f"{rule:<40}// {p.requirement}")
+    return "\n".join(rules) + "\n"
+
+
+def grammar_text() -> str:
+    """The whole grammar: ``scene.lark`` followed by :func:`marble_rules`."""
+    return GRAMMAR_PATH.read_text(encoding="utf-8") + "\n" + marble_rules()

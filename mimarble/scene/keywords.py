@@ -1,0 +1,39 @@
+"""The scene language's keywords: its statements, and the keys each kind of block takes.
+
+Read by the builder (which keys a block may hold), by the syntax-error wording (which
+keywords to list, in what order) and by whoever documents or tests the language. The
+marble block's keys are the rows of the marble's parameter table
+(mimarble/marble_parameters.py), as its grammar rules are (grammar.py).
+"""
+
+from __future__ import annotations
+
+from ..marble_parameters import PARAMETERS
+
+__all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BLOCK_KEYS"]
+
+#: Top-level statements, in documentation order.
+STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "material", "sphere")
+
+#: The keywords that start a channel.
+CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multiply", "mix")
+#: The blocks whose contents are channels.
+CHANNEL_BLOCKS: tuple[str, ...] = ("ambient", "diffuse", "specular", "add", "multiply", "mix")
+
+#: The keywords allowed in each kind of block (keyed by the block's rule name: an image
+#: map is ``image_map``, written ``image { file "…" }`` like the image statement).
+BLOCK_KEYS: dict[str, tuple[str, ...]] = {
+    "image": ("width", "height", "samples", "background"),
+    "camera": ("eye", "lookat", "up", "fov"),
+    "light": ("position", "color"),
+    "material": ("ambient", "diffuse", "specular", "shininess"),
+    "ambient": CHANNEL_KEYWORDS,
+    "diffuse": CHANNEL_KEYWORDS,
+    "specular": CHANNEL_KEYWORDS,
+    "add": CHANNEL_KEYWORDS,
+    "multiply": CHANNEL_KEYWORDS,
+    "mix": CHANNEL_KEYWORDS + ("weight",),
+    "image_map": ("file",),
+    "marble": tuple(p.name for p in PARAMETERS),
+    "sphere": ("center", "radius", "material"),
+}

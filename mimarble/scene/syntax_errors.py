@@ -1,0 +1,249 @@
+"""Syntax errors in words: a Lark exception (or undecodable bytes) -> :class:`SceneError`.
+
+Lark says which token it did not expect and which terminals it would have taken. The
+user wants a sentence in the language's own terms, at the right place: the unknown word
+and the keywords allowed there, the block left open and where it was opened, the value a
+key wants. The wording is kept apart from the parser, which only asks for it; no Lark
+exception escapes the scene package.
+"""
+
+from __future__ import annotations
+
+import re
+
+from lark import Token
+from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
+
+from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED
+from .errors import SceneError
+from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, STATEMENTS
+
+__all__ = ["syntax_error", "decoded"]
+
+#: How the terminals that are not keywords are named in a message.
+_PUNCT = {
+    "LBRACE": "'{'",
+    "RBRACE": "'}'",
+    "LESSTHAN": "'<'",
+    "MORETHAN": "'>'",
+    "COMMA": "','",
+    "NUMBER": "a number",
+    "STRING": 'a quoted name ("...")',
+    "WORD": "a name",
+    "$END": "end of file",
+}
+
+
+def decoded(data: bytes, filename: str) -> str:
+    """``data`` as UTF-8 text, or a SceneError at the first byte that is not UTF-8."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        start = e.start
+        line = data.count(b"\n", 0, start) + 1
+        line_start = data.rfind(b"\n", 0, start) + 1
+        line_end = data.find(b"\n", start)
+        if line_end < 0:
+            line_end = len(data)
+        column = len(data[line_start:start].decode("utf-8", "replace")) + 1
+        src = data[line_start:line_end].decode("utf-8", "replace").rstrip("\r")
+        if any((ord(ch) < 32 and ch != "\t") or ord(ch) == 127 for ch in src):
+            src = None   # control characters: a binary file, whose bytes would garble the terminal
+        raise SceneError(
+            f"invalid UTF-8 byte 0x{data[start]:02x}: scene files must be UTF-8 text",
+            filename=filename,
+            line=line,
+            column=column,
+            source_line=src,
+        ) from None
+
+
+def _describe(tok: Token, keywords: dict[str, str]) -> str:
+    """The token as a message names it: ``keyword 'eye'``, ``number 3``, ``'}'``."""
+    if tok.type == "$END":
+        return "end of file"
+    if tok.type == "NUMBER":
+        return f"number {tok}"
+    if tok.type == "STRING":
+        return f"string {tok}"
+    if tok.type in keywords:
+        return f"keyword '{tok}'"
+    return f"'{tok}'"
+
+
+def _expected_list(names, keywords: dict[str, str]) -> str:
+    """The terminals ``names`` in words, keywords first in the language's order:
+    ``'eye', 'lookat', 'up', 'fov' or '}'``."""
+    order = [k for ks in ((STATEMENTS,) + tuple(BLOCK_KEYS.values())) for k in ks]
+    words = sorted((keywords[n] for n in names if n in keywords), key=lambda w: (order.index(w) if w in order else 99, w))
+    words = list(dict.fromkeys(words))
+    rest = [_PUNCT.get(n, n) for n in sorted(names) if n not in keywords]
+    items = [f"'{w}'" for w in words] + rest
+    if len(items) <= 1:
+        return "".join(items)
+    return ", ".join(items[:-1]) + " or " + items[-1]
+
+
+def _open_blocks(state) -> list[tuple[Token, str]]:
+    """The unclosed blocks at the error, outermost first: (opener keyword token, display name).
+
+    Read from the LALR value stack: a block already reduced is a Tree; one still
+    open leaves its '{' token (and, when the error came right after its '}',
+    that token too) on the stack.
+    """
+    stack = getattr(state, "value_stack", None) or []
+    blocks: list[tuple[Token, str]] = []
+    for i, item in enumerate(stack):
+        if not isinstance(item, Token):
+            continue
+        if item.type == "RBRACE" and blocks:
+            blocks.pop()
+        elif item.type == "LBRACE" and i > 0:
+            opener = stack[i - 1]
+            if isinstance(opener, Token) and opener.type == "STRING" and i > 1:
+                blocks.append((stack[i - 2], f"material {opener}"))
+            elif isinstance(opener, Token):
+                blocks.append((opener, f"'{opener}' block"))
+    return blocks
+
+
+def _eof_position(text: str) -> tuple[int, int]:
+    """Just after the last character that is not white space: where the file ended."""
+    end = len(text.rstrip())
+    line = text.count("\n", 0, end) + 1
+    col = end - (text.rfind("\n", 0, end) + 1) + 1
+    return line, col
+
+
+def _renamed_note(key: str) -> str:
+    """What replaced ``key``, when it is a marble key that was renamed (else nothing)."""
+    if key not in RENAMED:
+        return ""
+    new = BY_NAME[RENAMED[key]]
+    now = f"{new.name} {key}" if key in new.choices else new.name
+    return f" (it is now '{now}'; {new.name} {new.requirement})"
+
+
+def syntax_error(e: UnexpectedInput, text: str, filename: str,
+                 keywords: dict[str, str]) -> SceneError:
+    """The SceneError for Lark's ``e`` while parsing ``text``. ``keywords`` maps the
+    grammar's keyword terminals to their text (``EYE`` -> ``eye``)."""
+    def at(line, col, msg):
+        return SceneError.at(text, filename, line, col, msg)
+
+    if isinstance(e, UnexpectedCharacters):
+        pos = e.pos_in_stream
+        rest = text[pos:]
+        if rest.startswith("/*"):
+            return at(e.line, e.column, "unterminated block comment: '/*' has no matching '*/'")
+        if rest.startswith("*/"):
+            return at(e.line, e.column, "'*/' without a matching '/*'")
+        if rest.startswith('"'):
+            return at(e.line, e.column, "unterminated string: a name must close with '\"' on the same line")
+        if rest[:1] in "+-.0123456789" or (rest[:1].isalnum() and pos > 0 and text[pos - 1].isdigit()):
+            # A number glued to what precedes or follows it: 1-2, 1.2.3, 3abc, 1e
+            start = pos
+            while start > 0 and (text[start - 1].isalnum() or text[start - 1] in "._"):
+                start -= 1
+            m = re.match(r"[\w.+-]+", text[start:])
+            word = m.group(0) if m else rest[:1]
+            col = e.column - (pos - start)
+            return at(
+                e.line,
+                col,
+                f"malformed number '{word}': write numbers like 2, -0.5, .5 or 1e-3, "
+                "separated by spaces or commas (there is no arithmetic)",
+            )
+        ch = rest[:1]
+        shown = repr(ch) if ch.isprintable() else f"U+{ord(ch):04X}"
+        return at(e.line, e.column, f"unexpected character {shown}")
+
+    if isinstance(e, UnexpectedEOF):  # not raised by LALR, but be safe
+        line, col = _eof_position(text)
+        return at(line, col, "unexpected end of file")
+
+    assert isinstance(e, UnexpectedToken)
+    tok: Token = e.token
+    expected = set(e.expected or ())
+    # LALR merges look-ahead sets, so e.expected can list tokens that would fail
+    # after a reduction; the interactive parser tries each one and is exact.
+    ip = getattr(e, "interactive_parser", None)
+    if ip is not None:
+        try:
+            expected = set(ip.accepts()) or expected
+        except Exception:  # pragma: no cover - keep the coarse set
+            pass
+    state = getattr(e, "state", None)
+    blocks = _open_blocks(state)
+    stack = getattr(state, "value_stack", None) or []
+    prev = stack[-1] if stack else None
+    found = _describe(tok, keywords)
+
+    if tok.type == "$END":
+        line, col = _eof_position(text)
+        if blocks:
+            opener, name = blocks[-1]
+            return at(line, col, f"missing closing '}}' for {name} opened at {opener.line}:{opener.column}")
+        return at(line, col, f"unexpected end of file; expected {_expected_list(expected, keywords)}")
+
+    line, col = tok.line, tok.column
+
+    statement_keys = {n for n in expected if keywords.get(n) in STATEMENTS}
+    if tok.type == "RBRACE" and not blocks and expected <= statement_keys | {"$END"}:
+        return at(line, col, "unexpected '}': no block is open here")
+
+    keys = {n for n in expected if n in keywords}
+    if keys and expected <= keys | {"RBRACE", "$END"}:
+        # A keyword is expected: top-level statement or a key inside a block.
+        allowed = _expected_list(keys, keywords)
+        if not blocks:
+            if tok.type == "WORD":
+                return at(line, col, f"unknown statement '{tok}'; a statement is one of {allowed}")
+            return at(line, col, f"unexpected {found} at top level; a statement is one of {allowed}")
+        opener, name = blocks[-1]
+        if opener in CHANNEL_BLOCKS:
+            what = ("a channel: 'color < r g b >', 'marble { ... }', 'image { file \"...\" }', "
+                    "'add { ... }', 'multiply { ... }' or 'mix { ... }'")
+            if opener == "mix":
+                what += ", or 'weight W' last"
+            if tok.type == "RBRACE":
+                return at(line, col, f"empty {name}: expected {what}")
+            if str(tok) == "weight":
+                return at(line, col, "'weight' belongs in a mix block: mix { A B weight W }")
+            if tok.type == "WORD":
+                return at(line, col, f"unknown channel '{tok}' in {name}; expected {what}")
+            return at(line, col, f"unexpected {found} in {name}; expected {what}")
+        if tok.type == "WORD":
+            return at(line, col, f"unknown keyword '{tok}' in {name}{_renamed_note(str(tok))}; "
+                                 f"allowed: {allowed}")
+        if tok.type in keywords:
+            return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: {allowed}")
+        return at(line, col, f"unexpected {found} in {name}; expected a keyword ({allowed}) or '}}'")
+
+    if expected == {"RBRACE"} and blocks:
+        opener, name = blocks[-1]
+        msg = f"expected '}}' to close {name} opened at {opener.line}:{opener.column}, found {found}"
+        if opener in ("ambient", "diffuse", "specular"):
+            msg += " (a component takes exactly one channel)"
+        return at(line, col, msg)
+
+    after = f" after '{prev}'" if isinstance(prev, Token) and prev.type in keywords else ""
+    if expected == {"NUMBER"}:
+        return at(line, col, f"expected a number{after}, found {found}")
+    if {"NUMBER", "MORETHAN"} <= expected:
+        return at(line, col, f"expected a number or '>' in vector, found {found}")
+    if expected == {"LESSTHAN"}:
+        return at(line, col, f"expected a vector '< x y z >'{after}, found {found}")
+    if expected == {"LESSTHAN", "RBRACE"}:
+        return at(line, col, f"expected a colour '< r g b >' or '}}' in ramp, found {found}")
+    if expected == {"STRING"}:
+        return at(line, col, f'expected a quoted material name like "marble"{after}, found {found}')
+    if expected == {"LBRACE"}:
+        return at(line, col, f"expected '{{'{after}, found {found}")
+    if expected == {"WORD"}:
+        parameter = BY_NAME.get(str(prev)) if after else None
+        if parameter is not None and parameter.kind in (CHOICE, BOOLEAN):
+            # The same sentence as for a wrong word (the builder's), at the token.
+            return at(line, col, f"{parameter.name} {parameter.requirement}, found {found}")
+        return at(line, col, f"expected a name{after}, found {found}")
+    return at(line, col, f"unexpected {found}; expected {_expected_list(expected, keywords)}")

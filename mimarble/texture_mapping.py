@@ -1,0 +1,99 @@
+"""Where the marble is evaluated: the texture point and the pixel's footprint.
+
+    v = scale · to_world⁻¹ · p,        ∂v/∂x = scale · to_world⁻¹ · (∂p/∂u ∂u/∂x + ∂p/∂v ∂v/∂x)
+
+p is the world-space point Mitsuba hands the texture; ``to_world`` places the texture
+in the world (identity when not given: no transform is traced). The footprint comes
+from the ray differentials the integrator stored in ``si.duv_dx``, ``si.duv_dy``
+(``whitted`` does; without them they are 0, and every filter keeps every octave).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from . import environment
+from .finite_arithmetic import finite_product
+from .marble_parameters import ParameterError
+from .plugins import transform_matrix
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+
+class TexturePoint(NamedTuple):
+    """A texture point v, its pixel's extent (∂v/∂x, ∂v/∂y; None when not asked for),
+    and whether the world point was finite (a NaN or infinite one gets a NaN colour)."""
+
+    v: object
+    dv_dx: object
+    dv_dy: object
+    finite: object
+
+    @property
+    def footprint(self):
+        """The pixel's width in noise units: the longer of its two sides."""
+        return dr.maximum(dr.norm(self.dv_dx), dr.norm(self.dv_dy))
+
+
+class TextureMapping:
+    """p ↦ v = scale · to_world⁻¹ · p, for points, footprints and gradients."""
+
+    def __init__(self, to_world, scale):
+        self.to_world, self.scale = to_world, scale
+        self.changed()
+
+    @classmethod
+    def from_properties(cls, props, scale):
+        """``to_world`` from the plugin's properties (none: the identity); a singular
+        one is refused."""
+        if "to_world" not in props:
+            return cls(None, scale)
+        # Properties hold transforms in double precision; the kernel uses float.
+        matrix = np.array(props["to_world"].matrix, dtype=np.float64).reshape(4, 4)
+        check_invertible(matrix)
+        return cls(mi.Transform4f(mi.Matrix4f(matrix.tolist())), scale)
+
+    def changed(self) -> None:
+        """After ``mi.traverse`` edits: check the transform and invert it as it is now."""
+        if self.to_world is not None:
+            check_invertible(transform_matrix(self.to_world))
+        self.to_texture = None if self.to_world is None else self.to_world.inverse()
+
+    def point(self, p):
+        """v at world points p."""
+        return finite_product(p if self.to_texture is None else self.to_texture @ p, self.scale)
+
+    def map(self, si, footprint: bool = False) -> TexturePoint:
+        """The texture point of ``si``, with the pixel's footprint when asked for."""
+        p = si.p
+        finite = dr.isfinite(p.x) & dr.isfinite(p.y) & dr.isfinite(p.z)
+        if not footprint:
+            return TexturePoint(self.point(p), None, None, finite)
+        dp_dx = si.dp_du * si.duv_dx.x + si.dp_dv * si.duv_dx.y
+        dp_dy = si.dp_du * si.duv_dy.x + si.dp_dv * si.duv_dy.y
+        if self.to_texture is not None:
+            dp_dx, dp_dy = self.to_texture @ dp_dx, self.to_texture @ dp_dy
+        return TexturePoint(self.point(p), dp_dx * self.scale, dp_dy * self.scale, finite)
+
+    def gradient_to_world(self, gradient):
+        """∇_p of a function whose gradient in to_world's frame is ``gradient``:
+        (M⁻¹)ᵀ ∇ with M⁻¹ = to_texture (the scale is the caller's)."""
+        if self.to_texture is None:
+            return gradient
+        m = self.to_texture.matrix
+        return mi.Vector3f(*(sum(m[i][j] * gradient[i] for i in range(3)) for j in range(3)))
+
+
+def check_invertible(matrix: np.ndarray) -> None:
+    """A to_world whose linear part cannot be inverted (in float32) would put every point
+    at one phase: the first ramp colour everywhere. Refused instead."""
+    linear = matrix[:3, :3]
+    if not np.isfinite(matrix).all():
+        raise ParameterError("marble: to_world has a non-finite entry")
+    scale = np.abs(linear).max()
+    det = np.linalg.det(linear)
+    if scale == 0 or not abs(det) > (1e-6 * scale) ** 3:
+        raise ParameterError(f"marble: to_world is singular (determinant {det:.3g} of its "
+                             f"3×3 part): texture space would collapse")
