@@ -422,8 +422,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")
     p.add_argument("--json", metavar="OUT", help="write all measurements as JSON")
     p.add_argument("--plot", metavar="OUT.png", help="write the error-against-time plot")
-    p.add_argument("--size", type=int, default=256, help="image size for the sweeps (default 256)")
-    p.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16], help="spp values swept")
+    p.add_argument("--size", type=int, default=256, help="image size of the measured renders (default 256)")
+    p.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16], help="the spp values measured")
     p.add_argument("--repeats", type=int, default=5, help="warm runs per timing (median)")
     p.add_argument("--converged-spp", type=int, default=64, help="reference spp (default 64)")
     p.add_argument("--no-targets", action="store_true", help="skip the issue's target measurements")
@@ -432,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip timing POV-Ray 3.7 on a comparable marble sphere (done with the "
                         "targets when `povray` is installed)")
     add_tolerance(p)
-    add_filter(p, "sweeps only this one (default: plain, bandlimit, prefilter, and prefilter "
+    add_filter(p, "measures only this one (default: plain, bandlimit, prefilter, and prefilter "
                   "with edge samples)")
     add_variant(p)
     p.set_defaults(run=_bench)

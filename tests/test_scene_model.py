@@ -279,3 +279,22 @@ def test_block_keys_table_matches_the_grammar():
             if (block, key) in (("light", "position"), ("sphere", "material")):
                 continue  # required keys, already in the wrapper
             parse(wrap[block].format(f"{key} {samples[key]}"))
+
+
+def test_the_documented_marble_keys_are_the_parameter_table():
+    """docs/scene-language.md lists the marble's keys by hand: one row per parameter of
+    mimarble/marble_parameters.py, in its order, with its default."""
+    from pathlib import Path
+
+    from mimarble.marble_parameters import COLOURS, PARAMETERS
+    text = (Path(__file__).parent.parent / "docs" / "scene-language.md").read_text()
+    table = text[text.index("The marble, all keys optional"):]
+    rows = [line for line in table.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
+    assert [row.split("`")[1] for row in rows] == [p.name for p in PARAMETERS]
+    for row, p in zip(rows, PARAMETERS):
+        default = row.split("|")[3].strip().strip("`")
+        if p.kind == COLOURS or p.default is None:
+            continue
+        expected = str(p.default).lower() if p.kind == "boolean" else \
+            f"{p.default:g}" if p.kind == "number" else str(p.default)
+        assert default == expected, (p.name, default)

@@ -49,14 +49,14 @@ class TracedPass(NamedTuple):
 
 
 def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
-                    radiance: bool = True, shapes: bool = False,
+                    with_radiance: bool = True, with_shapes: bool = False,
                     pass_samples: int | None = None):
     """Yield a :class:`TracedPass` per pass of ``spp`` samples in each pixel.
 
     ``pixels``: uint32 pixel indices, default every pixel of ``tracer``'s
-    image in order. ``radiance``: trace the integrator (``tracer.trace``),
-    else only the first shape hit (``tracer.first_shape``); ``shapes``: also
-    reduce the first shape hit per pixel. ``pass_samples``: lanes per pass
+    image in order. ``with_radiance``: trace the integrator (``tracer.trace``),
+    else only the first shape hit (``tracer.first_shape``); ``with_shapes``:
+    also reduce the first shape hit per pixel. ``pass_samples``: lanes per pass
     (default :data:`PASS_SAMPLES`). A pass's seed is its number (path mode).
 
     A pixel split over passes is summed in float64 in pass order and handed
@@ -69,7 +69,7 @@ def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
     for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, spp, pass_samples)):
         lanes = n_pixels * n_samples
         lane = dr.arange(mi.UInt32, lanes)
-        if pixels is None:
+        if pixels is None:                           # opaque offsets: one kernel for every pass
             pixel = u32(p0) + lane // u32(n_samples)
             sub = u32(q0) + lane % u32(n_samples)
         else:
@@ -77,8 +77,8 @@ def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
                               lane // u32(n_samples))
             # Only the later passes of a split pixel start past sample 0.
             sub = lane % u32(n_samples) if q0 == 0 else u32(q0) + lane % u32(n_samples)
-        if radiance:
-            value, hit_shape = tracer.trace(pixel, sub, spp, index, shapes)
+        if with_radiance:
+            value, hit_shape = tracer.trace(pixel, sub, spp, index, with_shapes)
         else:
             value, hit_shape = None, tracer.first_shape(pixel, sub, spp)
         traced = _pixel_sums(value, hit_shape, lanes, n_samples)
@@ -100,8 +100,8 @@ def _pixel_sums(radiance, shapes, lanes: int, n_samples: int):
     rounding is far below float32's.
     """
     if radiance is not None:
-        radiance = mi.Color3d(radiance) + dr.zeros(mi.Color3d, lanes)  # constant channels: full width
-    dr.eval(*(x for x in (radiance, shapes) if x is not None))        # one kernel for all of them
+        radiance = mi.Color3d(radiance) + dr.zeros(mi.Color3d, lanes)   # constants: full width
+    dr.eval(*(x for x in (radiance, shapes) if x is not None))         # one kernel for all
     if radiance is not None and n_samples > 1:
         radiance = dr.block_sum(radiance, n_samples)
     first = last = shapes

@@ -79,9 +79,7 @@ def check_images(scene) -> None:
             mi.Bitmap(channel.location)
         except Exception as e:   # Mitsuba's reader raises RuntimeError with libpng's reason
             reason = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-            raise scene_language.SceneError.in_file(
-                scene.source, channel.pos,
-                f"image file '{channel.file}' cannot be decoded: {reason}") from None
+            raise scene_language.SceneError.undecodable_image(scene, channel, reason) from None
 
 
 def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
@@ -121,13 +119,14 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     (so only an ``edge_spp`` above ``spp`` does anything; mimarble/mitsuba/silhouettes.py).
     Deterministic, like the rest.
 
-    Every number that varies between renders of one scene structure is opaque
+    The numbers that vary between renders of one scene structure are opaque
     (pass offsets, samples per pixel, image width and height), so a scene
-    compiles one kernel for every spp and size: a new user's renders at 1, 4 and
+    compiles one kernel for every spp: a new user's renders at 1, 4 and
     16 spp cost one compilation (0.45 s for fig11a on the AMD EPYC), not three,
     as they did through ``mi.render``, whose sampler and sample indexing take
     the spp as a constant. JIT variants therefore always render here, also in
-    one pass.
+    one pass. A new image size still compiles a new kernel (measured: 16², 24²,
+    33² one each; something of the loaded Mitsuba scene bakes the film size in).
     """
     check_edge_spp(edge_spp, mode)
     if edge_spp is not None and edge_spp <= spp:
@@ -144,7 +143,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     # they take, so that a bar stays open until the edge pass has said how much it adds.
     pending = 1 if edge_spp else 0
     done(0, samples_total + pending)                   # a bar's delay counts from here
-    first_passes = trace_in_passes(tracer, spp, shapes=shapes is not None,
+    first_passes = trace_in_passes(tracer, spp, with_shapes=shapes is not None,
                                    pass_samples=pass_samples)
     for samples in _fill(image, first_passes, spp, shapes):
         samples_done += samples

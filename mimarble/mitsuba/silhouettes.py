@@ -54,7 +54,7 @@ def edge_mask(mitsuba_scene, spp: int = 16) -> np.ndarray:
     tracer = PixelTracer(mitsuba_scene, "whitted")
     pixels = tracer.width * tracer.height
     shapes = np.zeros((2, pixels), dtype=np.uint32)
-    for traced in trace_in_passes(tracer, spp, radiance=False, shapes=True):
+    for traced in trace_in_passes(tracer, spp, with_radiance=False, with_shapes=True):
         shapes[0, traced.pixels] = traced.first_shape
         shapes[1, traced.pixels] = traced.last_shape
     mask = np.zeros(pixels, dtype=bool)

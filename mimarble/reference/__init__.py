@@ -81,7 +81,5 @@ def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
             image_map.load_image(channel.location)
         except ValueError as e:   # "image file '/abs/path': reason" → at the file string
             reason = str(e).split("': ", 1)[-1]
-            raise SceneError.in_file(scene.source, channel.pos,
-                                     f"image file '{channel.file}' cannot be decoded: {reason}") \
-                from None
+            raise SceneError.undecodable_image(scene, channel, reason) from None
     return _render(scene, spp=spp, progress=report(progress, "reference"))

@@ -65,6 +65,13 @@ class SceneError(Exception):
                 src = None
         return cls(message, filename=source or "<scene>", line=line, column=column, source_line=src)
 
+    @classmethod
+    def undecodable_image(cls, scene, channel, reason: str) -> "SceneError":
+        """An image map of ``scene`` whose file the parser accepted (its header) but a
+        renderer could not decode, at the map's ``file`` string."""
+        return cls.in_file(scene.source, channel.pos,
+                           f"image file '{channel.file}' cannot be decoded: {reason}")
+
     def __reduce__(self):
         return (_rebuild, (self.message, self.filename, self.line, self.column, self.source_line))
 
