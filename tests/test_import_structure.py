@@ -239,3 +239,32 @@ def test_the_checker_finds_a_circle_and_passes_the_package_face(tmp_path):
     assert graph["pkg.sub.e"] == {"pkg.d": [1]}
     assert graph["pkg.g"] == {"pkg": [1]}
     assert cycles(graph) == [["pkg", "pkg.f", "pkg"], ["pkg.d", "pkg.sub.e", "pkg.d"]]
+
+
+def _imported_names(path: Path) -> set[str]:
+    """The top-level names of every absolute import in a file (``lark``, ``drjit``, …)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name.split(".")[0] for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.add(node.module.split(".")[0])
+    return names
+
+
+def test_the_marble_parameter_table_needs_neither_lark_nor_drjit():
+    """mimarble/marble_parameters.py and the modules it reaches inside mimarble import only
+    the standard library: the command line reads the table before Dr.Jit loads, and the
+    scene package (Lark) and the plugin (Dr.Jit) both read it."""
+    import sys
+    modules = module_files(ROOT / PACKAGE)
+    graph = import_graph(ROOT / PACKAGE)
+    reached, todo = set(), ["mimarble.marble_parameters"]
+    while todo:
+        name = todo.pop()
+        if name not in reached:
+            reached.add(name)
+            todo.extend(m for m in graph.get(name, {}) if m != PACKAGE)
+    for name in sorted(reached):
+        outside = _imported_names(modules[name]) - set(sys.stdlib_module_names) - {PACKAGE}
+        assert not outside, f"{name} imports {sorted(outside)}"

@@ -10,8 +10,9 @@ or, when one pixel has more samples than a pass, runs of that pixel's samples
 reduces it in Dr.Jit, so that memory is a pass's working set whatever the
 image size and spp, and only values per pixel come back to NumPy.
 
-Pass offsets and sizes are opaque, so every pass, spp and image size of a
-scene runs one compiled kernel (docs/design-decisions.md, "Bounded memory").
+Pass offsets and sizes are opaque, so every pass and spp of a scene runs one
+compiled kernel (a new image size compiles another: docs/design-decisions.md,
+"Start-up and the kernel cache").
 """
 
 from __future__ import annotations
