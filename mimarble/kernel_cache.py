@@ -10,7 +10,7 @@ Compiling costs more than rendering: fig11a's kernel takes 0.45 s of LLVM on
 the AMD EPYC, its 500² 1-spp render 0.03 s. A scene compiles one kernel per
 structure (number of octaves, marble function, lights, …) and image size;
 every spp and every opaque parameter (period, distortion, colours, positions)
-reuses it. ``render_in_passes`` (mimarble/mitsuba/render.py) passes the spp
+reuses it. ``render_in_passes`` (mimarble/mitsuba/passes.py, pixel_tracer.py) passes the spp
 and the pass offsets as opaque values, so no spp is in the kernel; it passes
 width and height as opaque values too, yet a new image size still compiles a
 new kernel (measured, Dr.Jit 1.5 and Mitsuba 3.9: fig11a at 16², 24² and 33²

@@ -17,11 +17,11 @@ from __future__ import annotations
 
 from . import environment, error_budget, pixel_filter
 from .finite_arithmetic import finite_product
-from .marble_parameters import (AXES, BY_NAME, NUMBER, PARAMETERS, MarbleParameters,
-                                ParameterError, checked, parameter_table)
+from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, NUMBER, PARAMETERS,
+                                MarbleParameters, ParameterError, checked, parameter_table)
 from .noise import fractal_sum
-from .plugins import first_number, luminance, plugin
-from .ramp import Ramp
+from .plugins import RGBTexture, describe, first_number, plugin
+from .ramp import Ramp, ramp_storage
 from .stripes import STRIPES
 from .texture_mapping import TextureMapping
 
@@ -29,10 +29,10 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 
 @plugin("texture", "marble")
-class Marble:
+class Marble(RGBTexture):
     __doc__ = ("Marble solid texture (Park & Park 2004): see mimarble/marble.py.\n\n"
                + parameter_table() + "\n\nAlso ``to_world`` (transform, identity): places the "
-               "texture in the world; must be invertible; in ``mi.traverse``, not "
+               "texture in the world; must be invertible; always in ``mi.traverse``, not "
                "differentiable.")
 
     def __init__(self, props):
@@ -46,16 +46,12 @@ class Marble:
         self.tolerance = error_budget.DEFAULT_TOLERANCE if params.tolerance is None \
             else params.tolerance
         self.stripe, self.axis_index = STRIPES[self.function], AXES.index(self.axis)
-        self.ramp = Ramp(params.ramp)
-        # What mi.traverse edits in place: the table's traversed rows (and to_world).
-        self.editable = {p.name: self.ramp.colours if p.name == "ramp" else
-                         (mi.Float if p.kind == NUMBER else mi.UInt32)(getattr(params, p.name))
+        # What mi.traverse edits in place: the table's traversed rows and to_world.
+        self.editable = {p.name: _editable(p, getattr(params, p.name))
                          for p in PARAMETERS if p.is_traversed}
-        self.scale, self.period, self.distortion = (self.editable[name] for name in
-                                                    ("scale", "period", "distortion"))
-        self.mapping = TextureMapping.from_properties(props, self.scale)
-        if self.mapping.to_world is not None:
-            self.editable["to_world"] = self.mapping.to_world
+        self.ramp = Ramp(self.editable["ramp"])
+        self.mapping = TextureMapping.from_properties(props)
+        self.editable["to_world"] = self.mapping.to_world
         self.pixel_filter = None
         self.parameters_changed()
 
@@ -72,51 +68,73 @@ class Marble:
         invalid edit raises and puts the last valid values back, so the texture never
         renders with them. Then decide what the kernel evaluates."""
         try:
-            values = {name: self.ramp.numpy() if name == "ramp" else first_number(value)
-                      for name, value in self.editable.items() if name in BY_NAME}
-            values = {name: checked(BY_NAME[name], value) for name, value in values.items()}
-            self.mapping.changed()
+            values = {name: checked(BY_NAME[name], self._read_back(BY_NAME[name]))
+                      for name in self.editable if name in BY_NAME}
+            self.mapping.check()
         except ParameterError:
             for name, value in getattr(self, "_last_valid", {}).items():
-                if dr.is_jit_v(mi.Float):   # in place: mi.traverse holds these very objects
-                    mi.set_property(self.editable[name], value)
+                # In place: mi.traverse holds these very objects.
+                mi.set_property(self.editable[name], value)
             raise
         self._last_valid = {name: type(value)(value) for name, value in self.editable.items()}
         self.ramp.changed()
-        for value in (self.scale, self.period, self.distortion):
-            dr.make_opaque(value)
-        # Structural: a new count traces a new kernel at the next eval.
+        if dr.is_jit_v(mi.Float):   # the kernel reads the traversed values themselves
+            self.scale, self.period, self.distortion = (
+                self.editable[name] for name in ("scale", "period", "distortion"))
+            for value in (self.scale, self.period, self.distortion):
+                dr.make_opaque(value)
+        else:                       # the scalar variant computes on Python floats
+            self.scale, self.period, self.distortion = (
+                values[name] for name in ("scale", "period", "distortion"))
+        self.mapping.changed(self.scale)
+        # Structural: a new count traces a new kernel at the next eval. The budget bounds
+        # the colour's error, not its derivatives' (every octave's gradient is of the same
+        # size, 2^i·2^−i): a parameter being differentiated keeps every octave.
         self.octaves = values["octaves"]
+        differentiated = any(dr.grad_enabled(self.editable[p.name]) for p in PARAMETERS
+                             if p.in_place)
         self.octaves_evaluated = error_budget.octaves_needed(
-            self.tolerance, self.octaves, values["distortion"], values["ramp"], self.function)
+            0.0 if differentiated else self.tolerance, self.octaves, values["distortion"],
+            values["ramp"], self.function)
         self.needs_noise = self.octaves_evaluated > 0 and (values["distortion"] != 0.0
                                                            or dr.grad_enabled(self.distortion))
-        if self.pixel_filter is not None and self.pixel_filter.ramp_size == self.ramp.size:
+        if self.pixel_filter is not None and self._ramp_size == self.ramp.size:
             self.pixel_filter.changed()
-        else:
+        else:                       # a filter's tables are made for a number of colours
             self.pixel_filter = pixel_filter.choose(self, self.filter)
-        self._mean = luminance(self.ramp.mean(self.stripe))
+        self._ramp_size = self.ramp.size
         self._max = float(self.ramp.numpy().max())
 
+    def _read_back(self, parameter):
+        """A traversed parameter's value as the table holds it (an edit may have left
+        anything there: it is checked next)."""
+        value = self.editable[parameter.name]
+        if parameter.kind == COLOURS:
+            return self.ramp.numpy()
+        number = first_number(value)
+        return int(number) if parameter.kind == INTEGER and number.is_integer() else number
+
     def to_string(self):
-        return (f"Marble[function={self.function}, axis={self.axis}, "
-                f"scale={first_number(self.scale)}, period={first_number(self.period)}, "
-                f"distortion={first_number(self.distortion)}, octaves={self.octaves} "
-                f"({self.octaves_evaluated} within tolerance={self.tolerance:g}), "
-                f"turbulence={self.turbulence}, filter={self.filter}, "
-                f"ramp={self.ramp.size} colours]")
+        return describe("Marble", {
+            "function": self.function, "axis": self.axis,
+            "scale": first_number(self.scale), "period": first_number(self.period),
+            "distortion": first_number(self.distortion),
+            "octaves": f"{self.octaves} ({self.octaves_evaluated} within tolerance "
+                       f"{self.tolerance:g})",
+            "turbulence": self.turbulence, "filter": self.filter,
+            "ramp": f"{self.ramp.size} colours",
+            "to_world": "identity" if self.mapping.to_texture is None else "given"})
 
     def is_spatially_varying(self):
         return self.ramp.size > 1
 
     def mean(self):
-        return mi.Float(self._mean)
+        """The mean luminance where the phase is spread uniformly (mimarble/ramp.py);
+        differentiable with respect to the ramp."""
+        return mi.luminance(self.ramp.mean(self.stripe))
 
     def max(self):
         return self._max
-
-    def spectral_resolution(self):
-        return 0.0
 
     # -- Evaluation ------------------------------------------------------------
 
@@ -130,18 +148,15 @@ class Marble:
         return self.stripe.phase_gradient(self.axis_index, self.period, noise_gradient)
 
     def eval(self, si, active=True):
+        """The colour at ``si``; 0 where ``active`` is False, as Mitsuba's ``bitmap``
+        gives (every lookup is in bounds by construction, so none needs the mask)."""
         if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
-            return self.ramp.constant(dr.width(si.p))
+            return dr.select(active, self.ramp.constant(dr.width(si.p)), 0.0)
         point = self.mapping.map(si, self.pixel_filter.needs_footprint)
         # A NaN or infinite point gets a NaN colour, decided here once rather than left to
         # how each backend's min/max and float→int conversions treat NaN (they differ).
-        return dr.select(point.finite, self.pixel_filter.colour(point), dr.nan)
-
-    def eval_3(self, si, active=True):
-        return self.eval(si, active)
-
-    def eval_1(self, si, active=True):
-        return mi.luminance(self.eval(si, active))
+        colour = dr.select(point.finite, self.pixel_filter.colour(point), dr.nan)
+        return dr.select(active, colour, 0.0)
 
     def eval_1_grad(self, si, active=True):
         """∂(luminance)/∂(u, v), exact, by the chain rule (what Mitsuba's ``bumpmap`` reads):
@@ -165,4 +180,16 @@ class Marble:
         gradient = self.mapping.gradient_to_world(
             (slope * self.stripe.slope(phase) * self.scale) * grad_phase)
         return mi.Vector2f(dr.dot(gradient, si.dp_du), dr.dot(gradient, si.dp_dv))
+
+
+def _editable(parameter, value):
+    """A traversed parameter's value in a container Mitsuba can write into in every
+    variant: Dr.Jit arrays in JIT variants; in scalar_rgb, where mi.Float is a Python
+    float, one-element ``ArrayXf``/``ArrayXu`` and the ramp's ``TensorXf``."""
+    if parameter.kind == COLOURS:
+        return ramp_storage(value)
+    jit = dr.is_jit_v(mi.Float)
+    if parameter.kind == NUMBER:
+        return mi.Float(value) if jit else dr.scalar.ArrayXf([value])
+    return mi.UInt32(value) if jit else dr.scalar.ArrayXu([value])
 

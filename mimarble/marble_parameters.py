@@ -94,11 +94,13 @@ class Parameter:
             return "must be true or false"
         return f"must hold {self.bounds[0]}..{self.bounds[1]} finite colours"
 
-    def check(self, value):
+    def check(self, value, text: bool = False):
         """``value`` as this parameter holds it (float, int, str, bool or a tuple of RGB
-        tuples), or :class:`ParameterError`. Words are taken for choices and booleans
-        (``"true"``), integral floats for integers, strings and sequences for colours
-        (:func:`parse_ramp`). A number's problem names the bound it misses."""
+        tuples), or :class:`ParameterError`. Strings and sequences are taken for colours
+        (:func:`parse_ramp`). A value read from text (``text``: the scene language, a
+        sweep's ``--set``) may also be a word for a boolean (``true``) and a number with
+        no fraction for an integer; a plugin's properties must have the type itself, as
+        Mitsuba's own plugins require. A number's problem names the bound it misses."""
         if self.kind == COLOURS:
             colours = parse_ramp(value, self.name)
             lo, hi = self.bounds
@@ -111,9 +113,12 @@ class Parameter:
                 raise ParameterError(f"{self.name} {self.requirement}")
             return str(value)
         if self.kind == BOOLEAN:
-            if not (isinstance(value, bool) or value in ("true", "false")):
+            if not (isinstance(value, bool) or text and value in ("true", "false")):
                 raise ParameterError(f"{self.name} {self.requirement}")
             return value in (True, "true")
+        if self.kind == INTEGER and not text and not (isinstance(value, int)
+                                                      and not isinstance(value, bool)):
+            raise ParameterError(f"{self.name} {self.requirement}")
         if isinstance(value, bool) or not isinstance(value, (int, float)) \
                 or not math.isfinite(value):
             raise ParameterError(f"{self.name} must be a finite number")
@@ -171,8 +176,9 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("ramp", COLOURS, FIG5_RAMP, bounds=(1, MAX_RAMP_COLOURS), role=DIFFERENTIABLE,
               doc="Colours at evenly spaced keys k/(K−1), interpolated linearly (one "
                   "colour: a constant). In a texture dict ``\"r g b, r g b, …\"`` "
-                  "(``#rrggbb`` too) or a list of triples; in XML also ``ramp_0``, "
-                  "``ramp_1``, … (XML cannot repeat a name)."),
+                  "(``#rrggbb`` too; ``mimarble.marble_parameters.ramp_text`` writes it "
+                  "from triples: Mitsuba's properties hold no lists), one ``rgb``, or "
+                  "``ramp_0``, ``ramp_1``, … (also in XML, which cannot repeat a name)."),
 )
 
 BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -198,8 +204,9 @@ class _Values:
         ``context``, the parameter and the value."""
         for old, new in RENAMED.items():
             if old in props:
+                others = [c for c in BY_NAME[new].choices if c != old]
                 raise ParameterError(f"{context}: {old} was replaced by {new}; write "
-                                     f"{new}=\"{old}\" (or {_listed(BY_NAME[new].choices)})")
+                                     f"{new}=\"{old}\" (or {_listed(others)})")
         values = {}
         for p in PARAMETERS:
             try:
@@ -224,13 +231,13 @@ MarbleParameters = dataclasses.make_dataclass(
 MarbleParameters.__module__ = __name__
 
 
-def checked(parameter: Parameter, value, context: str = "marble"):
-    """``parameter.check(value)``, with ``context`` and the value in the message; None
-    (a default of None, "decided elsewhere") passes."""
+def checked(parameter: Parameter, value, context: str = "marble", text: bool = False):
+    """``parameter.check(value, text)``, with ``context`` and the value in the message;
+    None (a default of None, "decided elsewhere") passes."""
     if value is None and parameter.default is None:
         return None
     try:
-        return parameter.check(value)
+        return parameter.check(value, text)
     except ParameterError as e:
         if parameter.kind == COLOURS:        # its messages quote the colour at fault
             raise ParameterError(f"{context}: {e}") from None

@@ -54,6 +54,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import environment
+from .marble_parameters import MAX_OCTAVES
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -75,7 +76,6 @@ PERMUTATION = (
 )
 
 NOISE_BOUND = 1.0364           # sup |N|, Perlin's improved noise in 3D
-MAX_OCTAVES = 64               # the largest octave count accepted
 MAX_OCTAVES_EVALUATED = 25     # octaves from here on are below float32 resolution
 SKIPPED_OCTAVES_BOUND = NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)
 

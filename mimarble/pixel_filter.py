@@ -34,13 +34,20 @@ PHASE_SPREAD_WIDENING = 12.0
 GAUSS_NODE = 0.5 / math.sqrt(3.0)
 
 
-class PointSample:
-    """``none``: the colour at the point."""
+class PixelFilter:
+    """What every filter is: made for one marble, told when its ramp's colours change."""
 
     needs_footprint = False
 
     def __init__(self, marble):
-        self.marble, self.ramp_size = marble, marble.ramp.size
+        self.marble = marble
+
+    def changed(self) -> None:
+        """The ramp's colours changed (a ``mi.traverse`` edit; not their number)."""
+
+
+class PointSample(PixelFilter):
+    """``none``: the colour at the point."""
 
     def noise(self, point):
         m = self.marble
@@ -50,9 +57,6 @@ class PointSample:
         m = self.marble
         phase = m.phase(point.v, self.noise(point) if m.needs_noise else None)
         return m.ramp(m.stripe.t(phase))
-
-    def changed(self) -> None:
-        """The ramp's colours changed (a ``mi.traverse`` edit)."""
 
 
 class BandLimit(PointSample):
@@ -66,7 +70,7 @@ class BandLimit(PointSample):
         return fractal_sum(point.v, m.octaves_evaluated, m.turbulence, band=band).value
 
 
-class Prefilter(PointSample):
+class Prefilter(PixelFilter):
     """``prefilter``: the colour averaged over the pixel.
 
     Across the pixel's box (x, y ∈ [−½, ½]) the phase is, to first order,
@@ -96,7 +100,7 @@ class Prefilter(PointSample):
             F = fractal_sum(v, octaves, m.turbulence, band=band, gradient=True,
                             differentials=(point.dv_dx, point.dv_dy))
             mean, variance = left_out(band, octaves, m.turbulence)
-            value = F.value + mean if m.turbulence else F.value
+            value = (F.value + mean) if m.turbulence else F.value
             phase = m.phase(v, value)
             grad_phase = m.phase_gradient(F.gradient * m.distortion)
             spread = dr.square(m.distortion) * (variance + F.spread)

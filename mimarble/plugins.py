@@ -35,6 +35,18 @@ def luminance(colour) -> float:
     return first_number(mi.luminance(mi.Color3f(colour)))
 
 
+def describe(class_name: str, fields: dict) -> str:
+    """A plugin's ``to_string`` in Mitsuba's form: ``Name[`` then one ``key = value`` a
+    line, indented (a nested object's own lines indented with it), then ``]``."""
+    if not fields:
+        return f"{class_name}[]"
+    lines = []
+    for key, value in fields.items():
+        text = str(value).replace("\n", "\n  ")
+        lines.append(f"  {key} = {text}")
+    return f"{class_name}[\n" + ",\n".join(lines) + "\n]"
+
+
 def transform_matrix(transform):
     """A Mitsuba transform's 4×4 matrix as float64 NumPy, in every variant (a JIT
     transform holds one matrix as width-1 arrays; a scalar one holds floats)."""
@@ -52,23 +64,65 @@ _plugins: list[tuple[str, str, type]] = []
 _bound: dict[tuple[str, str], type] = {}
 
 
+class PluginClass(type):
+    """What a declared plugin's class is: it stands for the plugin in every variant.
+
+    ``Marble(props)`` makes one in the current variant (``Marble()``: with no
+    properties), and ``isinstance(x, Marble)`` holds for a marble of any variant — what
+    ``mi.load_dict`` returns — as it does for Mitsuba's own classes."""
+
+    def __call__(cls, props=None):
+        return bound_class(cls.plugin_name)(mi.Properties() if props is None else props)
+
+    def __instancecheck__(cls, instance):
+        return any(isinstance(instance, bound) for (name, _), bound in _bound.items()
+                   if name == cls.plugin_name)
+
+
 def plugin(kind: str, name: str):
     """Class decorator: declare ``cls`` as the Mitsuba plugin ``name`` of ``kind``."""
     def declare(cls):
-        _plugins.append((kind, name, cls))
-        return cls
+        namespace = {k: v for k, v in vars(cls).items() if k not in ("__dict__", "__weakref__")}
+        declared = PluginClass(cls.__name__, cls.__bases__, {**namespace, "plugin_name": name})
+        _plugins.append((kind, name, declared))
+        return declared
     return declare
 
 
 def bound_class(name: str, variant: str | None = None) -> type:
-    """The plugin class ``name`` bound to ``variant``'s Mitsuba base (default: current)."""
+    """The plugin class ``name`` bound to ``variant``'s Mitsuba base (default: current):
+    its methods, and those of the plain classes it derives from, on that base."""
     variant = variant or mi.variant()
     if (name, variant) not in _bound:
         kind, _, methods = next(p for p in _plugins if p[1] == name)
         base = getattr(mi, _KINDS[kind][0])
-        namespace = {k: v for k, v in vars(methods).items() if k not in ("__dict__", "__weakref__")}
+        namespace = {}
+        for klass in reversed(methods.__mro__[:-1]):          # object's own: not copied
+            namespace.update({k: v for k, v in vars(klass).items()
+                              if k not in ("__dict__", "__weakref__")})
         _bound[(name, variant)] = type(methods.__name__, (base,), namespace)
     return _bound[(name, variant)]
+
+
+class RGBTexture:
+    """The parts of Mitsuba's Texture interface that a texture of RGB colours answers
+    alike, as Mitsuba's ``bitmap`` and ``srgb`` do in RGB variants."""
+
+    def eval_3(self, si, active=True):
+        return self.eval(si, active)
+
+    def eval_1(self, si, active=True):
+        return mi.luminance(self.eval(si, active))
+
+    def sample_spectrum(self, si, sample, active=True):
+        """RGB variants sample no wavelengths: (no wavelengths, the colour)."""
+        return dr.zeros(type(si.wavelengths)), self.eval(si, active)
+
+    def pdf_spectrum(self, si, active=True):
+        return dr.zeros(type(si.wavelengths))
+
+    def spectral_resolution(self):
+        return 0.0
 
 
 def register_all(variant: str | None = None) -> None:
@@ -84,7 +138,13 @@ def _on_variant_change(old, new):
 
 
 def install() -> None:
-    """Register now (if a variant is set) and on every later variant change."""
+    """Register now (if a variant is set) and on every later variant change.
+
+    Mitsuba 3.9 offers no public hook for a variant change; ``mi.detail`` has the one it
+    uses itself. Without it (another Mitsuba), the plugins are registered for the variant
+    set now, and :func:`register_all` registers them for another."""
     if mi.variant() is not None:
         register_all()
-    mi.detail.add_variant_callback(_on_variant_change)
+    add_callback = getattr(getattr(mi, "detail", None), "add_variant_callback", None)
+    if add_callback is not None:
+        add_callback(_on_variant_change)

@@ -28,7 +28,7 @@ the ramp colours (C = W·c, W built here in float64), so it follows ``mi.travers
 edits and carries gradients to the ramp. An interval across pieces is the two end
 partials plus C differences; across periods adds whole periods C_end.
 
-Over a whole period the mean is C_end, the texture's mean colour (:func:`period_mean`).
+Over a whole period the mean is C_end, the texture's mean colour (:func:`period_weights`).
 The float64 twin (numerical quadrature, nothing shared) is
 :mod:`mimarble.reference.prefilter`.
 """
@@ -68,13 +68,10 @@ def piece_table(shape, size: int) -> tuple[np.ndarray, np.ndarray]:
     return boundaries, weights
 
 
-def period_mean(shape, colours) -> np.ndarray:
-    """The mean colour over a period of phase, C_end (float64, exact): what the texture
-    averages to where its phase is spread uniformly. One colour: that colour."""
-    colours = np.asarray(colours, dtype=np.float64).reshape(-1, 3)
-    if len(colours) == 1:
-        return colours[0]
-    return piece_table(shape, len(colours))[1][-1] @ colours
+def period_weights(shape, size: int) -> np.ndarray:
+    """W_end (float64, exact): the mean colour over a period of phase, C_end, is
+    Σ_k W_end,k c_k — what the texture averages to where its phase is spread uniformly."""
+    return piece_table(shape, size)[1][-1]
 
 
 class PhaseAverage:

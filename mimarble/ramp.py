@@ -3,9 +3,10 @@
     ramp(t) = lerp(c_i, c_{i+1}, f),   x = clamp(t, 0, 1)·(K−1),  i = ⌊x⌋ ∈ 0..K−2,  f = x − i
     ramp′(t) = (K−1)·(c_{i+1} − c_i)   (0 outside [0, 1])
 
-The colours live where the variant wants them — one ``Color3f`` of K entries in JIT
-variants (gathered in the kernel, opaque, differentiable, edited in place by
-``mi.traverse``), a list of colours in the scalar variant — and nowhere else.
+The colours live in one container that ``mi.traverse`` edits in place: a ``Color3f`` of
+K entries in JIT variants (gathered in the kernel, opaque, differentiable), a (K, 3)
+``TensorXf`` in the scalar variant, whose lookups read a list of colours made from it
+whenever it changes (Mitsuba cannot write into a Python list).
 """
 
 from __future__ import annotations
@@ -13,36 +14,54 @@ from __future__ import annotations
 import numpy as np
 
 from . import environment
-from .prefilter import period_mean
+from .prefilter import period_weights
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
 
-class Ramp:
-    """The colours, their lookups in the kernel, and their facts (size, mean, maximum)."""
+def ramp_storage(colours):
+    """The container of a ramp's colours for ``mi.traverse`` (see the module docstring)."""
+    if dr.is_jit_v(mi.Float):
+        return mi.Color3f(*zip(*colours))
+    return dr.scalar.TensorXf(np.asarray(colours, dtype=np.float32).reshape(-1, 3))
 
-    def __init__(self, colours):
-        self.colours = mi.Color3f(*zip(*colours)) if dr.is_jit_v(mi.Float) else \
-            [mi.Color3f(c) for c in colours]
+
+class Ramp:
+    """The colours, their lookups in the kernel, and their facts (size, mean)."""
+
+    def __init__(self, storage):
+        self.storage = storage
         self.changed()
 
     def changed(self) -> None:
-        """Read the size again (after ``mi.traverse`` wrote new colours) and keep the
-        colours opaque: a new value reuses the compiled kernel."""
-        self.size = len(self.colours) if isinstance(self.colours, list) else \
-            dr.width(self.colours)
+        """Read the colours again (after ``mi.traverse`` wrote new ones) and keep them
+        opaque: a new value reuses the compiled kernel."""
         if dr.is_jit_v(mi.Float):
-            dr.make_opaque(self.colours)
+            self.colours = self.storage
+            self.size = dr.width(self.storage)
+            dr.make_opaque(self.storage)
+        else:
+            self.colours = [mi.Color3f(*map(float, c)) for c in self.numpy()]
+            self.size = len(self.colours)
 
     def numpy(self) -> np.ndarray:
         """The colours as float64 (K, 3)."""
-        if isinstance(self.colours, list):
-            return np.array([[c[0], c[1], c[2]] for c in self.colours], dtype=np.float64)
-        return np.array(self.colours, dtype=np.float64).T   # Color3f converts as (3, K)
+        if dr.is_jit_v(mi.Float):
+            return np.array(self.storage, dtype=np.float64).T   # Color3f converts as (3, K)
+        return np.array(self.storage, dtype=np.float64).reshape(-1, 3)
 
-    def mean(self, stripe) -> np.ndarray:
-        """The mean colour where the phase of ``stripe`` is spread uniformly."""
-        return period_mean(stripe.shape, self.numpy())
+    def mean(self, stripe):
+        """The mean colour where the phase of ``stripe`` is spread uniformly: Σ_k w_k c_k
+        with the weights of one period of the prefilter's table (exact), as a Dr.Jit
+        colour, so that it carries derivatives to the ramp."""
+        if self.size == 1:
+            return self.constant(1) if dr.is_jit_v(mi.Float) else self.colour(0)
+        weights = period_weights(stripe.shape, self.size)
+        index = (lambda k: mi.UInt32(k)) if dr.is_jit_v(mi.Float) else int
+        total = self.colour(index(0)) * float(weights[0])
+        for k in range(1, self.size):
+            total = total + self.colour(index(k)) * float(weights[k])
+        return total
 
     # In the kernel
 

@@ -139,7 +139,8 @@ def _with_marble_value(scene, key: str, parts: list[str], value):
                            f"(K one of {', '.join(marble_parameters.SWEEPABLE)}), camera.fov, "
                            f"image.samples or light.N.intensity")
     try:
-        change = {name: marble_parameters.checked(marble_parameters.BY_NAME[name], value, key)}
+        change = {name: marble_parameters.checked(marble_parameters.BY_NAME[name], value, key,
+                                                  text=True)}
     except marble_parameters.ParameterError as e:
         raise KeyPathError(str(e)) from None
     materials = dict(scene.materials)

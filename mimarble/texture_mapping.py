@@ -3,7 +3,8 @@
     v = scale · to_world⁻¹ · p,        ∂v/∂x = scale · to_world⁻¹ · (∂p/∂u ∂u/∂x + ∂p/∂v ∂v/∂x)
 
 p is the world-space point Mitsuba hands the texture; ``to_world`` places the texture
-in the world (identity when not given: no transform is traced). The footprint comes
+in the world (the identity when not given; always in ``mi.traverse``, as bitmap's
+``to_uv`` is; no transform is traced while it is the identity). The footprint comes
 from the ray differentials the integrator stored in ``si.duv_dx``, ``si.duv_dy``
 (``whitted`` does; without them they are 0, and every filter keeps every octave).
 """
@@ -40,26 +41,33 @@ class TexturePoint(NamedTuple):
 class TextureMapping:
     """p ↦ v = scale · to_world⁻¹ · p, for points, footprints and gradients."""
 
-    def __init__(self, to_world, scale):
-        self.to_world, self.scale = to_world, scale
-        self.changed()
+    def __init__(self, to_world):
+        """``to_world``: an editable transform (checked and inverted in :meth:`check` and
+        :meth:`changed`, which the texture calls whenever its parameters change)."""
+        self.to_world = to_world
+        self.scale, self.to_texture = None, None
 
     @classmethod
-    def from_properties(cls, props, scale):
+    def from_properties(cls, props):
         """``to_world`` from the plugin's properties (none: the identity); a singular
         one is refused."""
-        if "to_world" not in props:
-            return cls(None, scale)
         # Properties hold transforms in double precision; the kernel uses float.
-        matrix = np.array(props["to_world"].matrix, dtype=np.float64).reshape(4, 4)
-        check_invertible(matrix)
-        return cls(mi.Transform4f(mi.Matrix4f(matrix.tolist())), scale)
+        matrix = np.array(props["to_world"].matrix, dtype=np.float64).reshape(4, 4) \
+            if "to_world" in props else np.eye(4)
+        return cls(mi.Transform4f(mi.Matrix4f(matrix.tolist())))
 
-    def changed(self) -> None:
-        """After ``mi.traverse`` edits: check the transform and invert it as it is now."""
-        if self.to_world is not None:
-            check_invertible(transform_matrix(self.to_world))
-        self.to_texture = None if self.to_world is None else self.to_world.inverse()
+    def check(self) -> None:
+        """ParameterError unless ``to_world`` (as ``mi.traverse`` may have left it) can be
+        inverted."""
+        check_invertible(transform_matrix(self.to_world))
+
+    def changed(self, scale) -> None:
+        """After the parameters changed: the scale (in JIT variants the texture's very
+        opaque ``mi.Float``, which ``mi.traverse`` edits in place), and to_world⁻¹
+        (None: the identity)."""
+        self.scale = scale
+        identity = np.array_equal(transform_matrix(self.to_world), np.eye(4))
+        self.to_texture = None if identity else self.to_world.inverse()
 
     def point(self, p):
         """v at world points p."""

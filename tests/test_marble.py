@@ -269,6 +269,8 @@ def test_sweeping_period_and_distortion_reuses_the_compiled_kernel(jit_variant):
     ({"scale": 0.0}, ["scale", "> 0"]),
     ({"scale": -1.0}, ["scale", "-1"]),
     ({"to_world": "singular"}, ["to_world", "singular"]),
+    ({"turbulence": "false"}, ["turbulence", "true or false"]),   # a word is not a boolean
+    ({"octaves": 8.0}, ["octaves", "integer"]),
 ])
 def test_invalid_parameters_name_the_parameter_and_value(variant, bad, words):
     if bad.get("to_world") == "singular":

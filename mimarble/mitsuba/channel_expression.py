@@ -27,12 +27,15 @@ another ``channel_expression``…). The float64 twin is :mod:`mimarble.reference
      - ``mix`` only: w, a texture's colour (componentwise) or a number (not clamped).
        A number is differentiable (key ``weight``).
 
-What is not needed is not computed, decided when the texture is loaded and again
-after every parameter change (a new decision compiles a new kernel): constant
-operands (``rgb``, a one-colour ramp, a constant sub-expression) are folded into one
-constant; a product whose constant is 0 evaluates nothing; a ``mix`` whose weight is
-the constant 0 or 1 evaluates only ``a`` or only ``b``; an expression of constants is a
-constant. Equal operands inside one ``channel_material`` are evaluated once
+Operands are read when the expression is evaluated, as Mitsuba's own textures read
+theirs, so an edit of an operand shared with another parent (``mi.traverse`` tells only
+a node's first parent) is seen. Constant operands (``rgb``, a one-colour ramp, a
+constant sub-expression) are combined first, in one constant. What is not needed is not
+computed, decided from the operands' values when the texture is loaded and after every
+parameter change (a new decision compiles a new kernel): a product with a constant 0
+evaluates nothing; a ``mix`` whose weight is the constant 0 or 1 evaluates only ``a`` or
+only ``b``. Those decisions are used only while no operand has changed since: an edit
+that reached only another parent falls back to evaluating everything. Equal operands inside one ``channel_material`` are evaluated once
 (:func:`shared_evaluations`); elsewhere Dr.Jit's common-subexpression elimination
 merges identical unrolled code.
 """
@@ -41,11 +44,12 @@ from __future__ import annotations
 
 import contextlib
 import operator
+import threading
 
 import numpy as np
 
 from .. import environment
-from ..plugins import luminance, numbers, plugin
+from ..plugins import RGBTexture, describe, luminance, numbers, plugin
 from ..properties import numbered_properties
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -67,29 +71,32 @@ class ChannelExpressionError(ValueError):
 # ---------------------------------------------------------------------------
 # Equal operands, evaluated once per shading point
 
-_evaluations: dict | None = None
+#: The evaluations of the current shading call, per thread: Mitsuba's scalar variant
+#: shades samples on several threads at once, each in its own call.
+_shading = threading.local()
 
 
 @contextlib.contextmanager
 def shared_evaluations():
     """Within this context :func:`evaluate` evaluates each texture object once (the
     ``channel_material`` opens one per shading call: its channels share a point)."""
-    global _evaluations
-    outer, _evaluations = _evaluations, {}
+    outer = getattr(_shading, "evaluations", None)
+    _shading.evaluations = {}
     try:
         yield
     finally:
-        _evaluations = outer
+        _shading.evaluations = outer
 
 
 def evaluate(texture, si, active=True):
     """``texture.eval(si, active)``, once per texture within :func:`shared_evaluations`."""
-    if _evaluations is None:
+    evaluations = getattr(_shading, "evaluations", None)
+    if evaluations is None:
         return texture.eval(si, active)
     key = id(texture)
-    if key not in _evaluations:
-        _evaluations[key] = texture.eval(si, active)
-    return _evaluations[key]
+    if key not in evaluations:
+        evaluations[key] = texture.eval(si, active)
+    return evaluations[key]
 
 
 def textures_within(texture):
@@ -104,7 +111,7 @@ def textures_within(texture):
 # ---------------------------------------------------------------------------
 
 @plugin("texture", "channel_expression")
-class ChannelExpression:
+class ChannelExpression(RGBTexture):
     """Textures added, multiplied or mixed. See the module docstring for parameters."""
 
     def __init__(self, props):
@@ -152,20 +159,12 @@ class ChannelExpression:
             cb.put("weight", self.weight_value, flags)
 
     def parameters_changed(self, keys=[]):
-        """Fold the constant operands again (their values may have changed)."""
+        """Decide again what can be skipped, from the operands' values as they are now."""
         if self.weight_value is not None:
             dr.make_opaque(self.weight_value)
-        self.constants = constants = [_constant(t) for t in self.operands]
-        self.varying = [t for t, c in zip(self.operands, constants) if c is None]
-        values = [c for c in constants if c is not None]
-        self.constant = None
-        if self.op == "add" and values:
-            self.constant = _opaque(sum(values[1:], values[0]))
-        elif self.op == "multiply" and values:
-            product = values[0]
-            for value in values[1:]:
-                product = product * value
-            self.constant = _opaque(product)
+        self._state = self._operand_state()
+        self.constants = [_constant(t) for t in self.operands]
+        self.constant = _opaque(self._combined(self.constants))
         # Structural decisions (a new one traces a new kernel); never for a value being
         # differentiated, whose derivative needs the part that would be left out.
         self.zero_product = self.op == "multiply" and self.constant is not None \
@@ -176,25 +175,50 @@ class ChannelExpression:
             if weight is not None and not dr.grad_enabled(weight):
                 w = numbers(weight)
                 self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
-        self._mean = None
+        self._mean, self._mean_state = None, None
+
+    def _operand_state(self):
+        """A fingerprint of every value inside the operands (and a weight texture): their
+        Dr.Jit variables, or their values in the scalar variant. ``mi.traverse`` edits
+        replace the variables, so an edit that reached only another parent shows here."""
+        items = []
+        for texture in self.operands + ([self.weight] if self.weight is not None else []):
+            params = mi.traverse(texture)
+            for key in params.keys():
+                value = params[key]
+                items.append((key, tuple(dr.detail.collect_indices(value))
+                              if dr.is_jit_v(type(value)) else repr(value)))
+        return hash(tuple(items))
+
+    def _shortcuts(self) -> bool:
+        """The skipping decisions of :meth:`parameters_changed` still hold."""
+        return self._state == self._operand_state()
+
+    @property
+    def varying(self):
+        """The operands that change over the surface (read now: a shared operand's ramp
+        may have gained colours)."""
+        return [t for t in self.operands if t.is_spatially_varying()]
 
     def to_string(self):
-        return (f"ChannelExpression[op={self.op}, operands={len(self.operands)}, "
-                f"varying={len(self.varying)}]")
+        fields = {"op": self.op}
+        fields.update({f"operand_{k}": operand for k, operand in enumerate(self.operands)})
+        if self.op == "mix":
+            fields["weight"] = self.weight if self.weight is not None else \
+                float(numbers(self.weight_value)[0])
+        return describe("ChannelExpression", fields)
 
     def is_spatially_varying(self):
-        if self.op == "multiply" and self.zero_product:
+        shortcuts = self._shortcuts()
+        if self.op == "multiply" and self.zero_product and shortcuts:
             return False
         if self.op == "mix":
-            if self.mix_side is not None:
+            if self.mix_side is not None and shortcuts:
                 side = self.operands[0 if self.mix_side == "a" else 1]
                 return side.is_spatially_varying()
             return bool(self.varying) or (self.weight is not None
                                           and self.weight.is_spatially_varying())
         return bool(self.varying)
-
-    def spectral_resolution(self):
-        return 0.0
 
     def max(self):
         """An upper bound: sums and products of the operands' maxima (mix: the larger side,
@@ -216,36 +240,39 @@ class ChannelExpression:
         :data:`MEAN_POINTS` deterministic points (world points in [−16, 16]³, (u, v) over
         the unit square) — in the scalar variant, the operands' means combined as if
         independent."""
-        if self._mean is None:
-            self._mean = self._compute_mean()
+        state = self._operand_state()
+        if self._mean is None or self._mean_state != state:
+            self._mean, self._mean_state = self._compute_mean(), state
         return mi.Float(self._mean)
 
     # -- Evaluation ------------------------------------------------------------
 
     def eval(self, si, active=True):
         width = dr.width(si.p) if dr.is_jit_v(mi.Float) else 1
+        shortcuts = self._shortcuts()
         if self.op != "mix":
-            if self.zero_product:
+            if self.zero_product and shortcuts:
                 return _full(None, width)
             combine = operator.add if self.op == "add" else operator.mul
-            total = self.constant
-            for texture in self.varying:
-                value = evaluate(texture, si, active)
-                total = value if total is None else combine(total, value)
+            # The constants first, as one constant (folded when the operands last changed
+            # through this expression), then the rest.
+            total = self.constant if shortcuts else None
+            for constant in ((False,) if shortcuts else (True, False)):
+                for texture in self.operands:
+                    if texture.is_spatially_varying() != constant:
+                        value = evaluate(texture, si, active)
+                        total = value if total is None else combine(total, value)
             return _full(total, width)
-        a, b = self._side(0, si, active), self._side(1, si, active)
-        if self.mix_side == "a":
+        mix_side = self.mix_side if shortcuts else None
+        a, b = (None if mix_side == "ab"[1 - k] else
+                self.constants[k] if shortcuts and self.constants[k] is not None else
+                evaluate(self.operands[k], si, active) for k in (0, 1))
+        if mix_side == "a":
             return _full(a, width)
-        if self.mix_side == "b":
+        if mix_side == "b":
             return _full(b, width)
         w = self.weight_value if self.weight is None else evaluate(self.weight, si, active)
         return _full(a * (1.0 - w) + b * w, width)
-
-    def eval_3(self, si, active=True):
-        return self.eval(si, active)
-
-    def eval_1(self, si, active=True):
-        return mi.luminance(self.eval(si, active))
 
     def eval_1_grad(self, si, active=True):
         """∂(luminance)/∂(u, v): the operands' own gradients for a sum (luminance is
@@ -272,18 +299,24 @@ class ChannelExpression:
 
     # -- helpers ---------------------------------------------------------------
 
-    def _side(self, k, si, active):
-        """Operand k of a mix: its folded constant, or its value at si."""
-        if self.mix_side is not None and self.mix_side != "ab"[k]:
+    def _combined(self, constants):
+        """The sum or product of the operands' ``constants`` that are not None (None: there
+        are none, or a mix)."""
+        values = [c for c in constants if c is not None]
+        if self.op == "mix" or not values:
             return None
-        constant = self.constants[k]
-        return constant if constant is not None else evaluate(self.operands[k], si, active)
+        combine = operator.add if self.op == "add" else operator.mul
+        total = values[0]
+        for value in values[1:]:
+            total = combine(total, value)
+        return total
 
     def _compute_mean(self) -> float:
         # Luminance, as marble's and Mitsuba's bitmap's mean() (its rgb averages the three
         # components instead: constants are taken by their luminance here).
+        constants = [_constant(t) for t in self.operands]
         means = [float(numbers(t.mean())[0]) if c is None else luminance(c)
-                 for t, c in zip(self.operands, self.constants)]
+                 for t, c in zip(self.operands, constants)]
         if self.op == "add":
             return float(sum(means))
         if self.op == "mix" and (self.weight is None or not self.weight.is_spatially_varying()):
@@ -291,12 +324,21 @@ class ChannelExpression:
             if np.ptp(w) == 0.0:                       # a grey weight: linear in the means
                 return (1.0 - w[0]) * means[0] + w[0] * means[1]
         if self.op == "multiply" and len(self.varying) <= 1:   # then there is a constant
+            constant = self._combined(constants)
             if not self.varying:
-                return luminance(self.constant)
-            c = numbers(self.constant)
+                return luminance(constant)
+            c = numbers(constant)
             if np.ptp(c) == 0.0:                       # a grey factor: linear in the mean
                 return float(c[0]) * float(numbers(self.varying[0].mean())[0])
         return _sampled_mean(self)
+
+
+def _opaque(value):
+    """A folded constant as an opaque Color3f: a new value reuses the kernel."""
+    if value is not None and dr.is_jit_v(mi.Float) and not dr.grad_enabled(value):
+        value = mi.Color3f(value)
+        dr.make_opaque(value)
+    return value
 
 
 def _sampled_mean(texture) -> float:
@@ -326,13 +368,6 @@ def _constant(texture):
     si = dr.zeros(mi.SurfaceInteraction3f, 1) if dr.is_jit_v(mi.Float) \
         else dr.zeros(mi.SurfaceInteraction3f)
     return texture.eval(si)
-
-
-def _opaque(value):
-    if dr.is_jit_v(mi.Float) and not dr.grad_enabled(value):
-        value = mi.Color3f(value)
-        dr.make_opaque(value)
-    return value
 
 
 def _full(value, width: int):

@@ -27,7 +27,7 @@ Under any other integrator it behaves as a Lambertian BSDF with reflectance
 from __future__ import annotations
 
 from .. import environment
-from ..plugins import plugin
+from ..plugins import describe, first_number, plugin
 from .channel_expression import evaluate, shared_evaluations, textures_within
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -44,10 +44,10 @@ class ChannelMaterial:
         for name in CHANNELS:   # get_texture turns an inline rgb into a texture, as C++ plugins do
             setattr(self, name, props.get_texture(name) if name in props else None)
         shininess = props.get("shininess", 32.0)
-        if not isinstance(shininess, (int, float)) or not 0 < shininess < float("inf"):
-            raise ValueError(f"channel_material: shininess={shininess!r} must be a positive number")
-        self.shininess = mi.Float(shininess)
-        dr.make_opaque(self.shininess)
+        _check_shininess(shininess)
+        self.shininess = mi.Float(shininess) if dr.is_jit_v(mi.Float) else \
+            dr.scalar.ArrayXf([shininess])   # scalar_rgb: a container mi.traverse can write
+        self.parameters_changed()
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
         self.m_components = [self.m_flags]
 
@@ -64,7 +64,7 @@ class ChannelMaterial:
                 texture = getattr(self, name)
                 values[name] = dr.zeros(mi.Color3f, dr.width(si.p)) if texture is None \
                     else evaluate(texture, si, active)
-        return values["ambient"], values["diffuse"], values["specular"], self.shininess
+        return values["ambient"], values["diffuse"], values["specular"], self.exponent
 
     def has_channel(self, name: str) -> bool:
         return getattr(self, name) is not None
@@ -115,8 +115,28 @@ class ChannelMaterial:
         cb.put("shininess", self.shininess, mi.ParamFlags.Differentiable)
 
     def parameters_changed(self, keys=[]):
-        dr.make_opaque(self.shininess)
+        """Check ``shininess`` as an edit left it: refused (and the last valid value put
+        back) unless positive and finite."""
+        try:
+            _check_shininess(first_number(self.shininess))
+        except ValueError:
+            if hasattr(self, "_last_shininess"):
+                mi.set_property(self.shininess, self._last_shininess)
+            raise
+        self._last_shininess = type(self.shininess)(self.shininess)
+        if dr.is_jit_v(mi.Float):   # the kernel reads the traversed value itself, opaque
+            dr.make_opaque(self.shininess)
+            self.exponent = self.shininess
+        else:                       # the scalar variant computes on a Python float
+            self.exponent = first_number(self.shininess)
 
     def to_string(self):
-        parts = [f"{name}={getattr(self, name)}" for name in CHANNELS if self.has_channel(name)]
-        return f"ChannelMaterial[{', '.join(parts)}, shininess={self.shininess}]"
+        fields = {name: getattr(self, name) for name in CHANNELS if self.has_channel(name)}
+        fields["shininess"] = first_number(self.shininess)
+        return describe("ChannelMaterial", fields)
+
+
+def _check_shininess(shininess) -> None:
+    if isinstance(shininess, bool) or not isinstance(shininess, (int, float)) \
+            or not 0 < shininess < float("inf"):
+        raise ValueError(f"channel_material: shininess={shininess!r} must be a positive number")

@@ -51,14 +51,15 @@ class TracedPass(NamedTuple):
 
 def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
                     with_radiance: bool = True, with_shapes: bool = False,
-                    pass_samples: int | None = None):
+                    pass_samples: int | None = None, seed: int = 0):
     """Yield a :class:`TracedPass` per pass of ``spp`` samples in each pixel.
 
     ``pixels``: uint32 pixel indices, default every pixel of ``tracer``'s
     image in order. ``with_radiance``: trace the integrator (``tracer.trace``),
     else only the first shape hit (``tracer.first_shape``); ``with_shapes``:
     also reduce the first shape hit per pixel. ``pass_samples``: lanes per pass
-    (default :data:`PASS_SAMPLES`). A pass's seed is its number (path mode).
+    (default :data:`PASS_SAMPLES`). A pass's sampler seed (path mode) is its number
+    plus ``seed``·2¹⁶, so renders of different seeds draw different samples.
 
     A pixel split over passes is summed in float64 in pass order and handed
     back whole, by the pass that takes its last samples.
@@ -79,7 +80,7 @@ def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
             # Only the later passes of a split pixel start past sample 0.
             sub = lane % u32(n_samples) if q0 == 0 else u32(q0) + lane % u32(n_samples)
         if with_radiance:
-            value, hit_shape = tracer.trace(pixel, sub, spp, index, with_shapes)
+            value, hit_shape = tracer.trace(pixel, sub, spp, (seed << 16) + index, with_shapes)
         else:
             value, hit_shape = None, tracer.first_shape(pixel, sub, spp)
         traced = _pixel_sums(value, hit_shape, lanes, n_samples)

@@ -27,10 +27,19 @@ from .translate import to_mitsuba
 dr, mi = environment.import_drjit_and_mitsuba()
 
 
-def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
+def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
            progress=False, tolerance: float | None = None, filter: str | None = None,
-           edge_spp: int | None = None) -> np.ndarray:
-    """Render a scene (model, or path of a scene file) → linear float32 (H, W, 3).
+           edge_spp: int | None = None, seed: int = 0) -> np.ndarray:
+    """Render a scene (model, path of a scene file, or a loaded ``mi.Scene``) → linear
+    float32 (H, W, 3).
+
+    Everything but the scene is a keyword (``mi.render``'s second argument is
+    ``params``, not ``spp``). ``mode``: ``whitted`` (the default for a model or a file)
+    or ``path``. A loaded ``mi.Scene`` renders as it is — its integrator (``whitted``
+    mode for the ``whitted`` integrator), its sensor's sample count unless ``spp`` is
+    given; ``tolerance`` and ``filter``, which the translator applies, are refused
+    for it in one sentence. ``seed``: path mode's sampler seed (whitted mode is
+    deterministic).
 
     Memory is the image plus a bounded working set whatever the size and spp:
     JIT variants render in passes of up to
@@ -46,6 +55,10 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
     (:func:`render_in_passes`; whitted mode, JIT variants; default: none).
     """
     environment.require_rgb_variant()
+    if isinstance(scene_or_path, mi.Scene):
+        return _render_loaded(scene_or_path, spp, mode, progress, tolerance, filter,
+                              edge_spp, seed)
+    mode = "whitted" if mode is None else mode
     check_edge_spp(edge_spp, mode)
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
@@ -64,10 +77,35 @@ def render(scene_or_path, spp: int | None = None, mode: str = "whitted",
                           f"{mi.variant()} renders without them", stacklevel=2)
         done = report(progress, "render")
         done(0, total)
-        image = np.array(mi.render(mitsuba_scene), dtype=np.float32)[..., :3]
+        image = np.array(mi.render(mitsuba_scene, seed=seed), dtype=np.float32)[..., :3]
         done(total, total)
         return image
-    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp)
+    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed)
+
+
+def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_spp, seed):
+    """:func:`render` of a loaded ``mi.Scene``."""
+    from .whitted import Whitted
+    given = [name for name, value in (("tolerance", tolerance), ("filter", filter))
+             if value is not None]
+    if given:
+        raise ValueError(f"render: {' and '.join(given)} {'apply' if len(given) > 1 else 'applies'} "
+                         f"to a scene model or file (the "
+                         f"translator sets them on each marble); a loaded mi.Scene renders "
+                         f"with its textures' own")
+    if not mitsuba_scene.sensors():
+        raise ValueError("render: the mi.Scene has no sensor to render from")
+    whitted = isinstance(mitsuba_scene.integrator(), Whitted)
+    mode = ("whitted" if whitted else "path") if mode is None else mode
+    if mode == "whitted" and not whitted:
+        raise ValueError(f"render: mode='whitted' needs the scene's integrator to be "
+                         f"'whitted'; it is {type(mitsuba_scene.integrator()).__name__}")
+    spp = mitsuba_scene.sensors()[0].sampler().sample_count() if spp is None else spp
+    check_edge_spp(edge_spp, mode)
+    if not dr.is_jit_v(mi.Float):
+        return np.array(mi.render(mitsuba_scene, spp=spp, seed=seed),
+                        dtype=np.float32)[..., :3]
+    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed)
 
 
 def check_images(scene) -> None:
@@ -88,17 +126,16 @@ def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
         return
     try:
         samples_per_axis(edge_spp)
-        square = not isinstance(edge_spp, bool)       # True is an int to Python, not a count
     except ValueError:
-        square = False
-    if not square:
-        raise ValueError(f"edge_spp={edge_spp!r} must be a perfect square ≥ 1 (1, 4, 9, 16, …)")
+        raise ValueError(f"edge_spp={edge_spp!r} must be a perfect square ≥ 1 "
+                         f"(1, 4, 9, 16, …)") from None
     if mode != "whitted":
         raise ValueError(f"edge_spp needs whitted mode (its stratum centres); mode is {mode!r}")
 
 
 def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=False,
-                     pass_samples: int | None = None, edge_spp: int | None = None) -> np.ndarray:
+                     pass_samples: int | None = None, edge_spp: int | None = None,
+                     seed: int = 0) -> np.ndarray:
     """What ``mi.render`` computes, in passes of at most ``pass_samples`` samples
     (default :data:`~mimarble.mitsuba.passes.PASS_SAMPLES`; :func:`trace_in_passes`).
 
@@ -144,7 +181,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     pending = 1 if edge_spp else 0
     done(0, samples_total + pending)                   # a bar's delay counts from here
     first_passes = trace_in_passes(tracer, spp, with_shapes=shapes is not None,
-                                   pass_samples=pass_samples)
+                                   pass_samples=pass_samples, seed=seed)
     for samples in _fill(image, first_passes, spp, shapes):
         samples_done += samples
         done(samples_done, samples_total + pending)

@@ -68,6 +68,26 @@ def _sphere_geometry(shape):
 class SphereTable:
     """Centres and radii of a scene's spheres, looked up per lane by the hit shape."""
 
+    #: The scalar variant's tables by scene, kept while the scene's bounding boxes stay:
+    #: its integrator shades one sample at a time, and a table costs a ``mi.traverse``
+    #: per sphere (a JIT variant builds one per traced kernel).
+    _scalar_tables: dict = {}
+
+    @classmethod
+    def of(cls, scene) -> "SphereTable":
+        """The table of ``scene``: built anew in JIT variants; in the scalar variant the
+        one built before, unless a shape has moved or changed size since."""
+        if dr.is_jit_v(mi.Float):
+            return cls(scene)
+        boxes = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
+        boxes_then, table = cls._scalar_tables.get(id(scene), (None, None))
+        if boxes_then != boxes:
+            if len(cls._scalar_tables) > 16:
+                cls._scalar_tables.clear()
+            table = cls(scene)
+            cls._scalar_tables[id(scene)] = (boxes, table)
+        return table
+
     def __init__(self, scene):
         self.shapes = list(scene.shapes())
         self.geometry = [_sphere_geometry(s) for s in self.shapes]

@@ -45,6 +45,7 @@ from __future__ import annotations
 from .. import environment
 from ..plugins import plugin
 from . import sphere_hit
+from .material import ChannelMaterial
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -66,7 +67,7 @@ def _no_channels(si):
 
 
 def _material_channels(material, si, active):
-    if hasattr(material, "channels"):
+    if isinstance(material, ChannelMaterial):
         return material.channels(si, active)
     return _no_channels(si)
 
@@ -95,7 +96,7 @@ class Whitted:
     def _materials(scene):
         materials = [shape.bsdf() for shape in scene.shapes()]
         for shape, material in zip(scene.shapes(), materials):
-            if not hasattr(material, "channels"):
+            if not isinstance(material, ChannelMaterial):
                 raise ValueError(f"whitted: shape {shape.id()!r} has BSDF {type(material).__name__}; "
                                  f"the whitted integrator needs 'channel_material'")
         return materials
@@ -137,7 +138,7 @@ class Whitted:
         si = scene.ray_intersect(ray, active)
         hit = mi.Bool(active) & si.is_valid()
         # Mitsuba's hit, refined in float64 on the sphere it found (sphere_hit.py).
-        spheres = sphere_hit.SphereTable(scene)
+        spheres = sphere_hit.SphereTable.of(scene)
         p, n, on_sphere = sphere_hit.refine(spheres, ray, si, hit)
         si.p = p
         if footprints:

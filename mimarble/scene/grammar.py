@@ -4,7 +4,8 @@ written from the marble's parameter table.
 The marble's keys and the syntax of their values are facts of the table
 (mimarble/marble_parameters.py): one rule a row, its value written as its kind says. So
 a new parameter is a new key of the language without an edit here or in ``scene.lark``,
-and the grammar cannot disagree with what the builder checks or the plugin reads.
+and the grammar cannot disagree with what the builder checks or the plugin reads (the
+language adds one rule of its own: every colour it writes, ramps' too, is ≥ 0).
 """
 
 from __future__ import annotations

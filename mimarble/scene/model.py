@@ -57,6 +57,7 @@ __all__ = [
 
 Vec3 = tuple[float, float, float]
 RGB = tuple[float, float, float]
+# Type hints only: the values are the marble's parameter table's (FUNCTIONS, FILTERS, AXES).
 MarbleFunction = Literal["abs_sine", "sine", "cosine"]
 MarbleFilter = Literal["none", "bandlimit", "prefilter"]
 Axis = Literal["x", "y", "z"]
@@ -121,7 +122,7 @@ def samples_per_axis(spp) -> int:
     Raises ValueError when spp is not a perfect square ≥ 1 (the one rule that
     the scene language, the Mitsuba translator and the reference tracer share).
     """
-    n = math.isqrt(int(spp)) if isinstance(spp, int) and spp >= 1 else 0
+    n = math.isqrt(spp) if isinstance(spp, int) and not isinstance(spp, bool) and spp >= 1 else 0
     if n < 1 or n * n != spp:
         raise ValueError(f"spp={spp!r} must be a perfect square n·n ≥ 1 (1, 4, 9, 16, …): "
                          f"pixels are sampled on an n×n grid")

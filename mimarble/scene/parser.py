@@ -443,7 +443,7 @@ class _Builder:
                 continue
             value, where = self.marble_value(p, f[p.name])
             try:
-                values[p.name] = p.check(value)
+                values[p.name] = p.check(value, text=True)
             except ParameterError as e:
                 if p.kind == COLOURS:   # a count: the message says it
                     raise self.error(where, str(e)) from None
