@@ -68,10 +68,20 @@ class UsageError(Exception):
 
 
 def _check_folder(path) -> Path:
-    """``path``, if the folder it would be written into exists."""
+    """``path``, if it can be written as a new file: the folder it goes in exists, and it
+    is not a folder or a symbolic link (a rename would replace the link, not write where
+    it points: name the file itself)."""
     path = Path(path)
-    if not path.parent.is_dir():
-        raise UsageError(f"{path}: folder {path.parent} does not exist")
+    try:
+        if path.is_symlink():
+            raise UsageError(f"{path}: is a symbolic link (to {os.readlink(path)}); name the "
+                             f"file itself, or another file")
+        if path.is_dir():
+            raise UsageError(f"{path}: is a folder; name a file")
+        if not path.parent.is_dir():
+            raise UsageError(f"{path}: folder {path.parent} does not exist")
+    except OSError as e:          # a name longer than the file system takes, a loop of links
+        raise UsageError(f"{path}: {e.strerror or e}") from None
     return path
 
 
@@ -85,7 +95,11 @@ def _check_suffix(path: Path, suffixes, what: str) -> Path:
 def _output_path(args, default_suffix=".png") -> Path:
     from .image_formats import IMAGE_FORMATS
     out = Path(args.output) if args.output else Path(Path(args.scene).stem + default_suffix)
-    if out.is_dir():
+    try:
+        folder = out.is_dir() and not out.is_symlink()
+    except OSError:
+        folder = False            # said by _check_folder
+    if folder:
         raise UsageError(f"{out}: is a folder; name the image file, e.g. "
                          f"{out / (Path(args.scene).stem + default_suffix)}")
     return _check_folder(_check_suffix(out, IMAGE_FORMATS, "image"))

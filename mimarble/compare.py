@@ -62,7 +62,8 @@ def image_metrics(test, reference) -> dict:
     Returns a dict:
 
     * ``rmse`` — sqrt(mean over all pixels and channels of (test − reference)²);
-    * ``psnr`` — 20·log10(1 / rmse) in dB (peak 1.0), ``inf`` when identical;
+    * ``psnr`` — 20·log10(1 / rmse) in dB (peak 1.0), ``inf`` when identical, ``-inf``
+      when the error is infinite;
     * ``max_abs`` — the largest |test − reference| over pixels and channels;
     * ``frac_over_1_255`` — the fraction of pixels whose largest channel
       |difference| exceeds 1/255.
@@ -85,6 +86,8 @@ def image_metrics(test, reference) -> dict:
         psnr = math.inf
     elif math.isnan(rmse):
         psnr = math.nan
+    elif math.isinf(rmse):           # an infinite difference (a light of 3.4e38): no signal
+        psnr = -math.inf
     else:
         psnr = float(20.0 * math.log10(1.0 / rmse))
     return {

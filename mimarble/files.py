@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import tempfile
 from pathlib import Path
 
@@ -26,13 +27,23 @@ _UMASK = os.umask(0)
 os.umask(_UMASK)
 
 
+#: Temporary files are named ``.STEM.mimarble-PID-RANDOM.SUFFIX``: the writing process's
+#: id says whether one left behind (the process was killed mid-write) is stale.
+_TEMPORARY = re.compile(r"\..*\.mimarble-(\d+)-[^.]*\.?[^.]*$")
+_cleaned: set = set()
+
+
 def write_atomically(path, write) -> None:
     """``write(tmp)`` to a temporary file beside ``path`` (same suffix, so writers that
     choose a format by it choose the same), then rename it to ``path``. The new file gets
-    the usual mode (0666 less the umask); on any failure the temporary file is removed."""
+    the usual mode (0666 less the umask); on any failure the temporary file is removed,
+    and the first write into a folder removes the temporary files that killed processes
+    left there (a kill leaves no chance to remove them)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix,
-                               dir=path.parent if str(path.parent) else ".")
+    folder = path.parent if str(path.parent) else Path(".")
+    _remove_stale_temporaries(folder)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.mimarble-{os.getpid()}-",
+                               suffix=path.suffix, dir=folder)
     os.close(fd)
     try:
         write(tmp)
@@ -42,6 +53,35 @@ def write_atomically(path, write) -> None:
         if os.path.exists(tmp):
             os.remove(tmp)
         raise
+
+
+def _remove_stale_temporaries(folder: Path) -> None:
+    """Remove the temporary files of processes that no longer run, once per folder."""
+    key = os.path.abspath(folder)
+    if key in _cleaned:
+        return
+    _cleaned.add(key)
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return
+    for entry in entries:
+        match = _TEMPORARY.match(entry.name)
+        if match and entry.is_file(follow_symlinks=False) and not _running(int(match.group(1))):
+            try:
+                os.remove(entry.path)
+            except OSError:
+                pass
+
+
+def _running(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True               # another user's, or not a pid: not ours to remove
+    return True
 
 
 def write_json(data, path) -> None:

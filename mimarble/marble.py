@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from . import environment, error_budget, pixel_filter
 from .finite_arithmetic import finite_product
-from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, NUMBER, PARAMETERS,
+from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS,
                                 MarbleParameters, ParameterError, checked, parameter_table)
 from .noise import fractal_sum
 from .plugins import RGBTexture, describe, first_number, plugin
@@ -184,12 +184,10 @@ class Marble(RGBTexture):
 
 def _editable(parameter, value):
     """A traversed parameter's value in a container Mitsuba can write into in every
-    variant: Dr.Jit arrays in JIT variants; in scalar_rgb, where mi.Float is a Python
-    float, one-element ``ArrayXf``/``ArrayXu`` and the ramp's ``TensorXf``."""
+    variant: ``mi.Float`` in JIT variants; in scalar_rgb, where mi.Float is a Python
+    float, a one-element ``ArrayXf``; the ramp's own (mimarble/ramp.py). An integer is
+    held as a float too, so that an edit to 2.5 is seen and refused, not truncated."""
     if parameter.kind == COLOURS:
         return ramp_storage(value)
-    jit = dr.is_jit_v(mi.Float)
-    if parameter.kind == NUMBER:
-        return mi.Float(value) if jit else dr.scalar.ArrayXf([value])
-    return mi.UInt32(value) if jit else dr.scalar.ArrayXu([value])
+    return mi.Float(value) if dr.is_jit_v(mi.Float) else dr.scalar.ArrayXf([value])
 

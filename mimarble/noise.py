@@ -267,10 +267,8 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
 
     * ``turbulence``: |N| in place of N (Perlin's turbulence).
     * ``band``: (whole, last) from :func:`band_limit`: octaves i < whole have weight 1,
-      octave ``whole`` weight ``last``, the rest are left out. Evaluated in a symbolic
-      loop, so each lane stops after its own last octave (fewer noise evaluations where
-      the footprint is large) — unrolled instead when ``p`` carries derivatives, as
-      reverse mode cannot go through a symbolic loop.
+      octave ``whole`` weight ``last``, the rest are left out; each lane stops after its
+      own last octave (fewer noise evaluations where the footprint is large).
     * ``gradient``: also ∇F = Σ w_i ∇N(2^i p) (the 2^i of the chain rule cancels the
       amplitude); turbulence's |N| contributes sign(N)·∇N (0 where N = 0).
     * ``differentials`` (∂p/∂x, ∂p/∂y), with ``turbulence``: |N| folds where N crosses 0
@@ -279,9 +277,14 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
       it spreads with variance n² + W²/12 − mean² about that mean, with no slope: such an
       octave adds its mean to F and its spread to σ², not its gradient.
 
-    Without ``band`` the loop is unrolled with literal frequencies and amplitudes:
-    2^i and 2^−i are exact, so each term is N at an exactly scaled point, exactly
-    weighted, and every variant of the sum gives the same bits for the same terms.
+    In JIT variants the octaves are a symbolic loop (``dr.while_loop``): one noise
+    evaluation's code, however many octaves. Unrolled, a kernel holds every octave's
+    code, and LLVM compiles a long straight-line kernel in more than linear time (a
+    product of many marbles; docs/benchmarks.md, "Compile time"), while the loop
+    renders as fast. The loop is unrolled where it must be: in the scalar variant, and when ``p`` carries
+    derivatives (reverse mode cannot go through a symbolic loop). The frequencies and
+    amplitudes 2^i and 2^−i are exact either way, so each term is N at an exactly scaled
+    point, exactly weighted, and both forms give the same bits.
     """
     most = octaves_evaluated(octaves)
     float_type = type(p.x)
@@ -329,14 +332,17 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
             state["gradient"] = state["gradient"] + (g if weight is None else g * weight)
         return state
 
-    if band is None or not jit or dr.grad_enabled(p):
+    if not jit or dr.grad_enabled(p):
         for i in range(most):
             state = octave(i, float(2.0 ** i), float(2.0 ** -i), state)
         return _result(state)
 
-    whole, last = band
     uint_type = dr.uint32_array_t(float_type)
-    count = uint_type(whole) + dr.select(last > 0.0, 1, 0)
+    if band is None:
+        count = dr.full(uint_type, most, width)
+    else:
+        whole, last = band
+        count = uint_type(whole) + dr.select(last > 0.0, 1, 0)
 
     def body(i, frequency, amplitude, state):
         return i + 1, frequency * 2.0, amplitude * 0.5, octave(i, frequency, amplitude, state)

@@ -87,7 +87,7 @@ def test_zero_distortion_skips_the_noise(llvm):
 
     plain, noisy = texture(distortion=0.0, octaves=8), texture(distortion=1.0, octaves=8)
     assert not plain.needs_noise and noisy.needs_noise
-    assert operations(plain) * 10 < operations(noisy)
+    assert operations(plain) + 250 < operations(noisy)      # the noise: hundreds of operations
     pts = random_points(1000, seed=13)
     assert np.abs(eval_at(plain, pts) - marble64.colour(pts, distortion=0.0)).max() <= COLOUR_TOL
 

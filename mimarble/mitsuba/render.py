@@ -63,6 +63,9 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
+    elif not isinstance(scene_or_path, scene_language.Scene):
+        raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
+                        f"path, a mimarble.scene.Scene or a loaded mi.Scene")
     scene_dict = to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance, filter=filter)
     try:
         mitsuba_scene = mi.load_dict(scene_dict)

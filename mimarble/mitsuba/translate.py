@@ -33,7 +33,7 @@ import math
 import warnings
 
 from .. import error_budget
-from ..scene import model
+from ..scene import LIMITS, model
 
 MODES = ("whitted", "path")
 
@@ -232,19 +232,28 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     (``error_budget.scene_tolerance``). ``filter`` overrides every marble's pixel
     filter (``none``, ``bandlimit``, ``prefilter``).
     """
-    if tolerance is not None and not tolerance >= 0:
-        raise ValueError(f"tolerance={tolerance!r} must be ≥ 0")
+    if not isinstance(scene, model.Scene):
+        raise TypeError(f"to_mitsuba: {scene!r:.80} is not a scene model (mimarble.scene.Scene)")
+    if tolerance is not None and (isinstance(tolerance, bool)
+                                  or not isinstance(tolerance, (int, float))
+                                  or not 0 <= tolerance < math.inf):
+        raise ValueError(f"tolerance={tolerance!r:.40} must be a finite number ≥ 0")
     if filter is not None and filter not in model.MARBLE_FILTERS:
-        raise ValueError(f"filter={filter!r} must be one of {', '.join(model.MARBLE_FILTERS)}")
+        raise ValueError(f"filter={filter!r:.40} must be one of {', '.join(model.MARBLE_FILTERS)}")
     if mode not in MODES:
-        raise ValueError(f"mode={mode!r} must be one of {', '.join(MODES)}")
+        raise ValueError(f"mode={mode!r:.40} must be one of {', '.join(MODES)}")
     spp = scene.image.samples if spp is None else spp
+    if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+        raise ValueError(f"spp={spp!r:.40} must be a whole number ≥ 1")
+    samples = scene.image.width * scene.image.height * spp
+    if samples > LIMITS["max_image_samples"]:
+        raise ValueError(f"spp={spp}: {scene.image.width}x{scene.image.height} pixels at {spp} "
+                         f"spp is {samples} samples, more than the "
+                         f"{LIMITS['max_image_samples']} allowed")
     for problem in float32_range_problems(scene):
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
     if mode == "whitted":
         model.samples_per_axis(spp)
-    elif spp < 1:
-        raise ValueError(f"spp={spp} must be positive")
 
     out: dict = {"type": "scene"}
     textures: dict = {}            # channel value -> texture id (dedupes equal channels)

@@ -1,0 +1,129 @@
+"""Careless and hostile input to the Python API, the renderers and the files they write
+(issue 23): one sentence, no traceback of ours, nothing left half written or outside."""
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble import files
+from mimarble import scene as S
+from mimarble.compare import image_metrics
+from mimarble.mitsuba.render import render_in_passes
+
+dr, mi = mimarble.dr, mimarble.mi
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def tiny(diffuse=S.MarbleChannel(octaves=4), light=(1.0, 1.0, 1.0)):
+    return S.Scene(image=S.Image(8, 8), camera=S.Camera(eye=(0, 0, 6)),
+                   lights=(S.Light((4, 4, 4), light),),
+                   materials={"m": S.Material("m", diffuse=diffuse)}, spheres=(S.Sphere("m"),))
+
+
+@pytest.mark.parametrize("call, words", [
+    (lambda: mimarble.render(123), "123 is not a scene"),
+    (lambda: mimarble.render(None), "None is not a scene"),
+    (lambda: mimarble.render(tiny(), spp=True), "spp=True must be a whole number"),
+    (lambda: mimarble.render(tiny(), spp=2 ** 40), "more than the"),
+    (lambda: mimarble.render(tiny(), tolerance="x"), "tolerance='x' must be a finite number"),
+    (lambda: mimarble.render(tiny(), mode="paths"), "mode='paths' must be one of"),
+])
+def test_bad_arguments_are_one_sentence(llvm, call, words):
+    with pytest.raises((TypeError, ValueError), match=words):
+        call()
+
+
+def test_an_infinite_error_has_a_psnr_of_minus_infinity():
+    image = np.zeros((2, 2, 3), np.float32)
+    infinite = np.full((2, 2, 3), np.inf, np.float32)
+    metrics = image_metrics(infinite, image)
+    assert metrics["rmse"] == np.inf and metrics["psnr"] == -np.inf
+
+
+def mimarble_cli(*args):
+    return subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=ROOT,
+                          capture_output=True, text=True)
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    path = tmp_path / "s.scene"
+    path.write_text('image { width 8 height 8 } camera { eye < 0 0 6 > } '
+                    'light { position < 4 4 4 > } material "m" { diffuse { color < 1 0 0 > } } '
+                    'sphere { material "m" }')
+    return path
+
+
+def test_an_output_name_too_long_is_a_sentence(scene_file, tmp_path):
+    result = mimarble_cli("render", scene_file, "-o", tmp_path / ("x" * 300 + ".png"))
+    assert result.returncode == 2 and "File name too long" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_an_output_that_is_a_symbolic_link_is_refused(scene_file, tmp_path):
+    elsewhere = tmp_path / "elsewhere.png"
+    elsewhere.write_bytes(b"keep")
+    link = tmp_path / "out.png"
+    link.symlink_to(elsewhere)
+    result = mimarble_cli("render", scene_file, "-o", link)
+    assert result.returncode == 2 and "symbolic link" in result.stderr
+    assert link.is_symlink() and elsewhere.read_bytes() == b"keep"
+
+
+def test_temporary_files_of_killed_writers_are_removed(tmp_path):
+    finished = subprocess.Popen([sys.executable, "-c", "pass"])
+    finished.wait()                                   # its pid runs no more
+    stale = tmp_path / f".image.mimarble-{finished.pid}-x1y2.png"
+    ours = tmp_path / f".image.mimarble-{os.getpid()}-x1y2.png"
+    unrelated = tmp_path / ".image.x1y2.png"
+    for path in (stale, ours, unrelated):
+        path.write_bytes(b"")
+    files.write_atomically(tmp_path / "image.png", lambda tmp: open(tmp, "wb").write(b"png"))
+    assert not stale.exists() and ours.exists() and unrelated.exists()
+    assert (tmp_path / "image.png").read_bytes() == b"png"
+
+
+def test_traverse_edits_are_checked_like_properties(variant):
+    texture = mi.load_dict({"type": "marble", "octaves": 5})
+    params = mi.traverse(texture)
+    params["octaves"] = 2.5                            # not truncated to 2: refused
+    with pytest.raises(Exception, match="octaves must be an integer in 0..64, found 2.5"):
+        params.update()
+    assert texture.octaves == 5
+    if dr.is_jit_v(mi.Float):                          # a ramp longer than the language's
+        params["ramp"] = mi.Color3f(np.full((3, 1000), 0.5, np.float32))
+        with pytest.raises(Exception, match="ramp has 1000 colours; it holds 1..256"):
+            params.update()
+        assert texture.ramp.size == 8
+
+
+def test_expressions_render_in_the_multithreaded_scalar_variant(variant):
+    """Mitsuba's scalar variant shades samples on several threads: the shared evaluations
+    of a material are each thread's own."""
+    channel = S.Multiply((S.MarbleChannel(octaves=3), S.Add((S.ColorChannel((0.5, 0.2, 0.1)),
+                                                             S.MarbleChannel(period=2.0)))))
+    image = mimarble.render(tiny(channel), spp=4)
+    assert np.isfinite(image).all() and image.max() > 0
+
+
+def render_operations(octaves, marbles=1):
+    channel = S.Multiply(tuple(S.MarbleChannel(octaves=octaves, period=1.0 + k)
+                               for k in range(marbles))) if marbles > 1 else \
+        S.MarbleChannel(octaves=octaves)
+    loaded = mi.load_dict(mimarble.to_mitsuba(tiny(channel), spp=1))
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+        render_in_passes(loaded, 1)
+        kernels = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+    return max(k["operation_count"] for k in kernels)
+
+
+def test_a_kernel_holds_one_noise_evaluation_per_marble(llvm):
+    """The octaves are a loop, not unrolled code: LLVM compiles a long straight-line
+    kernel in more than linear time (docs/benchmarks.md, "Compile time")."""
+    assert render_operations(8) == render_operations(4)
+    one, four, eight = (render_operations(4, n) for n in (1, 4, 8))
+    assert abs((eight - four) - 4 * (four - one) / 3) < 0.05 * (eight - four)   # linear
