@@ -329,20 +329,23 @@ def _gallery(args) -> int:
 
 
 def _sweep(args) -> int:
-    from .sweeps import SweepError, frames, settings_from
+    from .sweeps import SweepError, check_workers, frames, settings_from
     if not args.set:
         raise UsageError("a sweep needs at least one --set KEY=VALUES")
     out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise UsageError(f"-o {out}: exists and is not a folder")
-    if not out.parent.is_dir():
-        raise UsageError(f"-o {out}: the folder it would go in, {out.parent}, does not exist")
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f"--workers {args.workers}: must be at least 1")
+    try:
+        if out.exists() and not out.is_dir():
+            raise UsageError(f"-o {out}: exists and is not a folder")
+        if not out.parent.is_dir():
+            raise UsageError(f"-o {out}: the folder it would go in, {out.parent}, does not exist")
+    except OSError as e:          # a name longer than the file system takes, a loop of links
+        raise UsageError(f"-o {out}: {e.strerror or e}") from None
     scene = _load_scene(args)
     try:
+        if args.workers is not None:
+            check_workers(args.workers)             # at most a few per core
         settings = settings_from(args.set)
-        count = len(frames(scene, settings))        # every key and value checked up front
+        count = len(frames(scene, settings))        # their number, then every key and value
     except SweepError as e:
         raise UsageError(str(e)) from None
     if args.spp is not None:
@@ -464,7 +467,8 @@ def build_parser() -> argparse.ArgumentParser:
                                                          "this sweep)")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     group = p.add_mutually_exclusive_group()
-    group.add_argument("--workers", type=int, help="render on a Dask LocalCluster of N processes")
+    group.add_argument("--workers", type=int, help="render on a Dask LocalCluster of N processes "
+                                                   "(a few per core at most)")
     group.add_argument("--scheduler", metavar="ADDRESS",
                        help="render on a running Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--compare", action="store_true",

@@ -23,13 +23,15 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import struct
 from typing import Any
 
 from .properties import numbered_properties
 
 __all__ = ["Parameter", "ParameterError", "MarbleParameters", "PARAMETERS", "BY_NAME",
            "SWEEPABLE", "IN_PLACE", "RENAMED", "FUNCTIONS", "AXES", "FILTERS", "FIG5_RAMP",
-           "MAX_OCTAVES", "MAX_RAMP_COLOURS", "parse_ramp", "ramp_text", "parameter_table"]
+           "MAX_OCTAVES", "MAX_RAMP_COLOURS", "parse_ramp", "ramp_text", "parameter_table",
+           "single_precision"]
 
 #: The stripe functions (mimarble/stripes.py), in the order of the documentation.
 FUNCTIONS: tuple[str, ...] = ("abs_sine", "sine", "cosine")
@@ -129,14 +131,35 @@ class Parameter:
             if not lo <= value <= hi:
                 raise ParameterError(f"{self.name} must be in {lo}..{hi}")
             return int(value)
-        if (self.above is not None and not value > self.above) or \
-                (self.at_least is not None and not value >= self.at_least):
-            raise ParameterError(f"{self.name} {self.requirement}")
+        # The bound holds for the value and for the float32 the Mitsuba path holds it in
+        # (scale 1e-40 is > 0, but 0 in single precision: a renderer would divide by it).
+        for held, how in ((value, ""), (single_precision(value), " in single precision "
+                                                                 "(the renderer's)")):
+            if (self.above is not None and not held > self.above) or \
+                    (self.at_least is not None and not held >= self.at_least):
+                raise ParameterError(f"{self.name} {self.requirement}{how}")
         return float(value)
 
     def property_value(self, value):
         """The value as a Mitsuba property (``mi.load_dict``): colours as ``"r g b, …"``."""
         return ramp_text(value) if self.kind == COLOURS else value
+
+
+#: The smallest normal float32: smaller (subnormal) values read back from the renderer's
+#: float32 as zero (measured: the plugin read ``scale 1e-40`` back as 0).
+_FLT_MIN_NORMAL = 2.0 ** -126
+#: The largest float32.
+_FLT_MAX = 3.4028234663852886e38
+
+
+def single_precision(value: float) -> float:
+    """``value`` as the renderer's float32 holds it: rounded to the nearest float32, a
+    subnormal one flushed to (signed) zero as the JIT's arithmetic does; past float32's
+    range, the value itself (its sign and size are what a bound compares)."""
+    if not abs(value) <= _FLT_MAX:
+        return float(value)
+    rounded = struct.unpack("f", struct.pack("f", value))[0]
+    return math.copysign(0.0, rounded) if abs(rounded) < _FLT_MIN_NORMAL else rounded
 
 
 def _listed(words) -> str:

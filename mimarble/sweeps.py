@@ -36,6 +36,21 @@ goes on.
 running one. Each worker imports mimarble once and keeps its loaded scenes and
 compiled kernels between frames (:func:`render_frame`); images come back to this
 process, which writes them, so no shared file system is needed.
+
+**A sweep folder is data, not instructions.** A frame's image is always named by
+:func:`file_name` from its index and values inside the output folder; the ``file`` field
+of the index is written for readers and never read back. A damaged index (not JSON, the
+wrong shape, a frame with a missing key or a wrong type) is said in one warning and
+started afresh (a damaged frame entry: that frame alone is rendered again); a done
+frame whose image is missing, not a regular file, not a PNG of the frame's size or
+truncated is rendered again, and so is one that does not decode in the contact sheet.
+Links, pipes and devices in the folder are never followed or read.
+
+**Limits** (stated once, below, with why): :data:`MAX_FRAMES` frames and
+:data:`MAX_SETTINGS` settings per sweep (checked before a frame or a range's values
+are made), :data:`WORKERS_PER_CORE` LocalCluster workers per core, a scheduler's answer
+within :data:`SCHEDULER_TIMEOUT_S`, an index of :data:`MAX_INDEX_BYTES`, a contact sheet
+of :data:`CONTACT_SHEET_PIXELS`.
 """
 
 from __future__ import annotations
@@ -46,7 +61,9 @@ import json
 import math
 import os
 import re
+import stat
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +77,38 @@ INDEX = "sweep.json"
 #: The index is rewritten at most this often while frames come in (and at the end).
 INDEX_INTERVAL_S = 0.5
 CONTACT_SHEET = "contact.png"
+
+#: Frames of one sweep at most (the product of the settings' value counts), checked
+#: before any frame, or a range's values, is made. A sweep is a figure or a study: every
+#: frame's scene is built and checked before the first render (10 000: 0.6 s), the
+#: index — an entry a frame — is rewritten whole every INDEX_INTERVAL_S (10 000 entries:
+#: ~2.6 MB), and the contact sheet holds every frame (its cells shrink past ~1 700).
+#: 10 000 is a 100 × 100 grid, minutes at the README's 160²; more is several sweeps.
+MAX_FRAMES = 10_000
+#: Settings (``--set`` options) of one sweep at most: each is a value in every index
+#: entry and a caption line in every contact-sheet cell; 16 settings of two values
+#: each would already be 65 536 frames.
+MAX_SETTINGS = 16
+#: LocalCluster workers per core of this machine at most. Each worker is a process with
+#: Mitsuba and Dr.Jit loaded (~160 MB before its first frame), and the frames already
+#: use every core (Dr.Jit's threads are shared out among the workers), so more workers
+#: add memory, not speed; 4 per core leaves room for one worker's Python work
+#: (translating a scene, encoding a PNG) to overlap another's render.
+WORKERS_PER_CORE = 4
+#: A Dask scheduler must accept the connection, answer Dask's handshake and say it is a
+#: scheduler within this (seconds). Dask's own connect timeout does not cover the
+#: handshake: a server that accepts and says nothing would keep the sweep waiting forever.
+SCHEDULER_TIMEOUT_S = 10
+#: An index file larger than this is not one a sweep wrote (MAX_FRAMES entries of
+#: MAX_SETTINGS values each stay under 10 MB): it is taken as damaged, not read.
+MAX_INDEX_BYTES = 32 * 2**20
+#: The contact sheet's pixels at most (~150 MB as 8-bit RGB): past ~1 700 frames at the
+#: usual 160-pixel cells, the cells shrink (not below MIN_CELL) to keep it so.
+CONTACT_SHEET_PIXELS = 50_000_000
+MIN_CELL = 24
+#: One setting's frames stand in one row (the paper's figures) up to this many; more are
+#: a grid, each cell captioned.
+ONE_ROW = 16
 
 
 class SweepError(ValueError):
@@ -96,6 +145,9 @@ def parse_setting(text: str) -> Setting:
             raise SweepError(f"--set {text!r}: a range is start:stop:count, e.g. 1:8:4") from None
         if len(parts) != 3 or count < 1:
             raise SweepError(f"--set {text!r}: a range is start:stop:count with count ≥ 1")
+        if count > MAX_FRAMES:           # before np.linspace allocates them
+            raise SweepError(f"--set {text!r}: {count} values; a sweep renders at most "
+                             f"{MAX_FRAMES} frames")
         return Setting(key, tuple(float(v) for v in np.linspace(start, stop, count)))
     return Setting(key, tuple(_value(v.strip()) for v in values.split(",")))
 
@@ -116,18 +168,44 @@ def _value(text: str):
 def settings_from(spec) -> tuple[Setting, ...]:
     """Settings from ``--set`` strings, or a mapping {key: values} (Python)."""
     if isinstance(spec, dict):
+        for key, values in spec.items():
+            count = (values.size if isinstance(values, np.ndarray) else
+                     len(values) if isinstance(values, (list, tuple, range)) else 1)
+            if count > MAX_FRAMES:       # before a range or an array is made into a list
+                raise SweepError(f"--set {key}: {count} values; a sweep renders at most "
+                                 f"{MAX_FRAMES} frames")
         # NumPy values (np.linspace, np.arange) become Python ones: JSON and checks take them.
         return tuple(Setting(k, tuple(np.asarray(v, dtype=object).ravel().tolist()
-                                      if isinstance(v, (list, tuple, np.ndarray)) else
+                                      if isinstance(v, (list, tuple, range, np.ndarray)) else
                                       [np.asarray(v).item()]))
                      for k, v in spec.items())
     return tuple(parse_setting(s) if isinstance(s, str) else s for s in spec)
 
 
+def frame_count(settings) -> int:
+    """How many frames ``settings`` make, refused (SweepError) past :data:`MAX_FRAMES` or
+    :data:`MAX_SETTINGS`, with no value or with a key given twice — before any is made."""
+    if len(settings) > MAX_SETTINGS:
+        raise SweepError(f"{len(settings)} settings; a sweep takes at most {MAX_SETTINGS}")
+    keys = [s.key for s in settings]
+    for setting in settings:
+        if not setting.values:
+            raise SweepError(f"--set {setting.key}: no values")
+        if keys.count(setting.key) > 1:
+            raise SweepError(f"--set {setting.key}: given twice; give it once with every value")
+    count = math.prod(len(s.values) for s in settings)
+    if count > MAX_FRAMES:
+        raise SweepError(f"{count} frames ({' × '.join(str(len(s.values)) for s in settings)} "
+                         f"values); a sweep renders at most {MAX_FRAMES}: split it into "
+                         f"several sweeps")
+    return count
+
+
 def frames(scene, settings) -> list[dict]:
     """Every combination: [{"index", "values": {key: value}, "scene"}] (last setting fastest).
     Each frame's scene is built here, so a bad key or value fails before any render
-    (SweepError ``--set KEY: …``)."""
+    (SweepError ``--set KEY: …``), and their number is checked first (:func:`frame_count`)."""
+    frame_count(settings)
     out = []
     for index, combination in enumerate(itertools.product(*(s.values for s in settings))):
         frame_scene = scene
@@ -253,9 +331,11 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     Dask (see the module docstring); neither: this process. ``compare``: each frame's
     RMSE and PSNR against the reference tracer. ``stop_after``: stop after that many
     frames (what an interruption does; the index says what is left). Already done frames
-    of the same sweep in ``out_dir`` are kept, not rendered again. ``worker_threads``:
-    Dr.Jit threads per Dask worker (default: a LocalCluster's share of this machine's
-    cores; a scheduler's workers keep their own).
+    of the same sweep in ``out_dir`` are kept, not rendered again; a damaged index or
+    image there is said in a warning and rendered again. ``worker_threads``: Dr.Jit
+    threads per Dask worker (default: a LocalCluster's share of this machine's cores; a
+    scheduler's workers keep their own). Every limit (module docstring) is checked before
+    anything is written.
     """
     import mimarble
     from .progress import report
@@ -274,24 +354,144 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                 scene_language.model.samples_per_axis(frame["scene"].image.samples)
             except ValueError as e:
                 raise SweepError(f"the scene's samples: {e}; give --spp") from None
+    if workers is not None:
+        check_workers(workers)
+    if scheduler is not None:
+        check_scheduler(scheduler)
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:                 # a file there, a name too long, no permission
+        raise SweepError(f"{out_dir}: cannot make the sweep's folder "
+                         f"({e.strerror or e})") from None
     mimarble.start()
     variant = mimarble.mi.variant()
     index = _open_index(out_dir, scene_or_path, scene, settings, spp, compare, all_frames, variant)
-    todo = [f for f in all_frames if not _done(index["frames"][f["index"]], out_dir)]
+    # The only names ever written or read in the folder: derived, never taken from the index.
+    names = [file_name(f, settings) for f in all_frames]
+    todo = _todo(all_frames, index, out_dir, names)
     finished = len(all_frames) - len(todo)
     if stop_after is not None:
         todo = todo[:stop_after]
     done = report(progress, "sweep", unit="frame")
     done(finished, len(all_frames))
+
+    def one_more():
+        nonlocal finished
+        finished += 1
+        done(finished, len(all_frames))
     # A LocalCluster's workers share this machine's cores (Dr.Jit would start a thread per
     # core in each); a remote scheduler's workers keep their own machines' defaults.
     threads = worker_threads or (max(1, (os.cpu_count() or 1) // int(workers))
                                  if workers and not scheduler else None)
-    jobs = [{"index": f["index"], "scene": f["scene"], "spp": spp, "compare": compare,
-             "variant": variant, "threads": threads, "encode": bool(workers or scheduler)}
-            for f in todo]
+    options = {"spp": spp, "compare": compare, "variant": variant, "threads": threads,
+               "encode": bool(workers or scheduler)}
+    _render(todo, options, index, out_dir, names, workers, scheduler, one_more)
+    # An image that passed its header check but does not decode is found by the contact
+    # sheet: it is rendered again once, and the sheet drawn again.
+    for attempt in range(2):
+        if not (contact_sheet and any(e["status"] == "done" for e in index["frames"])
+                and all(e["status"] != "todo" for e in index["frames"])):
+            break
+        was_done = [k for k, e in enumerate(index["frames"]) if e["status"] == "done"]
+        try:
+            write_contact_sheet(out_dir, index, size=_size(scene))
+        except OSError as e:             # the frames are there; only their overview is not
+            warnings.warn(f"{out_dir / CONTACT_SHEET}: cannot write the contact sheet "
+                          f"({e.strerror or e})", stacklevel=2)
+        undecodable = [k for k in was_done if index["frames"][k]["status"] != "done"]
+        if not undecodable:
+            break
+        _write_index(out_dir, index)
+        if attempt == 0:
+            warnings.warn(f"{out_dir}: {_count(len(undecodable), 'frame image')} did not "
+                          f"decode ({names[undecodable[0]]}"
+                          f"{', …' if len(undecodable) > 1 else ''}); rendering "
+                          f"{_them(len(undecodable))} again", stacklevel=2)
+            _render([all_frames[k] for k in undecodable], options, index, out_dir, names,
+                    workers, scheduler, lambda: None)
+    return index
+
+
+def check_workers(workers) -> int:
+    """``workers``, if a LocalCluster of that many can be started here: an integer from 1
+    to :data:`WORKERS_PER_CORE` × this machine's cores (SweepError otherwise)."""
+    cores = os.cpu_count() or 1
+    most = WORKERS_PER_CORE * cores
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise SweepError(f"--workers {workers!r}: must be a whole number, at least 1")
+    if workers > most:
+        raise SweepError(f"--workers {workers}: at most {most} here ({WORKERS_PER_CORE} per "
+                         f"core, {cores} cores): each worker is a process with Mitsuba "
+                         f"loaded, and the frames already share every core")
+    return int(workers)
+
+
+def check_scheduler(address) -> None:
+    """Refuse ``address`` (SweepError, one sentence) unless a Dask scheduler answers there
+    within :data:`SCHEDULER_TIMEOUT_S`: connected to, it must answer Dask's handshake and
+    say it is a scheduler. Something else listening there (a web server, a Dask worker)
+    is told apart from nothing listening."""
+    import asyncio
+    import gc
+    import logging
+    try:
+        from distributed.comm import connect
+        from distributed.comm.addressing import parse_address
+        from distributed.comm.registry import get_backend
+        from distributed.security import Security
+    except ImportError:
+        raise SweepError("--scheduler needs Dask distributed: pip install "
+                         "'dask[distributed]'") from None
+    if not isinstance(address, str):
+        raise SweepError(f"--scheduler {address!r}: give an address, e.g. tcp://host:8786")
+    try:
+        get_backend(parse_address(address)[0])
+    except ValueError as e:
+        raise SweepError(f"--scheduler {address}: not an address Dask knows ({e})") from None
+
+    async def identity():             # with the client's security (tls://), as Client connects
+        comm = await connect(address, timeout=SCHEDULER_TIMEOUT_S,
+                             **Security().get_connection_args("client"))
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    # What Dask logs of a garbled answer (a traceback at CRITICAL) is not for the user:
+    # the sentence below says it.
+    logger = logging.getLogger("distributed")
+    level = logger.level
+    logger.setLevel(logging.CRITICAL + 1)
+    # On a thread of its own, with its own event loop: the caller may be running one (Jupyter).
+    from concurrent.futures import ThreadPoolExecutor
+    try:
+        with ThreadPoolExecutor(max_workers=1) as thread:
+            answer = thread.submit(asyncio.run, asyncio.wait_for(
+                identity(), SCHEDULER_TIMEOUT_S + 2)).result()
+    except (TimeoutError, asyncio.TimeoutError):
+        raise SweepError(f"--scheduler {address}: no Dask scheduler answered there within "
+                         f"{SCHEDULER_TIMEOUT_S} s (something accepted the connection and "
+                         f"said nothing Dask understands)") from None
+    except OSError as e:                 # refused, unreachable, closed: Dask's own timeout
+        raise SweepError(f"cannot start or reach the scheduler at {address}: {e}") from None
+    except Exception:                    # bytes that are not Dask's ("Unable to allocate 3 EiB")
+        answer = None
+    finally:
+        gc.collect()                     # its unclosed streams are logged when collected
+        logger.setLevel(level)
+    if not (isinstance(answer, dict) and answer.get("type") == "Scheduler"):
+        what = (f"a Dask {answer['type'].lower()}" if isinstance(answer, dict)
+                and isinstance(answer.get("type"), str) and len(answer["type"]) < 40
+                else "something that is not Dask")
+        raise SweepError(f"--scheduler {address}: is not a Dask scheduler ({what} answered "
+                         f"there); give a running scheduler's address, e.g. tcp://host:8786")
+
+
+def _render(todo, options, index, out_dir: Path, names, workers, scheduler, one_more) -> None:
+    """Render the frames ``todo`` and write their images, recording each in ``index``."""
+    jobs = [dict(options, index=f["index"], scene=f["scene"]) for f in todo]
     # Images are written by one background thread while the next frames render (PNG
     # encoding takes a sixth of a 256² frame's time); the index, rewritten whole, at most
     # every INDEX_INTERVAL_S and at the end — a frame whose image is written but not yet
@@ -305,12 +505,11 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                 entry = index["frames"][result["index"]]
                 if result["error"] is None:
                     pending.append((entry, result, writer.submit(
-                        _write_frame, out_dir / entry["file"], result["image"])))
+                        _write_frame, out_dir / names[result["index"]], result["image"])))
                 else:
                     entry.update(status="failed", error=result["error"],
                                  render_s=result["render_s"])
-                finished += 1
-                done(finished, len(all_frames))
+                one_more()
                 pending = _record_written(pending)
                 if time.perf_counter() - last_index >= INDEX_INTERVAL_S:
                     _write_index(out_dir, index)
@@ -318,10 +517,6 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
         finally:
             _record_written(pending, wait=True)
             _write_index(out_dir, index)
-    if contact_sheet and any(_done(e, out_dir) for e in index["frames"]) \
-            and all(e["status"] != "todo" for e in index["frames"]):
-        write_contact_sheet(out_dir, index)
-    return index
 
 
 def _write_frame(path, image) -> None:
@@ -364,7 +559,8 @@ def _results(jobs, workers, scheduler):
             if scheduler is None:
                 cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1,
                                        processes=True, dashboard_address=None)
-            client = Client(cluster if cluster is not None else scheduler, timeout="10s")
+            client = Client(cluster if cluster is not None else scheduler,
+                            timeout=f"{SCHEDULER_TIMEOUT_S}s")
         except (OSError, ValueError, TimeoutError) as e:
             where = f"the scheduler at {scheduler}" if scheduler else "a LocalCluster"
             raise SweepError(f"cannot start or reach {where}: {e}") from None
@@ -372,7 +568,7 @@ def _results(jobs, workers, scheduler):
         for future in as_completed(futures):
             index = futures.pop(future)
             try:
-                result = future.result()
+                result = dict(future.result(), index=index)   # the frame asked for, by this side
             except Exception as e:
                 result = {"index": index, "image": None, "render_s": None,
                           "error": f"on Dask: {error_text(e)}"}
@@ -385,60 +581,277 @@ def _results(jobs, workers, scheduler):
             cluster.close()
 
 
+# ---------------------------------------------------------------------------
+# The index, and the images it says are done
+
+#: What makes two sweeps the same sweep (a resumed one must match on each), with the
+#: JSON type each has in an index that is not damaged.
+_SAME = {"scene_digest": str, "settings": list, "spp": (int, type(None)), "compare": bool,
+         "variant": str}
+_STATUSES = ("todo", "done", "failed")
+
+
 def _open_index(out_dir: Path, source, scene, settings, spp, compare, all_frames,
                 variant) -> dict:
-    """The index in ``out_dir`` (made, or read back for a resumed sweep of the same kind:
-    the same scene — by content, sizes included —, settings, spp, comparison and variant)."""
+    """The index in ``out_dir``: made, or read back for a resumed sweep of the same kind
+    (the same scene — by content, sizes included —, settings, spp, comparison and
+    variant; another is refused). Only each frame's status, error, time and metrics are
+    read back, each checked; the rest is this sweep's own. A damaged index is said in a
+    warning and started afresh; a damaged frame entry, that frame alone."""
     import hashlib
     described = {"scene": str(source) if isinstance(source, (str, os.PathLike))
                  else getattr(source, "source", None) or "<scene>",
                  "scene_digest": hashlib.sha256(repr(scene).encode()).hexdigest()[:16],
                  "settings": [{"key": s.key, "values": list(s.values)} for s in settings],
                  "spp": spp, "compare": compare, "variant": variant}
-    path = out_dir / INDEX
-    if path.exists():
-        try:
-            index = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as e:
-            raise SweepError(f"{path}: cannot read the sweep index ({e}); move it away to start "
-                             f"again") from None
-        same = ("scene_digest", "settings", "spp", "compare", "variant")
-        if {k: index.get(k) for k in same} != {k: described[k] for k in same}:
-            raise SweepError(f"{out_dir} holds another sweep ({path}: another scene, size, "
-                             f"setting, spp or variant); write this one elsewhere")
-        return index
     settings_list = list(settings)
     index = dict(described, frames=[
         {"index": f["index"], "values": f["values"], "file": file_name(f, settings_list),
          "status": "todo", "error": None, "render_s": None} for f in all_frames])
+    path = out_dir / INDEX
+    stored, problem = _read_index(path)
+    if stored is _NO_INDEX:
+        stored = None
+    elif problem is None:
+        problem = _header_problem(stored)
+        if problem is None and {k: stored[k] for k in _SAME} != {k: described[k] for k in _SAME}:
+            raise SweepError(f"{out_dir} holds another sweep ({path}: another scene, size, "
+                             f"setting, spp or variant); write this one elsewhere")
+        if problem is None and not isinstance(stored.get("frames"), list):
+            problem = "it has no list of frames"
+        elif problem is None and len(stored["frames"]) != len(all_frames):
+            problem = f"it lists {len(stored['frames'])} frames, not {len(all_frames)}"
+    if problem is not None:
+        warnings.warn(f"{path}: the sweep index is damaged ({problem}); starting it afresh: "
+                      f"every frame is rendered again", stacklevel=3)
+    elif stored is not None:
+        damaged = []
+        for entry, kept in zip(index["frames"], stored["frames"]):
+            entry_problem = _entry_problem(kept, entry, compare)
+            if entry_problem is not None:
+                damaged.append((entry["index"], entry_problem))
+                continue
+            entry.update({k: kept[k] for k in ("status", "error", "render_s")})
+            entry.update({k: kept[k] for k in ("rmse", "psnr") if k in kept})
+            if entry["status"] == "todo":
+                entry["error"] = None
+        if damaged:
+            n, (first, why) = len(damaged), damaged[0]
+            warnings.warn(f"{path}: {_count(n, 'frame entry', 'frame entries')} of the sweep "
+                          f"index {'is' if n == 1 else 'are'} damaged (frame {first}: {why}); "
+                          f"rendering {_them(n)} again", stacklevel=3)
     _write_index(out_dir, index)
     return index
 
 
-def _done(entry, out_dir: Path) -> bool:
-    return entry["status"] == "done" and (out_dir / entry["file"]).exists()
+_NO_INDEX = object()
+
+
+def _read_index(path: Path):
+    """(the JSON in ``path``, None), (_NO_INDEX, None) if there is none, or (None, why it
+    is not an index). Read only as a regular file in the folder, of at most
+    MAX_INDEX_BYTES."""
+    try:
+        with _open_regular(path) as f:
+            data = f.read(MAX_INDEX_BYTES + 1)
+    except FileNotFoundError:
+        return _NO_INDEX, None
+    except IsADirectoryError:
+        raise SweepError(f"{path}: is a folder, where the sweep's index goes; move it "
+                         f"away") from None
+    except OSError as e:
+        return None, _unreadable(e)
+    if len(data) > MAX_INDEX_BYTES:
+        return None, f"larger than {MAX_INDEX_BYTES // 2**20} MiB, more than any sweep's index"
+    try:
+        return json.loads(data), None
+    except UnicodeDecodeError:
+        return None, "it is not text"
+    except json.JSONDecodeError as e:
+        return None, f"not JSON: {e.msg} at line {e.lineno} column {e.colno}"
+    except (ValueError, RecursionError):   # nested deeper than json reads
+        return None, "not JSON that can be read (nested too deep)"
+
+
+def _header_problem(stored) -> str | None:
+    """Why ``stored`` does not begin as an index does (None: it does)."""
+    if not isinstance(stored, dict):
+        return f"it holds a JSON {_json_type(stored)}, not an object"
+    for key, kind in _SAME.items():
+        if key not in stored:
+            return f"it has no {key!r}"
+        value = stored[key]
+        if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+            return f"its {key!r} is a JSON {_json_type(value)}"
+    return None
+
+
+def _entry_problem(stored, entry: dict, compare: bool) -> str | None:
+    """Why a frame's entry read back is damaged (None: it is not)."""
+    if not isinstance(stored, dict):
+        return f"a JSON {_json_type(stored)}, not an object"
+    for key in ("index", "values", "status", "error", "render_s"):
+        if key not in stored:
+            return f"no {key!r}"
+    if not _is_int(stored["index"]) or stored["index"] != entry["index"]:
+        return f"its index is not {entry['index']}"
+    if stored["values"] != entry["values"]:
+        return "its values are not the frame's"
+    if stored["status"] not in _STATUSES:
+        return f"its status is not one of {', '.join(_STATUSES)}"
+    if not (stored["error"] is None or isinstance(stored["error"], str)):
+        return "its error is not text"
+    if not (stored["render_s"] is None or _is_number(stored["render_s"])):
+        return "its render time is not a number"
+    for key in ("rmse", "psnr"):
+        if (key in stored and not _is_number(stored[key])) or \
+                (compare and stored["status"] == "done" and key not in stored):
+            return f"its {key} is missing or not a number"
+    return None
+
+
+def _todo(all_frames, index, out_dir: Path, names) -> list:
+    """The frames not done: those the index does not say are, and those it says are whose
+    image is not usable (:func:`image_problem`, from the header: cheap), said in a warning."""
+    todo, damaged = [], []
+    for frame in all_frames:
+        entry = index["frames"][frame["index"]]
+        if entry["status"] == "done":
+            problem = image_problem(out_dir / names[frame["index"]], _size(frame["scene"]))
+            if problem is None:
+                continue
+            damaged.append((names[frame["index"]], problem))
+            for key in ("rmse", "psnr"):
+                entry.pop(key, None)
+            entry.update(status="todo", error=None, render_s=None)
+        todo.append(frame)
+    if damaged:
+        n, (name, why) = len(damaged), damaged[0]
+        warnings.warn(f"{out_dir}: {_count(n, 'done frame')} {'has' if n == 1 else 'have'} no "
+                      f"usable image ({name}: {why}{', …' if n > 1 else ''}); rendering "
+                      f"{_them(n)} again", stacklevel=3)
+    return todo
+
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"      # the empty IEND chunk that ends every PNG
+
+
+def image_problem(path, size=None) -> str | None:
+    """Why ``path`` is not a usable frame image (None: it is), read from its first and
+    last bytes only: it must be a regular file (not a link, pipe or device), a PNG of
+    ``size`` (width, height) if given, and end with the PNG end chunk (not truncated).
+    What this cannot see (damage inside the compressed pixels) the contact sheet finds."""
+    try:
+        with _open_regular(path) as f:
+            head = f.read(24)                # the signature and the IHDR chunk's size fields
+            end = os.fstat(f.fileno()).st_size
+            f.seek(max(0, end - len(_PNG_END)))
+            tail = f.read()
+    except FileNotFoundError:
+        return "missing"
+    except IsADirectoryError:
+        return "a folder"
+    except OSError as e:
+        return _unreadable(e)
+    if not head.startswith(_PNG_SIGNATURE) or head[12:16] != b"IHDR" or len(head) < 24:
+        return "not a PNG"
+    width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    if size is not None and (width, height) != tuple(size):
+        return f"{width}×{height} pixels, not {size[0]}×{size[1]}"
+    if tail != _PNG_END:
+        return "truncated"
+    return None
+
+
+class _NotRegular(OSError):
+    """A path in the sweep's folder that is not a regular file."""
+
+
+def _open_regular(path):
+    """``path`` open for reading (binary), if it is a regular file: a symbolic link (which
+    could lead out of the folder) is not followed, and a pipe (which would block) or a
+    device is not read — both raise OSError. O_NONBLOCK means nothing to a regular file."""
+    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
+    fd = os.open(path, flags)
+    try:
+        mode = os.fstat(fd).st_mode
+        if stat.S_ISDIR(mode):
+            raise IsADirectoryError(f"{path}: is a folder")
+        if not stat.S_ISREG(mode):
+            raise _NotRegular(f"{path}: not a regular file")
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def _unreadable(error: OSError) -> str:
+    import errno
+    if isinstance(error, _NotRegular):
+        return "not a regular file (a pipe or a device)"
+    if error.errno == errno.ELOOP:
+        return "a symbolic link, which is not followed"
+    return f"cannot be read ({error.strerror or error})"
 
 
 def _write_index(out_dir: Path, index: dict) -> None:
-    files.write_json(index, out_dir / INDEX)
+    try:
+        files.write_json(index, out_dir / INDEX)
+    except OSError as e:                 # disk full, no permission: the sweep cannot keep count
+        raise SweepError(f"{out_dir / INDEX}: cannot write the sweep's index "
+                         f"({e.strerror or e})") from None
+
+
+def _size(scene) -> tuple[int, int]:
+    return scene.image.width, scene.image.height
+
+
+def _is_int(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _json_type(value) -> str:
+    return {dict: "object", list: "array", str: "string", bool: "boolean", int: "number",
+            float: "number", type(None): "null"}.get(type(value), type(value).__name__)
+
+
+def _count(n: int, one: str, many: str | None = None) -> str:
+    return f"{n} {one if n == 1 else many or one + 's'}"
+
+
+def _them(n: int) -> str:
+    return "it" if n == 1 else "them"
 
 
 # ---------------------------------------------------------------------------
 # Contact sheet
 
-def write_contact_sheet(out_dir, index: dict, cell: int = 160) -> Path:
+def write_contact_sheet(out_dir, index: dict, cell: int = 160, size=None) -> Path:
     """``contact.png``: the frames with their values beside them — a row for one setting
-    (the paper's figure layout), a grid of rows × columns for two (values along the top
-    and the left), a grid of cells each captioned with every value for more. Cells are
-    ``cell`` pixels wide; drawn with Pillow (a sheet of 64 frames in a fraction of a
-    second)."""
+    (the paper's figure layout; a grid past :data:`ONE_ROW` values), a grid of rows ×
+    columns for two (values along the top and the left), a grid of cells each captioned
+    with every value for more. Cells are
+    ``cell`` pixels wide, fewer for a sweep so large that the sheet would pass
+    :data:`CONTACT_SHEET_PIXELS`; drawn with Pillow (a sheet of 64 frames in a fraction of
+    a second).
+
+    Each done frame's image is read from its derived name (:func:`file_name`) in
+    ``out_dir``, nothing else; one that does not decode (or is not ``size``, (width,
+    height), if given) is drawn as a failed cell and marked failed in ``index``, with why,
+    so that it is rendered again."""
     from PIL import Image, ImageDraw
 
     out_dir = Path(out_dir)
     settings, entries = index["settings"], index["frames"]
+    named = [Setting(s["key"], tuple(s["values"])) for s in settings]
     if len(settings) == 2:
         rows, columns = len(settings[0]["values"]), len(settings[1]["values"])
-    elif len(settings) == 1:
+    elif len(settings) == 1 and len(entries) <= ONE_ROW:
         rows, columns = 1, len(entries)
     else:
         columns = math.ceil(math.sqrt(len(entries)))
@@ -448,16 +861,37 @@ def write_contact_sheet(out_dir, index: dict, cell: int = 160) -> Path:
     left = 0 if len(settings) != 2 else 8 * max(len(_label(settings[0], v))
                                                 for v in settings[0]["values"]) + 8
     top = line + 8 + (caption if len(settings) == 2 else 0)
+
+    def sheet_size(cell):
+        row_height = cell + (caption if len(settings) != 2 else 4)
+        return left + columns * cell + 8, top + rows * row_height + 4
+    while cell > MIN_CELL and math.prod(sheet_size(cell)) > CONTACT_SHEET_PIXELS:
+        cell -= 1                        # a large sweep: smaller cells, a bounded sheet
     row_height = cell + (caption if len(settings) != 2 else 4)
-    sheet = Image.new("RGB", (left + columns * cell + 8, top + rows * row_height + 4), "white")
+    sheet = Image.new("RGB", sheet_size(cell), "white")
     draw = ImageDraw.Draw(sheet)
     draw.text((4, 4), f"{Path(index['scene']).name}: "
                       + ", ".join(s["key"] for s in settings), fill="black")
     for k, entry in enumerate(entries):
         r, c = divmod(k, columns)
         x, y = left + c * cell + 4, top + r * row_height
-        if _done(entry, out_dir):
-            image = Image.open(out_dir / entry["file"]).convert("RGB")
+        image = None
+        if entry["status"] == "done":
+            name = file_name({"index": k, "values": entry["values"]}, named)
+            try:
+                with _open_regular(out_dir / name) as f:
+                    image = Image.open(f)
+                    if size is not None and image.size != tuple(size):
+                        raise ValueError(f"{image.size[0]}×{image.size[1]} pixels, not "
+                                         f"{size[0]}×{size[1]}")
+                    image = image.convert("RGB")          # decodes it all, here
+            except Image.DecompressionBombError:          # a frame too large to show, not bad
+                image = None
+            except Exception as e:       # truncated, garbled, replaced: render it again
+                image = None
+                entry.update(status="failed", error=f"its image does not decode "
+                                                    f"({error_text(e)})")
+        if image is not None:
             image.thumbnail((cell - 4, cell - 4))
             sheet.paste(image, (x, y))
         else:                                            # a failed frame: a grey cell

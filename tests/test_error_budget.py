@@ -145,20 +145,23 @@ def test_the_plugin_counts_octaves_from_its_parameters():
         mi.load_dict({"type": "marble", "tolerance": -1.0})
 
 
-def test_fewer_octaves_mean_a_smaller_kernel(llvm):
-    """The skipped octaves are not traced at all."""
+def test_the_budget_evaluates_exactly_the_octaves_it_keeps(llvm):
+    """A tolerance that keeps k of 32 octaves gives, bit for bit, the colour of a marble of
+    k octaves: the rest are not evaluated (the octave loop runs k times)."""
     dr = mimarble.dr
-
-    def ops(tolerance):
+    si = dr.zeros(mi.SurfaceInteraction3f, 256)
+    si.p = mi.Point3f(dr.linspace(mi.Float, -2, 2, 256), 0.5, 0.25)
+    for tolerance in (1e-2, error_budget.DEFAULT_TOLERANCE):
         tex = mi.load_dict({"type": "marble", "octaves": 32, "distortion": 3.0,
                             "tolerance": tolerance})
-        si = dr.zeros(mi.SurfaceInteraction3f, 64)
-        si.p = mi.Point3f(dr.linspace(mi.Float, 0, 1, 64), 0.5, 0.25)
-        with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-            dr.eval(tex.eval(si))
-            return sum(k["operation_count"] for k in dr.kernel_history()
-                       if k["type"] == dr.KernelType.JIT)
-    assert ops(1e-2) < ops(error_budget.DEFAULT_TOLERANCE) < ops(0.0)
+        kept = tex.octaves_evaluated
+        assert 0 < kept < 25
+        alone = mi.load_dict({"type": "marble", "octaves": kept, "distortion": 3.0,
+                              "tolerance": 0.0})
+        assert np.array_equal(np.array(tex.eval(si)), np.array(alone.eval(si)))
+        everything = mi.load_dict({"type": "marble", "octaves": kept + 1, "distortion": 3.0,
+                                   "tolerance": 0.0})
+        assert not np.array_equal(np.array(tex.eval(si)), np.array(everything.eval(si)))
 
 
 def test_the_command_line_takes_a_tolerance(tmp_path):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from mimarble.scene import SceneError, parse
+from mimarble.scene.errors import SHOWN_WIDTH
 
 GOOD_MATERIAL = 'material "m" { diffuse { color < 1 1 1 > } }\n'
 
@@ -17,8 +18,15 @@ def check(text: str, line: int, column: int, fragment: str) -> SceneError:
     assert fragment in e.message, str(e)
     head, src, caret = str(e).split("\n")
     assert head.startswith(f"v.scene:{line}:{column}: ")
-    assert src == text.split("\n")[line - 1]
-    assert len(caret) == column and caret.endswith("^")
+    whole = text.split("\n")[line - 1]
+    assert caret.endswith("^") and not caret[:-1].strip()
+    if len(whole) <= SHOWN_WIDTH:
+        assert src == whole
+        assert len(caret) == column
+    else:                       # a window around the column, the caret under its character
+        assert len(src) <= SHOWN_WIDTH + 6 and src.strip(".") in whole
+        if column <= len(whole):
+            assert src[len(caret) - 1] == whole[column - 1]
     return e
 
 

@@ -66,6 +66,8 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     elif not isinstance(scene_or_path, scene_language.Scene):
         raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
+    else:
+        check_images(scene, decode=False)   # built in Python: the parser never read its maps
     scene_dict = to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance, filter=filter)
     try:
         mitsuba_scene = mi.load_dict(scene_dict)
@@ -111,11 +113,21 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
     return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed)
 
 
-def check_images(scene) -> None:
-    """Every image map decodes (the parser read only its header): else a SceneError at
-    its ``file`` string. Called when loading the scene failed, so a good image is not
-    decoded twice."""
+def check_images(scene, decode: bool = True) -> None:
+    """Every image map passes the parser's header check (a regular file, a complete 8-bit
+    PNG or JPEG within the pixel limit: ``mimarble.scene.image_header``, the parser's own
+    sentence) and, with ``decode``, decodes: else a SceneError at its ``file`` string.
+    The header is checked before anything is decoded, so a decompression bomb or a FIFO
+    is refused, not read. Called when loading the scene failed, so a good image is not
+    decoded twice; ``decode=False`` reads headers only (milliseconds), for a scene built
+    in Python, which the parser never saw, before ``mi.load_dict`` decodes its maps."""
+    from ..scene.image_header import image_file_sentence
     for channel in scene.image_maps():
+        sentence = image_file_sentence(channel.file, channel.location)
+        if sentence:
+            raise scene_language.SceneError.in_file(scene.source, channel.pos, sentence)
+        if not decode:
+            continue
         try:
             mi.Bitmap(channel.location)
         except Exception as e:   # Mitsuba's reader raises RuntimeError with libpng's reason

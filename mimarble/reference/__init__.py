@@ -21,6 +21,7 @@ from pathlib import Path
 
 from mimarble.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
 from mimarble.scene import Scene, SceneError, load
+from mimarble.scene.image_header import image_file_sentence
 
 from . import image_map, marble, noise, tracer
 from .marble import marble_color, ramp, stripe
@@ -77,6 +78,11 @@ def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
     if isinstance(scene, (str, Path)):
         scene = load(scene)
     for channel in scene.image_maps():      # decoded now: a bad file is a SceneError at it
+        # Its header first, in the parser's words (a scene built in Python was not parsed):
+        # nothing is decoded from a file the parser would refuse.
+        sentence = image_file_sentence(channel.file, channel.location)
+        if sentence:
+            raise SceneError.in_file(scene.source, channel.pos, sentence)
         try:
             image_map.load_image(channel.location)
         except ValueError as e:   # "image file '/abs/path': reason" → at the file string

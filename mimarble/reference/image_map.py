@@ -20,11 +20,16 @@ What Mitsuba's ``bitmap`` texture does by default (``filter_type="bilinear"``,
   u, v, negative ones included). Row 0 is the file's first (top) row, so v = 0
   is the top of the image.
 
-Errors: a file that is missing, unreadable, or not a decodable 8-bit PNG or
-JPEG raises :class:`ValueError` naming the file.
+Errors: a file that is missing, unreadable, not a regular file, or not a complete,
+decodable 8-bit PNG or JPEG of at most ``mimarble.scene.LIMITS["max_image_map_pixels"]``
+pixels raises :class:`ValueError` naming the file. The header is checked by the scene
+language's rule before Pillow reads a pixel, so the reference refuses what the parser
+and the Mitsuba path refuse, in the same words; the size is checked again on what
+Pillow read from the file it opened.
 
 Imports NumPy, Pillow, the standard library and the scene language's rule for an image
-map's file (``mimarble.scene.image_header.image_file_problem``: exists, 8-bit PNG or JPEG).
+map's file (``mimarble.scene.image_header``: a regular file, a complete 8-bit PNG or JPEG
+within the pixel limit; ``mimarble.scene.reading.open_regular``).
 """
 
 from __future__ import annotations
@@ -35,7 +40,8 @@ import os
 import numpy as np
 from PIL import Image
 
-from mimarble.scene.image_header import image_file_problem
+from mimarble.scene.image_header import MAX_IMAGE_MAP_PIXELS, image_file_problem
+from mimarble.scene.reading import open_regular
 
 __all__ = [
     "SRGB8_TO_LINEAR",
@@ -89,8 +95,13 @@ def _load(where: str, mtime_ns: int, size: int) -> np.ndarray:
         problem = image_file_problem(where)     # the scene language's rule for the file
         if problem:
             raise ValueError(problem)
-        with open(where, "rb") as f:
+        with open_regular(where) as f:          # a FIFO swapped in is not waited on
             with Image.open(f) as im:
+                width, height = im.size
+                if width * height > MAX_IMAGE_MAP_PIXELS:   # the file changed since its check
+                    raise ValueError(f"a {im.format} of {width}x{height} = {width * height} "
+                                     f"pixels; image maps hold at most {MAX_IMAGE_MAP_PIXELS} "
+                                     f"(8192x8192) pixels")
                 if im.format not in _FORMATS:
                     raise ValueError(f"a {im.format or 'unknown'} image; "
                                      f"image maps are 8-bit PNG or JPEG")

@@ -2,10 +2,18 @@
 
 from __future__ import annotations
 
-__all__ = ["SceneError", "TAB_SIZE"]
+from .limits import MAX_SCENE_BYTES
+from .reading import open_regular
+
+__all__ = ["SceneError", "TAB_SIZE", "SHOWN_WIDTH"]
 
 #: Tab stops used to display a source line (columns still count a tab as one).
 TAB_SIZE = 8
+#: The most characters of a source line shown: a longer line is shown as a window of
+#: this many around the column, "..." where it was cut (an error on a 4 MB line does not
+#: echo 4 MB).
+SHOWN_WIDTH = 120
+_CUT = "..."
 
 
 class SceneError(Exception):
@@ -19,7 +27,9 @@ class SceneError(Exception):
         the offending source line
                 ^
 
-    with tabs expanded to 8-column stops and the caret under the column.
+    with tabs expanded to 8-column stops and the caret under the column. A line longer
+    than :data:`SHOWN_WIDTH` characters is shown as a window of that many around the
+    column, with ``...`` where it was cut.
     Errors without a position (a file that cannot be read) have ``line`` and
     ``column`` None and print as ``FILE: message`` alone.
     The command-line interface prints ``str(err)`` and exits with status 2.
@@ -57,10 +67,12 @@ class SceneError(Exception):
         line, column = (pos.line, pos.column) if pos is not None else (None, None)
         src = None
         if source and line is not None:
-            try:
-                with open(source, encoding="utf-8") as f:
-                    lines = f.read().lstrip("\ufeff").split("\n")
-                src = lines[line - 1].rstrip("\r") if line <= len(lines) else None
+            try:          # a regular file of at most the scene size limit, read whole
+                with open_regular(source) as f:
+                    data = f.read(MAX_SCENE_BYTES + 1)
+                if len(data) <= MAX_SCENE_BYTES:
+                    lines = data.decode("utf-8").lstrip("\ufeff").split("\n")
+                    src = lines[line - 1].rstrip("\r") if line <= len(lines) else None
             except (OSError, UnicodeDecodeError):
                 src = None
         return cls(message, filename=source or "<scene>", line=line, column=column, source_line=src)
@@ -89,12 +101,20 @@ class SceneError(Exception):
         head = f"{self.location}: {self.message}"
         if self.line is None or self.source_line is None:
             return head
-        shown = self.source_line.expandtabs(TAB_SIZE)
+        line = self.source_line
+        at = max(self.column - 1, 0) if self.column is not None else 0
+        # The window shown: the whole line, or SHOWN_WIDTH characters around the column.
+        start, end = 0, len(line)
+        if len(line) > SHOWN_WIDTH:
+            start = min(max(at - SHOWN_WIDTH // 2, 0), len(line) - SHOWN_WIDTH)
+            end = start + SHOWN_WIDTH
+        before = _CUT if start > 0 else ""
+        shown = (before + line[start:end] + (_CUT if end < len(line) else "")).expandtabs(TAB_SIZE)
         if self.column is None:
             return f"{head}\n{shown}"
-        prefix = self.source_line[: max(self.column - 1, 0)]
+        prefix = before + line[start:at]
         # Pad past the end of the line if the column is beyond it (end of file).
-        prefix += " " * max(self.column - 1 - len(prefix), 0)
+        prefix += " " * max(at - len(line), 0)
         width = len(prefix.expandtabs(TAB_SIZE))
         return f"{head}\n{shown}\n{' ' * width}^"
 

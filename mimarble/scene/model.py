@@ -12,18 +12,32 @@ at it in their own messages. ``pos`` takes no part in equality, hashing or
 
 The defaults of the constructors are the language's defaults (see
 docs/scene-language.md), so ``MarbleChannel()`` is the marble of a
-``marble { }`` block and ``Scene()`` is an empty file. Constructors do not
-validate; :func:`mimarble.scene.parse` does, with file positions.
+``marble { }`` block and ``Scene()`` is an empty file.
+
+Constructors check what the parser checks, by the same rules (rules.py) and in the
+same words, without a file position: a value it cannot take is a ValueError
+(``radius must be > 0, found -1``), a value of the wrong type a TypeError. Numbers are
+finite and within float32's range, colours ≥ 0, the image within its size and sample
+limits, the camera's fov in (0, 180) with eye ≠ lookat and ``up`` not parallel to the
+view, a sphere's radius > 0, a material's name and shininess, channels nested at most 64
+deep, a scene's lights and spheres within their limits (limits.py), each material under
+its own name and every sphere's material one of its materials. Vectors and colours are
+stored as tuples of three floats, sizes as ints. ``MarbleChannel`` alone keeps what it is
+given: the marble's parameter table checks its values where they are read (the parser,
+the ``marble`` plugin). :func:`mimarble.scene.parse` checks the same, with file positions.
 """
 
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple, Union
 
 from .. import marble_parameters
+from . import rules
+from .limits import MAX_IMAGE_SAMPLES
 
 __all__ = [
     "Vec3",
@@ -47,6 +61,7 @@ __all__ = [
     "CHANNEL_TYPES",
     "walk",
     "replace_marbles",
+    "depth",
     "MarbleFunction",
     "Axis",
     "FIG5_RAMP",
@@ -116,6 +131,81 @@ class FrozenMap(Mapping):
         return f"FrozenMap({self._d!r})"
 
 
+# ---------------------------------------------------------------------------
+# The constructors' checks: the parser's rules (rules.py), raised as ValueError/TypeError
+
+def _shown(value) -> str:
+    return rules.shortened(repr(value))
+
+
+def _refuse(problem: str | None, value) -> None:
+    """A rule's problem as the parser words it, with the value found."""
+    if problem:
+        raise ValueError(f"{problem}, found {_shown(value)}")
+
+
+def _number(value, what: str) -> float:
+    """A real number (not a bool), finite and within float32's range, as a float."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{what} must be a number, found {_shown(value)}")
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.copysign(math.inf, value)
+    problem = rules.number_problem(number)
+    if problem:
+        raise ValueError(f"{what}: number {_shown(value)} {problem}")
+    return number
+
+
+def _integer(value, what: str, lo: int, hi: int) -> int:
+    """An integral number in lo..hi, as an int."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"{what} must be an integer, found {_shown(value)}")
+    if not isinstance(value, numbers.Integral) and not math.isfinite(value):
+        raise ValueError(f"{what} must be an integer, found {_shown(value)}")
+    _refuse(rules.integer_problem(value, what, lo, hi), value)
+    return int(value)
+
+
+def _vector(value, what: str) -> tuple[float, float, float]:
+    """Three numbers, as a tuple of floats."""
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{what} must be 3 numbers, found {_shown(value)}")
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise TypeError(f"{what} must be 3 numbers, found {_shown(value)}") from None
+    if len(items) != 3:
+        raise ValueError(f"{what} needs 3 numbers, found {len(items)}")
+    return tuple(_number(x, what) for x in items)  # type: ignore[return-value]
+
+
+def _colour(value, what: str) -> tuple[float, float, float]:
+    """A colour: three numbers, each ≥ 0."""
+    given = tuple(value) if not isinstance(value, (str, bytes)) and hasattr(value, "__iter__") \
+        else value
+    rgb = _vector(given, f"{what} (a colour < r g b >)")
+    for component, written in zip(rgb, given):
+        _refuse(rules.colour_problem(component, what), written)
+    return rgb
+
+
+def _store(node, **values) -> None:
+    """Set the checked (normalised) values on a frozen node."""
+    for name, value in values.items():
+        object.__setattr__(node, name, value)
+
+
+def _instances(values, kind, what: str) -> tuple:
+    """``values`` as a tuple, each an instance of ``kind``."""
+    values = tuple(values)
+    for value in values:
+        if not isinstance(value, kind):
+            raise TypeError(f"{what} must hold {kind.__name__} objects, found {_shown(value)}")
+    return values
+
+
 def samples_per_axis(spp) -> int:
     """n for spp = n² samples per pixel (an n×n grid of stratum centres).
 
@@ -145,6 +235,17 @@ class Image:
     background: RGB = (0.0, 0.0, 0.0)
     pos: Pos | None = _pos()
 
+    def __post_init__(self) -> None:
+        lo, hi = rules.IMAGE_SIZE
+        width = _integer(self.width, "width", lo, hi)
+        height = _integer(self.height, "height", lo, hi)
+        samples = _integer(self.samples, "samples", 1, MAX_IMAGE_SAMPLES)
+        problem = rules.image_samples_problem(width, height, samples)
+        if problem:
+            raise ValueError(problem)
+        _store(self, width=width, height=height, samples=samples,
+               background=_colour(self.background, "background"))
+
     @property
     def samples_per_axis(self) -> int:
         return math.isqrt(self.samples)
@@ -170,6 +271,15 @@ class Camera:
     fov: float = 30.0
     pos: Pos | None = _pos()
 
+    def __post_init__(self) -> None:
+        eye, lookat, up = (_vector(getattr(self, name), name) for name in ("eye", "lookat", "up"))
+        fov = _number(self.fov, "fov")
+        _refuse(rules.fov_problem(fov), self.fov)
+        for problem in (rules.view_problem(eye, lookat), rules.up_problem(eye, lookat, up)):
+            if problem:
+                raise ValueError(problem)
+        _store(self, eye=eye, lookat=lookat, up=up, fov=fov)
+
 
 @dataclass(frozen=True)
 class Light:
@@ -178,6 +288,10 @@ class Light:
     position: Vec3
     color: RGB = (1.0, 1.0, 1.0)
     pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        _store(self, position=_vector(self.position, "position"),
+               color=_colour(self.color, "light color"))
 
 
 @dataclass(frozen=True)
@@ -257,6 +371,21 @@ def _check_operands(kind: str, operands) -> tuple:
     return operands
 
 
+def depth(channel) -> int:
+    """How deep a channel nests: 1 for a colour, marble or image map, one more for each
+    expression around the deepest of them (at most ``LIMITS["max_channel_depth"]``)."""
+    return channel.__dict__.get("_depth", 1)
+
+
+def _nest(expression) -> None:
+    """Note an expression's depth (its operands', plus one), within the limit."""
+    level = 1 + max(depth(c) for c in expression.operands)
+    problem = rules.depth_problem(level)
+    if problem:
+        raise ValueError(problem)
+    object.__setattr__(expression, "_depth", level)   # not a field: no part of ==, hash
+
+
 @dataclass(frozen=True)
 class _Operation:
     """Two or more channels combined componentwise (``keyword`` names it)."""
@@ -267,6 +396,7 @@ class _Operation:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "operands", _check_operands(self.keyword, self.operands))
+        _nest(self)
 
 
 @dataclass(frozen=True)
@@ -301,6 +431,7 @@ class Mix:
             if not math.isfinite(self.weight):
                 raise ValueError(f"mix: weight={self.weight!r} must be finite")
             object.__setattr__(self, "weight", float(self.weight))
+        _nest(self)
 
     @property
     def operands(self) -> tuple:
@@ -357,6 +488,21 @@ class Material:
     shininess: float = 32.0
     pos: Pos | None = _pos()
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise TypeError(f"a material name must be a string, found {_shown(self.name)}")
+        problem = rules.material_name_problem(self.name)
+        if problem:
+            raise ValueError(problem)
+        for component in ("ambient", "diffuse", "specular"):
+            channel = getattr(self, component)
+            if channel is not None and not isinstance(channel, CHANNEL_TYPES):
+                raise TypeError(f'{component} of material "{rules.shortened(self.name)}" must '
+                                f"be a channel or None, found {_shown(channel)}")
+        shininess = _number(self.shininess, "shininess")
+        _refuse(rules.shininess_problem(shininess), self.shininess)
+        _store(self, shininess=shininess)
+
     def channels(self) -> dict[str, Channel]:
         """The components that are present, by name (ambient, diffuse, specular)."""
         return {
@@ -375,15 +521,23 @@ class Sphere:
     radius: float = 1.0
     pos: Pos | None = _pos()
 
+    def __post_init__(self) -> None:
+        if not isinstance(self.material, str):
+            raise TypeError(f"a sphere's material is a material's name, found "
+                            f"{_shown(self.material)}")
+        radius = _number(self.radius, "radius")
+        _refuse(rules.radius_problem(radius), self.radius)
+        _store(self, center=_vector(self.center, "center"), radius=radius)
+
 
 @dataclass(frozen=True)
 class Scene:
     """A whole scene file.
 
-    ``materials`` maps names to materials in file order; every
-    ``Sphere.material`` is a key of it (after :func:`parse`). ``ambient`` is
-    the global ambient light A. ``source`` is the file it came from (None for
-    text parsed without a file name); it takes no part in equality.
+    ``materials`` maps names to materials in file order, each under its own name;
+    every ``Sphere.material`` is a key of it (the constructor checks it, as the parser
+    does). ``ambient`` is the global ambient light A. ``source`` is the file it came
+    from (None for text parsed without a file name); it takes no part in equality.
     """
 
     image: Image = Image()
@@ -397,11 +551,32 @@ class Scene:
     def __post_init__(self) -> None:
         # Accept lists and dicts from programmatic construction; store immutably.
         if not isinstance(self.materials, FrozenMap):
+            if not isinstance(self.materials, Mapping):
+                raise TypeError(f"materials must map names to materials, found "
+                                f"{_shown(self.materials)}")
             object.__setattr__(self, "materials", FrozenMap(self.materials))
-        for name in ("lights", "spheres"):
-            value = getattr(self, name)
-            if not isinstance(value, tuple):
-                object.__setattr__(self, name, tuple(value))
+        if not isinstance(self.image, Image):
+            raise TypeError(f"image must be an Image, found {_shown(self.image)}")
+        if not isinstance(self.camera, Camera):
+            raise TypeError(f"camera must be a Camera, found {_shown(self.camera)}")
+        lights = _instances(self.lights, Light, "lights")
+        spheres = _instances(self.spheres, Sphere, "spheres")
+        for kind, items in (("light", lights), ("sphere", spheres)):
+            problem = rules.count_problem(kind, len(items))
+            if problem:
+                raise ValueError(problem)
+        for name, material in self.materials.items():
+            if not isinstance(material, Material):
+                raise TypeError(f"materials must hold Material objects, found "
+                                f"{_shown(material)}")
+            if name != material.name:
+                raise ValueError(f'materials: the name "{rules.shortened(name)}" holds '
+                                 f'material "{rules.shortened(material.name)}"')
+        for sphere in spheres:
+            problem = rules.unknown_material(sphere.material, self.materials)
+            if problem:
+                raise ValueError(problem)
+        _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, spheres=spheres)
 
     def image_maps(self) -> tuple:
         """Every distinct image map the materials use."""

@@ -13,9 +13,20 @@ Two stages:
    followed by ``s``. With the basic lexer every keyword is a reserved word, and
    an unknown word is reported as such, at its first character.
 
+   The tokens are fed to Lark one by one (its interactive parser), so that the
+   statements past a limit (lights, spheres: limits.py) are refused at the first one
+   too many, before the rest of the file is parsed.
+
 2. :class:`_Builder` walks the tree into the frozen model, checking what the
-   grammar does not: duplicates, arity, ranges, names, references. A marble's
-   values are checked by the parameter table's own rules (``Parameter.check``).
+   grammar does not: duplicates, arity, ranges, names, references, how deep channels
+   nest. The values are checked by the rules the model's constructors apply
+   (rules.py), here with the token's position; a marble's by the parameter table's
+   own rules (``Parameter.check``).
+
+Limits (limits.py, docs/scene-language.md "Limits") are enforced at the edge: a scene
+file larger than :data:`~mimarble.scene.limits.MAX_SCENE_BYTES` is refused from its
+size (at most that many bytes and one more are read), a FIFO or a device without being
+opened for a read that could block (reading.py).
 """
 
 from __future__ import annotations
@@ -27,11 +38,15 @@ import os
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from ..marble_parameters import (BOOLEAN, BY_NAME, CHOICE, COLOURS, PARAMETERS, Parameter,
+from ..marble_parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter,
                                  ParameterError)
+from . import rules
 from .errors import SceneError
 from .grammar import grammar_text
-from .image_header import image_file_problem
+from .image_header import image_file_sentence
+from .keywords import CHANNEL_KEYWORDS
+from .limits import LIMITS, MAX_IMAGE_SAMPLES, MAX_SCENE_BYTES
+from .reading import NotRegularFile, open_regular
 from .model import (
     Add,
     ImageChannel,
@@ -52,17 +67,12 @@ from .syntax_errors import decoded, syntax_error
 
 __all__ = ["parse", "load", "LIMITS"]
 
-#: Limits checked after parsing (documented in docs/scene-language.md); the marble's
-#: are its parameter table's.
-LIMITS = {
-    "image_size": (1, 16384),  # width and height, pixels
-    "max_image_samples": 1 << 28,  # width * height * samples
-    "octaves": BY_NAME["octaves"].bounds,
-    "ramp_colours": BY_NAME["ramp"].bounds,
-    "max_abs_number": 3.4028234663852886e38,  # float32 max: the Mitsuba path is single precision
-}
+# LIMITS: limits.py, each stated once with why (and in docs/scene-language.md, Limits);
+# the marble's are its parameter table's.
 
-_FLT_MAX = LIMITS["max_abs_number"]
+#: The refusal of a scene larger than the limit.
+_TOO_LARGE = (f"the scene is larger than 4 MiB ({MAX_SCENE_BYTES} bytes), the most a scene "
+              f"file holds (docs/scene-language.md, Limits)")
 
 # Rule names whose keyword differs from the rule name.
 _RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image"}
@@ -113,19 +123,83 @@ def _keyword_terminals() -> dict[str, str]:
     }
 
 
+@functools.lru_cache(maxsize=None)
+def _watched_terminals() -> tuple[dict[str, str], frozenset, frozenset]:
+    """The terminals :func:`_tree` watches: the statements whose count is limited
+    (terminal -> ``light`` or ``sphere``, keywords that are statements and nothing
+    else), the expressions' keywords (``add``, ``multiply``, ``mix``) and every channel's."""
+    words = _keyword_terminals()
+    counted = {name: word for name, word in words.items() if word in ("light", "sphere")}
+    expressions = frozenset(name for name, word in words.items()
+                            if word in ("add", "multiply", "mix"))
+    channels = frozenset(name for name, word in words.items() if word in CHANNEL_KEYWORDS)
+    return counted, expressions, channels
+
+
+def _tree(text: str, filename: str) -> Tree:
+    """Lark's tree of ``text``, fed token by token, refusing at its keyword, before the
+    rest is parsed, a statement past its count limit and a channel nested past the depth
+    limit (its depth: the expression blocks open around it, plus one; the builder checks
+    the same on its way down). Lark's errors become SceneErrors."""
+    counted, expressions, channels = _watched_terminals()
+    counts = dict.fromkeys(counted.values(), 0)
+    braces: list[bool] = []          # each open '{': whether an expression opened it
+    open_expressions = 0
+    parser = _lark().parse_interactive(text)
+    last = previous = None
+    try:
+        for last in parser.iter_parse():
+            kind = last.type
+            problem = None
+            if kind in counted:
+                counts[counted[kind]] += 1
+                problem = rules.count_problem(counted[kind], counts[counted[kind]])
+            elif kind in channels and open_expressions:
+                problem = rules.depth_problem(open_expressions + 1)
+            elif kind == "LBRACE":
+                braces.append(previous is not None and previous.type in expressions)
+                open_expressions += braces[-1]
+            elif kind == "RBRACE" and braces:
+                open_expressions -= braces.pop()
+            if problem:
+                raise SceneError.at(text, filename, last.line, last.column, problem)
+            previous = last
+        return parser.feed_eof(last)
+    except UnexpectedInput as e:
+        if getattr(e, "interactive_parser", None) is None:
+            e.interactive_parser = parser       # as Lark's own parse() leaves it
+        raise syntax_error(e, text, filename, _keyword_terminals()) from None
+
+
+def _oversized(text) -> bool:
+    """More than the scene limit's bytes (text: as UTF-8)."""
+    if len(text) > MAX_SCENE_BYTES:
+        return True
+    if isinstance(text, str) and len(text) * 4 > MAX_SCENE_BYTES:
+        return len(text.encode("utf-8", "surrogatepass")) > MAX_SCENE_BYTES
+    return False
+
+
 # --------------------------------------------------------------------------
 #  Public entry points
 # --------------------------------------------------------------------------
 
 
 def load(path: str | os.PathLike) -> Scene:
-    """Read and parse a scene file. Every failure is a :class:`SceneError`."""
+    """Read and parse a scene file. Every failure is a :class:`SceneError`; a file that
+    is not a regular file (a FIFO, a device) is refused without being opened for a
+    read that could block, and one larger than ``LIMITS["max_scene_bytes"]`` without
+    being read past that."""
     filename = os.fspath(path)
     if isinstance(filename, bytes):
         filename = os.fsdecode(filename)
     try:
-        with open(path, "rb") as f:
-            data = f.read()
+        with open_regular(path) as f:
+            if os.fstat(f.fileno()).st_size > MAX_SCENE_BYTES:
+                raise SceneError(_TOO_LARGE, filename=filename)
+            data = f.read(MAX_SCENE_BYTES + 1)     # no more, should it have grown since
+    except NotRegularFile as e:
+        raise SceneError(f"cannot read scene file: {e}", filename=filename) from None
     except FileNotFoundError:
         raise SceneError(f"cannot read scene file: no such file (looked for "
                          f"{os.path.abspath(filename)})", filename=filename) from None
@@ -142,19 +216,21 @@ def parse(text: str | bytes, filename: str = "<string>", *, source: str | None =
     """Parse scene text. ``filename`` is used in messages only.
 
     ``Scene.source`` is ``source`` if given, else ``filename`` unless that is
-    the default ``"<string>"``.
+    the default ``"<string>"``. Text of more than ``LIMITS["max_scene_bytes"]``
+    bytes (as UTF-8) is refused, as a file of that size is.
     """
+    if not isinstance(text, (str, bytes, bytearray)):
+        raise TypeError(f"parse: the scene text must be str or bytes, found "
+                        f"{type(text).__name__}")
+    if _oversized(text):
+        raise SceneError(_TOO_LARGE, filename=filename)
     if isinstance(text, (bytes, bytearray)):
         text = decoded(bytes(text), filename)
     if text.startswith("\ufeff"):  # a UTF-8 byte order mark is not part of the scene
         text = text[1:]
     if source is None and filename != "<string>":
         source = filename
-    try:
-        tree = _lark().parse(text)
-    except UnexpectedInput as e:
-        raise syntax_error(e, text, filename, _keyword_terminals()) from None
-    return _Builder(text, filename, source).scene(tree, source)
+    return _Builder(text, filename, source).scene(_tree(text, filename), source)
 
 
 # --------------------------------------------------------------------------
@@ -188,20 +264,22 @@ class _Builder:
         return SceneError.at(self.text, self.filename, line, col, message)
 
     # -- values ---------------------------------------------------------------
+    def refuse(self, tok, problem: str | None) -> None:
+        """A rule's problem (rules.py) at ``tok``, with the token as written."""
+        if problem:
+            raise self.error(tok, f"{problem}, found {rules.shortened(tok)}")
+
     def number(self, tok: Token) -> float:
         value = float(tok)
-        if not math.isfinite(value):
-            raise self.error(tok, f"number {tok} is not finite (it overflows double precision)")
-        if abs(value) > _FLT_MAX:
-            raise self.error(tok, f"number {tok} is too large: the renderer is single precision, |x| <= 3.4e38")
+        problem = rules.number_problem(value)
+        if problem:
+            overflow = " (it overflows double precision)" if not math.isfinite(value) else ""
+            raise self.error(tok, f"number {rules.shortened(tok)} {problem}{overflow}")
         return value
 
     def integer(self, tok: Token, what: str, lo: int, hi: int) -> int:
         value = self.number(tok)
-        if not value.is_integer():
-            raise self.error(tok, f"{what} must be an integer, found {tok}")
-        if not lo <= value <= hi:
-            raise self.error(tok, f"{what} must be in {lo}..{hi}, found {tok}")
+        self.refuse(tok, rules.integer_problem(value, what, lo, hi))
         return int(value)
 
     def vector(self, tree: Tree, what: str) -> tuple[tuple[float, float, float], list[Token]]:
@@ -216,8 +294,7 @@ class _Builder:
     def color(self, tree: Tree, what: str) -> tuple[float, float, float]:
         value, toks = self.vector(tree, f"{what} (a colour < r g b >)")
         for v, t in zip(value, toks):
-            if v < 0:
-                raise self.error(t, f"{what}: colour components must be >= 0, found {t}")
+            self.refuse(t, rules.colour_problem(v, what))
         return value
 
     def fields(self, tree: Tree, block: str) -> dict[str, Tree]:
@@ -270,7 +347,8 @@ class _Builder:
                     first = material_at[mat.name]
                     raise self.error(
                         name_tok,
-                        f"duplicate material {name_tok} (first defined at {first.line}:{first.column})",
+                        f"duplicate material {rules.shortened(name_tok)} (first defined at "
+                        f"{first.line}:{first.column})",
                     )
                 materials[mat.name] = mat
                 material_at[mat.name] = name_tok
@@ -279,9 +357,9 @@ class _Builder:
             else:  # pragma: no cover - grammar and builder out of step
                 raise self.error(st, f"internal error: unhandled statement {kind}")
         for sphere, name_tok in spheres:
-            if sphere.material not in materials:
-                known = ", ".join(f'"{n}"' for n in materials) or "none"
-                raise self.error(name_tok, f'unknown material "{sphere.material}" (defined: {known})')
+            problem = rules.unknown_material(sphere.material, materials)
+            if problem:
+                raise self.error(name_tok, problem)
         return Scene(
             image=image,
             camera=camera,
@@ -294,7 +372,7 @@ class _Builder:
 
     def image(self, st: Tree) -> Image:
         f = self.fields(st, "'image' block")
-        lo, hi = LIMITS["image_size"]
+        lo, hi = rules.IMAGE_SIZE
         d = Image()
         width = self.integer(f["width"].children[0], "width", lo, hi) if "width" in f else d.width
         height = self.integer(f["height"].children[0], "height", lo, hi) if "height" in f else d.height
@@ -303,14 +381,10 @@ class _Builder:
             tok = f["samples"].children[0]
             # Any count: path mode takes any; whitted mode and the reference tracer need a
             # perfect square (their n×n grid) and say so when asked to render it.
-            samples = self.integer(tok, "samples", 1, LIMITS["max_image_samples"])
-        total = width * height * samples
-        if total > LIMITS["max_image_samples"]:
-            where = f.get("samples") or f.get("width") or f.get("height") or st
-            raise self.error(
-                where,
-                f"image too large: width*height*samples = {total} exceeds 2^28 = {LIMITS['max_image_samples']}",
-            )
+            samples = self.integer(tok, "samples", 1, MAX_IMAGE_SAMPLES)
+        problem = rules.image_samples_problem(width, height, samples)
+        if problem:
+            raise self.error(f.get("samples") or f.get("width") or f.get("height") or st, problem)
         background = self.color(f["background"].children[0], "background") if "background" in f else d.background
         return Image(width, height, samples, background, pos=_pos_of(st))
 
@@ -324,23 +398,13 @@ class _Builder:
         if "fov" in f:
             tok = f["fov"].children[0]
             fov = self.number(tok)
-            if not 0 < fov < 180:
-                raise self.error(tok, f"fov must be in (0, 180) degrees, found {tok}")
-        view = tuple(b - a for a, b in zip(eye, lookat))
-        view_len = math.sqrt(sum(c * c for c in view))
-        if view_len == 0 or not math.isfinite(view_len):
-            where = f.get("lookat") or f.get("eye") or st
-            raise self.error(where, "camera eye and lookat must be different points")
-        up_len = math.sqrt(sum(c * c for c in up))
-        cross = (
-            up[1] * view[2] - up[2] * view[1],
-            up[2] * view[0] - up[0] * view[2],
-            up[0] * view[1] - up[1] * view[0],
-        )
-        cross_len = math.sqrt(sum(c * c for c in cross))
-        if up_len == 0 or not cross_len > 1e-9 * up_len * view_len:
-            where = f.get("up") or st
-            raise self.error(where, "camera 'up' must not be zero or parallel to the view direction (lookat - eye)")
+            self.refuse(tok, rules.fov_problem(fov))
+        problem = rules.view_problem(eye, lookat)
+        if problem:
+            raise self.error(f.get("lookat") or f.get("eye") or st, problem)
+        problem = rules.up_problem(eye, lookat, up)
+        if problem:
+            raise self.error(f.get("up") or st, problem)
         return Camera(eye, lookat, up, fov, pos=_pos_of(st))
 
     def light(self, st: Tree) -> Light:
@@ -354,8 +418,9 @@ class _Builder:
     def material(self, st: Tree) -> Material:
         name_tok = st.children[0]
         name = str(name_tok)[1:-1]
-        if not name:
-            raise self.error(name_tok, "a material name must not be empty")
+        problem = rules.material_name_problem(name)
+        if problem:
+            raise self.error(name_tok, problem)
         block = f'material "{name}"'
         f = self.fields(st, block)
         channels = {k: self.channel(f[k], f"{k} of {block}") if k in f else None for k in ("ambient", "diffuse", "specular")}
@@ -363,8 +428,7 @@ class _Builder:
         if "shininess" in f:
             tok = f["shininess"].children[0]
             shininess = self.number(tok)
-            if not shininess > 0:
-                raise self.error(tok, f"shininess must be > 0, found {tok}")
+            self.refuse(tok, rules.shininess_problem(shininess))
         return Material(name, shininess=shininess, pos=_pos_of(st), **channels)
 
     def channel(self, component: Tree, what: str):
@@ -372,7 +436,12 @@ class _Builder:
         (ch,) = [c for c in component.children if isinstance(c, Tree)]
         return self.channel_of(ch, what)
 
-    def channel_of(self, ch: Tree, what: str):
+    def channel_of(self, ch: Tree, what: str, depth: int = 1):
+        """The channel ``ch`` at ``depth`` (1: a component's own); one nested past the
+        limit is refused at its keyword, before its operands are read."""
+        problem = rules.depth_problem(depth)
+        if problem:
+            raise self.error(ch, problem)
         if ch.data == "weight":
             raise self.error(ch, "'weight' belongs in a mix block: mix { A B weight W }")
         if ch.data == "color":
@@ -381,9 +450,9 @@ class _Builder:
             return self.marble(ch)
         if ch.data == "image_map":
             return self.image_map(ch)
-        return self.expression(ch, what)
+        return self.expression(ch, what, depth)
 
-    def expression(self, st: Tree, what: str):
+    def expression(self, st: Tree, what: str, depth: int = 1):
         """add / multiply / mix: their operands, counted and placed."""
         kind = str(st.data)
         parts = [c for c in st.children if isinstance(c, Tree)]
@@ -409,12 +478,12 @@ class _Builder:
                 raise self.error(weights[0], "'weight' comes last: mix { A B weight W }")
             (value,) = weights[0].children
             weight = self.number(value) if isinstance(value, Token) \
-                else self.channel_of(value, f"{inside} weight")
-            a, b = (self.channel_of(c, inside) for c in operands)
+                else self.channel_of(value, f"{inside} weight", depth + 1)
+            a, b = (self.channel_of(c, inside, depth + 1) for c in operands)
             return Mix(a, b, weight, pos=_pos_of(st))
         if len(operands) < 2:
             raise self.error(st, f"'{kind}' needs two or more channels, found {len(operands)}")
-        channels = tuple(self.channel_of(c, inside) for c in operands)
+        channels = tuple(self.channel_of(c, inside, depth + 1) for c in operands)
         return (Add if kind == "add" else Multiply)(channels, pos=_pos_of(st))
 
     def image_map(self, st: Tree) -> ImageChannel:
@@ -427,9 +496,9 @@ class _Builder:
         if not name:
             raise self.error(tok, "an image file name must not be empty")
         path = os.path.normpath(os.path.join(self.folder, name))
-        problem = image_file_problem(path)
+        problem = image_file_sentence(name, path)
         if problem:
-            raise self.error(tok, f"image file '{name}': {problem}")
+            raise self.error(tok, problem)
         # Its position is the file string's, where every error about the file points.
         return ImageChannel(name, path, pos=Pos(tok.line, tok.column))
 
@@ -447,7 +516,7 @@ class _Builder:
             except ParameterError as e:
                 if p.kind == COLOURS:   # a count: the message says it
                     raise self.error(where, str(e)) from None
-                raise self.error(where, f"{e}, found {where}") from None
+                raise self.error(where, f"{e}, found {rules.shortened(where)}") from None
         return MarbleChannel(**values, pos=_pos_of(st))
 
     def marble_value(self, p: Parameter, key: Tree):
@@ -475,6 +544,5 @@ class _Builder:
         if "radius" in f:
             tok = f["radius"].children[0]
             radius = self.number(tok)
-            if not radius > 0:
-                raise self.error(tok, f"radius must be > 0, found {tok}")
+            self.refuse(tok, rules.radius_problem(radius))
         return Sphere(str(name_tok)[1:-1], center, radius, pos=_pos_of(st)), name_tok

@@ -17,6 +17,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED
 from .errors import SceneError
 from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, STATEMENTS
+from .rules import shortened
 
 __all__ = ["syntax_error", "decoded"]
 
@@ -63,12 +64,12 @@ def _describe(tok: Token, keywords: dict[str, str]) -> str:
     if tok.type == "$END":
         return "end of file"
     if tok.type == "NUMBER":
-        return f"number {tok}"
+        return f"number {shortened(tok)}"
     if tok.type == "STRING":
-        return f"string {tok}"
+        return f"string {shortened(tok)}"
     if tok.type in keywords:
         return f"keyword '{tok}'"
-    return f"'{tok}'"
+    return f"'{shortened(tok)}'"
 
 
 def _expected_list(names, keywords: dict[str, str]) -> str:
@@ -101,7 +102,7 @@ def _open_blocks(state) -> list[tuple[Token, str]]:
         elif item.type == "LBRACE" and i > 0:
             opener = stack[i - 1]
             if isinstance(opener, Token) and opener.type == "STRING" and i > 1:
-                blocks.append((stack[i - 2], f"material {opener}"))
+                blocks.append((stack[i - 2], f"material {shortened(opener)}"))
             elif isinstance(opener, Token):
                 blocks.append((opener, f"'{opener}' block"))
     return blocks
@@ -151,7 +152,7 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(
                 e.line,
                 col,
-                f"malformed number '{word}': write numbers like 2, -0.5, .5 or 1e-3, "
+                f"malformed number '{shortened(word)}': write numbers like 2, -0.5, .5 or 1e-3, "
                 "separated by spaces or commas (there is no arithmetic)",
             )
         ch = rest[:1]
@@ -198,7 +199,8 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
         allowed = _expected_list(keys, keywords)
         if not blocks:
             if tok.type == "WORD":
-                return at(line, col, f"unknown statement '{tok}'; a statement is one of {allowed}")
+                return at(line, col, f"unknown statement '{shortened(tok)}'; a statement is one of "
+                                     f"{allowed}")
             return at(line, col, f"unexpected {found} at top level; a statement is one of {allowed}")
         opener, name = blocks[-1]
         if opener in CHANNEL_BLOCKS:
@@ -211,10 +213,10 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
             if str(tok) == "weight":
                 return at(line, col, "'weight' belongs in a mix block: mix { A B weight W }")
             if tok.type == "WORD":
-                return at(line, col, f"unknown channel '{tok}' in {name}; expected {what}")
+                return at(line, col, f"unknown channel '{shortened(tok)}' in {name}; expected {what}")
             return at(line, col, f"unexpected {found} in {name}; expected {what}")
         if tok.type == "WORD":
-            return at(line, col, f"unknown keyword '{tok}' in {name}{_renamed_note(str(tok))}; "
+            return at(line, col, f"unknown keyword '{shortened(tok)}' in {name}{_renamed_note(str(tok))}; "
                                  f"allowed: {allowed}")
         if tok.type in keywords:
             return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: {allowed}")

@@ -1,0 +1,64 @@
+"""The scene language's limits, stated once: what a scene (and an image map) may hold.
+
+Each limit is enforced at the edge — when the file is opened, when the image map's
+header is read, when the parser meets the statement or the channel past it, when a
+model is constructed in Python — before anything in proportion to it is allocated, and
+each is refused in one sentence (a :class:`~mimarble.scene.SceneError` at its
+FILE:LINE:COL, or a ValueError from a constructor). docs/scene-language.md ("Limits")
+says why each has its value, with what was measured.
+
+Standard library only (the scene package's rule); the marble's own limits are its
+parameter table's.
+"""
+
+from __future__ import annotations
+
+from ..marble_parameters import BY_NAME
+
+__all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
+           "MAX_LIGHTS", "MAX_SPHERES", "MAX_IMAGE_SAMPLES"]
+
+#: The largest float32: the Mitsuba path is single precision, so every number of a scene
+#: must be at most this in magnitude.
+FLT_MAX = 3.4028234663852886e38
+
+#: A scene file's size, bytes (4 MiB). The file is read whole and Lark builds a tree of it,
+#: in time and memory that grow with it; the largest scene the other limits allow is a
+#: fraction of this.
+MAX_SCENE_BYTES = 1 << 22
+
+#: An image map's pixels, width × height (2²⁶: 8192 × 8192), read from its header: a
+#: small file can decode into gigabytes (and a large enough map crashed Mitsuba). Below
+#: Pillow's own bomb limit, so both renderers refuse alike, in the same sentence.
+MAX_IMAGE_MAP_PIXELS = 1 << 26
+
+#: How deep channels nest (a leaf channel is at depth 1; each add, multiply or mix adds
+#: one). The parser, the translator and both renderers walk a channel recursively, and
+#: Python's stack runs out a few hundred levels down. 64 is far past any written by hand.
+MAX_CHANNEL_DEPTH = 64
+
+#: Point lights per scene. The whitted integrator unrolls its loop over the lights into
+#: the kernel, whose compilation grows faster than linearly with them.
+MAX_LIGHTS = 1024
+
+#: Spheres per scene: parse time and render memory grow with them; 10 000 stay within
+#: seconds and a gigabyte.
+MAX_SPHERES = 10_000
+
+#: width × height × samples of the image (2²⁸, about 4 GiB of float32 RGBA samples), so
+#: that a typo cannot exhaust memory.
+MAX_IMAGE_SAMPLES = 1 << 28
+
+#: The limits by name (``mimarble.scene.LIMITS``; documented in docs/scene-language.md).
+LIMITS = {
+    "image_size": (1, 16384),                       # width and height, pixels
+    "max_image_samples": MAX_IMAGE_SAMPLES,         # width * height * samples
+    "octaves": BY_NAME["octaves"].bounds,           # the marble's parameter table
+    "ramp_colours": BY_NAME["ramp"].bounds,         # the marble's parameter table
+    "max_abs_number": FLT_MAX,                      # float32 max: single precision
+    "max_scene_bytes": MAX_SCENE_BYTES,
+    "max_image_map_pixels": MAX_IMAGE_MAP_PIXELS,
+    "max_channel_depth": MAX_CHANNEL_DEPTH,
+    "max_lights": MAX_LIGHTS,
+    "max_spheres": MAX_SPHERES,
+}

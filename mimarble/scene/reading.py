@@ -1,0 +1,59 @@
+"""Opening a scene's files for reading: regular files only, never blocking.
+
+A FIFO opened for reading waits for a writer, forever if none comes; a device such as
+``/dev/zero`` never ends. Scene files and image maps are therefore looked at with
+``os.stat`` first and refused unless they are regular files, and then opened
+non-blocking and looked at again through the descriptor, so that nothing swapped in
+between is read either. Standard library only.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+import stat
+
+__all__ = ["NotRegularFile", "not_regular", "open_regular"]
+
+_KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+class NotRegularFile(OSError):
+    """A path that is there but is no regular file (nor a directory); ``str()`` says what
+    it is, e.g. ``it is a FIFO (named pipe), not a regular file``."""
+
+    def __str__(self) -> str:
+        return self.strerror
+
+
+def not_regular(mode: int) -> str | None:
+    """What a file of ``mode`` is, when it is neither a regular file nor a directory."""
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    kind = next((name for test, name in _KINDS if test(mode)), "a special file")
+    return f"it is {kind}, not a regular file"
+
+
+def _check(mode: int, path) -> None:
+    if stat.S_ISDIR(mode):
+        raise IsADirectoryError(errno.EISDIR, "Is a directory", os.fspath(path))
+    problem = not_regular(mode)
+    if problem:
+        raise NotRegularFile(errno.EINVAL, problem, os.fspath(path))
+
+
+def open_regular(path):
+    """``path`` opened for binary reading, when it is a regular file. Raises
+    FileNotFoundError, PermissionError, IsADirectoryError, :class:`NotRegularFile`
+    (anything else that is not a regular file: refused without being opened) or
+    another OSError."""
+    _check(os.stat(path).st_mode, path)
+    flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    fd = os.open(path, flags)            # non-blocking: a FIFO swapped in does not wait
+    try:
+        _check(os.fstat(fd).st_mode, path)
+        return os.fdopen(fd, "rb")
+    except BaseException:
+        os.close(fd)
+        raise

@@ -1,0 +1,143 @@
+"""The scene's value rules, written once for their two callers: the parser and the model.
+
+Each rule takes a value and says what is wrong with it, in the language's words
+(``radius must be > 0``), or None. The parser (parser.py) raises the sentence as a
+:class:`~mimarble.scene.SceneError` at the token it read, adding ``found`` and the token
+as written; the model's constructors (model.py) raise it as a ValueError, adding the
+value. So a scene built in Python hears the same sentence as one read from a file.
+
+Standard library only.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .limits import (FLT_MAX, LIMITS, MAX_CHANNEL_DEPTH, MAX_IMAGE_SAMPLES, MAX_LIGHTS,
+                     MAX_SPHERES)
+
+__all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
+           "view_problem", "up_problem", "image_samples_problem", "radius_problem",
+           "shininess_problem", "material_name_problem", "unknown_material", "count_problem",
+           "depth_problem", "listed_names", "shortened"]
+
+
+def shortened(text: str, most: int = 60) -> str:
+    """``text``, cut to at most ``most`` characters with ``...`` where it was cut: a
+    word or a name quoted in a message (a 4 MB word is not echoed)."""
+    text = str(text)
+    return text if len(text) <= most else text[:most - 3] + "..."
+
+
+def number_problem(value: float) -> str | None:
+    """What is wrong with a number of a scene: not finite, or past float32's range."""
+    if not math.isfinite(value):
+        return "is not finite"
+    if abs(value) > FLT_MAX:
+        return "is too large: the renderer is single precision, |x| <= 3.4e38"
+    return None
+
+
+def integer_problem(value: float, what: str, lo: int, hi: int) -> str | None:
+    """An integral number in lo..hi (``8``, ``8.0`` and ``8e0`` are all 8)."""
+    if not isinstance(value, int) and not float(value).is_integer():
+        return f"{what} must be an integer"
+    if not lo <= value <= hi:
+        return f"{what} must be in {lo}..{hi}"
+    return None
+
+
+def colour_problem(value: float, what: str) -> str | None:
+    """A colour component: ≥ 0 (no upper bound: linear RGB, HDR allowed)."""
+    return None if value >= 0 else f"{what}: colour components must be >= 0"
+
+
+def fov_problem(fov: float) -> str | None:
+    """The full vertical field of view, in degrees: 0 < fov < 180."""
+    return None if 0 < fov < 180 else "fov must be in (0, 180) degrees"
+
+
+def _sub(a, b):
+    return tuple(y - x for x, y in zip(a, b))
+
+
+def view_problem(eye, lookat) -> str | None:
+    """The camera looks somewhere: eye ≠ lookat (and their distance is finite)."""
+    view = _sub(eye, lookat)
+    length = math.sqrt(sum(c * c for c in view))
+    if length == 0 or not math.isfinite(length):
+        return "camera eye and lookat must be different points"
+    return None
+
+
+def up_problem(eye, lookat, up) -> str | None:
+    """``up`` is not zero and not parallel to the view direction."""
+    view = _sub(eye, lookat)
+    view_len = math.sqrt(sum(c * c for c in view))
+    up_len = math.sqrt(sum(c * c for c in up))
+    cross = (up[1] * view[2] - up[2] * view[1],
+             up[2] * view[0] - up[0] * view[2],
+             up[0] * view[1] - up[1] * view[0])
+    cross_len = math.sqrt(sum(c * c for c in cross))
+    if up_len == 0 or not cross_len > 1e-9 * up_len * view_len:
+        return "camera 'up' must not be zero or parallel to the view direction (lookat - eye)"
+    return None
+
+
+def image_samples_problem(width: int, height: int, samples: int) -> str | None:
+    """width × height × samples within the sample limit."""
+    total = width * height * samples
+    if total > MAX_IMAGE_SAMPLES:
+        return (f"image too large: width*height*samples = {total} exceeds 2^28 = "
+                f"{MAX_IMAGE_SAMPLES}")
+    return None
+
+
+def radius_problem(radius: float) -> str | None:
+    return None if radius > 0 else "radius must be > 0"
+
+
+def shininess_problem(shininess: float) -> str | None:
+    return None if shininess > 0 else "shininess must be > 0"
+
+
+def material_name_problem(name: str) -> str | None:
+    return None if name else "a material name must not be empty"
+
+
+def listed_names(names, most: int = 10) -> str:
+    """``"a", "b"`` …: at most ``most`` names, each shortened, then how many more."""
+    names = list(names)
+    shown = ", ".join(f'"{shortened(n)}"' for n in names[:most]) or "none"
+    return shown + (f" and {len(names) - most} more" if len(names) > most else "")
+
+
+def unknown_material(name: str, materials) -> str | None:
+    """A sphere's material is one of the scene's."""
+    if name in materials:
+        return None
+    return f'unknown material "{shortened(name)}" (defined: {listed_names(materials)})'
+
+
+_COUNTS = {"light": (MAX_LIGHTS, "the whitted integrator unrolls its loop over the lights"),
+           "sphere": (MAX_SPHERES, "the renderers' memory and time grow with them")}
+
+
+def count_problem(kind: str, count: int) -> str | None:
+    """Lights and spheres per scene, within their limits (``kind``: light, sphere)."""
+    most, why = _COUNTS[kind]
+    if count <= most:
+        return None
+    return f"too many {kind}s: a scene holds at most {most} ({why}; docs/scene-language.md, Limits)"
+
+
+def depth_problem(depth: int) -> str | None:
+    """Channels nested at most :data:`MAX_CHANNEL_DEPTH` deep."""
+    if depth <= MAX_CHANNEL_DEPTH:
+        return None
+    return (f"channels nested too deep: at most {MAX_CHANNEL_DEPTH} levels "
+            f"(this one is at level {depth})")
+
+
+#: The bounds of the image's width and height (the integer rule's, for both callers).
+IMAGE_SIZE: tuple[int, int] = LIMITS["image_size"]

@@ -1,0 +1,409 @@
+"""Sweeps under hostile and careless input (issue 23): a sweep folder is data, not
+instructions; a damaged index or image is said and rendered again; every limit is a
+sentence before anything large is made; nothing is written outside the output folder."""
+
+import json
+import os
+import random
+import socket
+import subprocess
+import sys
+import threading
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mimarble import scene as S
+from mimarble import sweeps
+from mimarble.scene_edits import resized
+
+ROOT = Path(__file__).resolve().parent.parent
+SETTING = {"marble.period": [1.0, 2.0]}
+NAMES = ["0000_period-1.png", "0001_period-2.png"]
+
+
+def tiny():
+    return resized(S.load(ROOT / "scenes" / "fig11a.scene"), 8)
+
+
+def cli(*args, cwd=ROOT):
+    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb",
+               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
+    result = subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=cwd,
+                            env=env, capture_output=True, text=True, timeout=300)
+    sys.stderr.write(result.stderr)   # where the conftest check sees Dr.Jit's bounds reports
+    return result
+
+
+def one_sentence(result):
+    """Exit 2, no traceback, one line on stderr: the sentence."""
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mimarble: "), result.stderr
+    return lines[0]
+
+
+@pytest.fixture
+def swept(llvm, tmp_path):
+    """A finished two-frame sweep of 8×8 images in tmp_path/"out"."""
+    out = tmp_path / "out"
+    index = sweeps.sweep(tiny(), SETTING, out, spp=1)
+    assert [f["status"] for f in index["frames"]] == ["done", "done"]
+    return out
+
+
+def resume(out, monkeypatch=None):
+    """Run the same sweep again; (the index, the frames rendered, the warnings' texts)."""
+    rendered = []
+    original = sweeps.render_frame
+    sweeps.render_frame = lambda job: rendered.append(job["index"]) or original(job)
+    try:
+        import warnings
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            index = sweeps.sweep(tiny(), SETTING, out, spp=1)
+    finally:
+        sweeps.render_frame = original
+    return index, rendered, [str(w.message) for w in caught]
+
+
+def usable(out):
+    """Every frame done, its derived image a whole 8×8 PNG, the contact sheet there."""
+    from PIL import Image
+    index = json.loads((out / "sweep.json").read_text())
+    assert [f["status"] for f in index["frames"]] == ["done", "done"]
+    assert [f["file"] for f in index["frames"]] == NAMES
+    for name in NAMES:
+        assert np.asarray(Image.open(out / name)).shape == (8, 8, 3)
+    assert (out / "contact.png").exists()
+    return index
+
+
+# ---------------------------------------------------------------------------
+# A sweep folder is data, not instructions
+
+@pytest.mark.parametrize("foreign", ["absolute", "../victim.png", "other.png"])
+def test_the_index_file_field_is_never_written_to(swept, foreign):
+    victim = swept.parent / "victim.png"
+    target = str(victim) if foreign == "absolute" else foreign
+    index = json.loads((swept / "sweep.json").read_text())
+    index["frames"][1].update(status="todo", file=target)
+    (swept / "sweep.json").write_text(json.dumps(index))
+    (swept / NAMES[1]).unlink()
+    _, rendered, _ = resume(swept)
+    assert rendered == [1]
+    assert not victim.exists() and not (swept / "other.png").exists()
+    assert sorted(p.name for p in swept.parent.iterdir()) == ["out"]
+    assert usable(swept)["frames"][1]["file"] == NAMES[1]
+
+
+def test_the_index_file_field_is_never_read(swept):
+    # A done frame pointing at an image outside: the frame is judged by its own derived
+    # file alone (missing here, so rendered again), and the foreign file is not opened.
+    foreign = swept.parent / "elsewhere.png"
+    os.replace(swept / NAMES[0], foreign)
+    before = foreign.stat()
+    index = json.loads((swept / "sweep.json").read_text())
+    index["frames"][0]["file"] = str(foreign)
+    (swept / "sweep.json").write_text(json.dumps(index))
+    _, rendered, warned = resume(swept)
+    assert rendered == [0]
+    assert any("0000_period-1.png: missing" in w for w in warned)
+    assert foreign.stat().st_mtime_ns == before.st_mtime_ns
+    usable(swept)
+
+
+def test_a_link_in_the_folder_is_not_followed_out_of_it(swept):
+    victim = swept.parent / "victim.png"
+    victim.write_bytes(b"not yours")
+    (swept / NAMES[1]).unlink()
+    (swept / NAMES[1]).symlink_to(victim)       # a done frame's image: a link outside
+    (swept / "sweep.json").rename(swept / "real.json")
+    (swept / "sweep.json").symlink_to(swept.parent / "victim.png")   # the index too
+    _, rendered, warned = resume(swept)
+    assert any("symbolic link" in w for w in warned)
+    assert rendered == [0, 1]                   # the index not read: started afresh
+    assert victim.read_bytes() == b"not yours"
+    assert not (swept / NAMES[1]).is_symlink() and not (swept / "sweep.json").is_symlink()
+    usable(swept)
+
+
+@pytest.mark.timeout(60)
+def test_a_pipe_as_the_index_or_an_image_does_not_block(swept):
+    (swept / "sweep.json").unlink()
+    os.mkfifo(swept / "sweep.json")
+    (swept / NAMES[0]).unlink()
+    os.mkfifo(swept / NAMES[0])
+    _, rendered, warned = resume(swept)
+    assert any("not a regular file" in w for w in warned)
+    assert rendered == [0, 1]                   # a fresh index: both rendered
+    usable(swept)
+
+
+# ---------------------------------------------------------------------------
+# A damaged index: one warning, started afresh
+
+DAMAGED_INDEXES = {
+    "binary garbage": bytes(random.Random(23).randrange(256) for _ in range(4096)),
+    "an array": b"[]",
+    "null": b"null",
+    "a number": b"3.5",
+    "an object of another shape": b'{"frames": {"0": "done"}}',
+    "a header of the wrong types": json.dumps({
+        "scene_digest": 7, "settings": "all", "spp": "1", "compare": 0, "variant": None,
+        "frames": []}).encode(),
+    "100 000 nested arrays": b"[" * 100_000,
+    "not UTF-8": b'{"scene": "\xff\xfe\xfd"}',
+}
+
+
+@pytest.mark.parametrize("what", DAMAGED_INDEXES)
+def test_a_damaged_index_is_said_and_started_afresh(swept, what):
+    (swept / "sweep.json").write_bytes(DAMAGED_INDEXES[what])
+    _, rendered, warned = resume(swept)
+    assert len(warned) == 1 and "the sweep index is damaged" in warned[0], warned
+    assert "\n" not in warned[0]
+    assert rendered == [0, 1]
+    usable(swept)
+
+
+def test_a_shortened_frame_list_is_started_afresh(swept):
+    index = json.loads((swept / "sweep.json").read_text())
+    index["frames"] = index["frames"][:1]
+    (swept / "sweep.json").write_text(json.dumps(index))
+    _, rendered, warned = resume(swept)
+    assert len(warned) == 1 and "lists 1 frames, not 2" in warned[0]
+    assert rendered == [0, 1]
+    usable(swept)
+
+
+def test_another_sweep_of_another_length_is_refused_not_started_afresh(swept):
+    before = {p.name: p.stat().st_mtime_ns for p in swept.iterdir()}
+    with pytest.raises(sweeps.SweepError, match="holds another sweep"):
+        sweeps.sweep(tiny(), {"marble.period": [1.0, 2.0, 3.0]}, swept, spp=1)
+    assert {p.name: p.stat().st_mtime_ns for p in swept.iterdir()} == before
+
+
+def test_a_huge_index_is_not_read(swept, monkeypatch):
+    monkeypatch.setattr(sweeps, "MAX_INDEX_BYTES", 100)
+    _, rendered, warned = resume(swept)
+    assert len(warned) == 1 and "larger than" in warned[0]
+    assert rendered == [0, 1]
+
+
+@pytest.mark.parametrize("damage", [
+    lambda e: e.pop("status"),
+    lambda e: e.pop("values"),
+    lambda e: e.update(status=["done"]),
+    lambda e: e.update(status="finished"),
+    lambda e: e.update(index="1"),
+    lambda e: e.update(render_s="fast"),
+    lambda e: e.update(error={"no": "text"}),
+    lambda e: e.update(values={"marble.period": 9.0}),
+], ids=["no status", "no values", "status a list", "unknown status", "index a string",
+        "render time a string", "error an object", "other values"])
+def test_a_damaged_frame_entry_renders_that_frame_alone_again(swept, damage):
+    index = json.loads((swept / "sweep.json").read_text())
+    damage(index["frames"][1])
+    (swept / "sweep.json").write_text(json.dumps(index))
+    _, rendered, warned = resume(swept)
+    assert len(warned) == 1 and "1 frame entry of the sweep index is damaged (frame 1" in warned[0]
+    assert rendered == [1]
+    usable(swept)
+
+
+def test_a_damaged_index_through_the_command_is_a_warning_line(tmp_path):
+    args = ["sweep", "scenes/fig11a.scene", "--set", "marble.period=1,2", "--width", "8",
+            "--height", "8", "--spp", "1", "-o", tmp_path / "out"]
+    assert cli(*args).returncode == 0
+    (tmp_path / "out" / "sweep.json").write_bytes(b"\x00\x01garbage")
+    result = cli(*args)
+    assert result.returncode == 0 and "Traceback" not in result.stderr
+    warnings = [line for line in result.stderr.splitlines() if "warning" in line]
+    assert len(warnings) == 1 and "the sweep index is damaged" in warnings[0]
+    index = json.loads((tmp_path / "out" / "sweep.json").read_text())
+    assert [f["status"] for f in index["frames"]] == ["done", "done"]
+
+
+# ---------------------------------------------------------------------------
+# A done frame whose image is damaged: found on resume, rendered again
+
+def truncated(path):
+    path.write_bytes(path.read_bytes()[:60])
+
+
+def replaced_by_text(path):
+    path.write_text("not an image at all\n")
+
+
+def of_another_size(path):
+    from PIL import Image
+    Image.new("RGB", (4, 4), "red").save(path)
+
+
+def garbled_inside(path):
+    # Whole, the right size and ending, but its compressed pixels overwritten: only
+    # decoding finds it (the contact sheet), and the frame is rendered again then.
+    data = bytearray(path.read_bytes())
+    start = data.find(b"IDAT") + 4
+    data[start:start + 16] = b"\x00" * 16
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("damage, words", [
+    (Path.unlink, "missing"), (truncated, "truncated"), (replaced_by_text, "not a PNG"),
+    (of_another_size, "4×4 pixels, not 8×8"), (garbled_inside, "did not decode")])
+def test_a_done_frame_whose_image_is_damaged_is_rendered_again(swept, damage, words):
+    damage(swept / NAMES[1])
+    if damage is garbled_inside:
+        assert sweeps.image_problem(swept / NAMES[1], (8, 8)) is None   # the header is fine
+    _, rendered, warned = resume(swept)
+    assert rendered == [1]
+    assert len(warned) == 1 and words in warned[0] and NAMES[1] in warned[0], warned
+    usable(swept)
+
+
+def test_an_image_that_does_not_decode_fails_a_cell_not_the_sheet(swept):
+    garbled_inside(swept / NAMES[0])
+    index = json.loads((swept / "sweep.json").read_text())
+    path = sweeps.write_contact_sheet(swept, index)
+    assert path.exists()
+    assert index["frames"][0]["status"] == "failed"
+    assert index["frames"][0]["error"].startswith("its image does not decode")
+    assert index["frames"][1]["status"] == "done"
+
+
+# ---------------------------------------------------------------------------
+# Limits, before anything large is made
+
+def test_a_huge_range_is_refused_before_its_values_are_made():
+    tracemalloc.start()
+    try:
+        with pytest.raises(sweeps.SweepError, match=r"1000000000 values; a sweep renders at "
+                                                    r"most 10000 frames"):
+            sweeps.parse_setting("marble.period=0:1:1000000000")
+        with pytest.raises(sweeps.SweepError, match="at most 10000"):
+            sweeps.settings_from({"marble.period": range(10 ** 12)})
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1_000_000
+
+
+def test_too_many_frames_are_refused_before_any_is_made(monkeypatch):
+    built = []
+    monkeypatch.setattr(sweeps, "with_value", lambda *a: built.append(a))
+    settings = sweeps.settings_from(["marble.period=0:1:200", "marble.distortion=1:8:200"])
+    with pytest.raises(sweeps.SweepError, match=r"^40000 frames \(200 × 200 values\); a sweep "
+                                                r"renders at most 10000"):
+        sweeps.frames(tiny(), settings)
+    assert built == []
+
+
+@pytest.mark.parametrize("spec, words", [
+    ({"marble.period": [1, 2], "marble.scale": []}, "marble.scale: no values"),
+    ([f"light.0.intensity={v}" for v in (1, 2)], "given twice"),
+    ({f"k{i}": [1] for i in range(17)}, "17 settings; a sweep takes at most 16"),
+])
+def test_settings_past_the_limits_are_refused(spec, words):
+    with pytest.raises(sweeps.SweepError, match=words):
+        sweeps.frames(tiny(), sweeps.settings_from(spec))
+
+
+def test_too_many_frames_from_the_command_is_one_sentence(tmp_path):
+    line = one_sentence(cli("sweep", "scenes/fig11a.scene", "--set", "marble.period=0:1:1000000000",
+                            "-o", tmp_path / "out"))
+    assert "at most 10000 frames" in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_workers_past_a_few_per_core_are_refused_with_the_limit(tmp_path):
+    most = sweeps.WORKERS_PER_CORE * os.cpu_count()
+    line = one_sentence(cli("sweep", "scenes/fig11a.scene", "--set", "marble.period=1",
+                            "--workers", 1000, "-o", tmp_path / "out"))
+    assert f"--workers 1000: at most {most} here" in line
+    assert not (tmp_path / "out").exists()
+    assert sweeps.check_workers(most) == most
+    for bad in (0, -1, True, 2.5, "3", most + 1):
+        with pytest.raises(sweeps.SweepError, match="--workers"):
+            sweeps.check_workers(bad)
+
+
+def test_a_contact_sheet_of_many_frames_stays_within_its_pixels(tmp_path):
+    from PIL import Image
+    n = 2000                 # 160-pixel cells would make a sheet of 57 million pixels
+    index = {"scene": "x.scene", "settings": [{"key": "marble.period", "values": list(range(n))}],
+             "frames": [{"index": k, "values": {"marble.period": k}, "status": "failed"}
+                        for k in range(n)]}
+    path = sweeps.write_contact_sheet(tmp_path, index)
+    width, height = Image.open(path).size
+    assert width * height <= sweeps.CONTACT_SHEET_PIXELS * 1.05
+
+
+# ---------------------------------------------------------------------------
+# --scheduler at something that is not a Dask scheduler
+
+def serve(answer: bytes):
+    """A TCP server on a free local port that answers every connection with ``answer``
+    and keeps it open; its address."""
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen()
+    kept = []
+
+    def run():
+        while True:
+            connection, _ = server.accept()
+            kept.append(connection)
+            if answer:
+                connection.sendall(answer)
+    threading.Thread(target=run, daemon=True).start()
+    return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+
+def test_a_server_that_answers_garbage_is_not_a_dask_scheduler(tmp_path):
+    pytest.importorskip("distributed")
+    address = serve(b"\xde\xad\xbe\xef" * 64)   # read by Dask as a frame of 3 EiB
+    line = one_sentence(cli("sweep", "scenes/fig11a.scene", "--set", "marble.period=1",
+                            "--width", "8", "--height", "8", "--scheduler", address,
+                            "-o", tmp_path / "out"))
+    assert f"--scheduler {address}: is not a Dask scheduler" in line
+    assert "allocate" not in line
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_web_server_is_not_a_dask_scheduler(llvm, tmp_path):
+    pytest.importorskip("distributed")
+    address = serve(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
+    with pytest.raises(sweeps.SweepError, match="is not a Dask scheduler"):
+        sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, scheduler=address)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_server_that_says_nothing_times_out(llvm, tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(sweeps, "SCHEDULER_TIMEOUT_S", 1)
+    address = serve(b"")
+    start = time.perf_counter()
+    with pytest.raises(sweeps.SweepError, match=r"no Dask scheduler answered there within 1 s"):
+        sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, scheduler=address)
+    assert time.perf_counter() - start < 10
+    assert not (tmp_path / "out").exists()
+
+
+# ---------------------------------------------------------------------------
+# -o
+
+def test_an_output_name_too_long_is_one_sentence(tmp_path):
+    line = one_sentence(cli("sweep", "scenes/fig11a.scene", "--set", "marble.period=1",
+                            "-o", tmp_path / ("x" * 300)))
+    assert "File name too long" in line
+
+
+def test_an_output_name_too_long_from_python_is_a_sweep_error(llvm, tmp_path):
+    with pytest.raises(sweeps.SweepError, match="cannot make the sweep's folder"):
+        sweeps.sweep(tiny(), SETTING, tmp_path / ("x" * 300), spp=1)
