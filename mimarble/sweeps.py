@@ -61,7 +61,6 @@ import json
 import math
 import os
 import re
-import stat
 import time
 import warnings
 from pathlib import Path
@@ -71,6 +70,8 @@ import numpy as np
 from . import files
 from . import scene as scene_language
 from .marble_parameters import IN_PLACE
+from .scene.image_header import png_facts
+from .scene.reading import NotRegularFile, open_regular
 from .scene_edits import KeyPathError, with_value
 
 INDEX = "sweep.json"
@@ -652,7 +653,7 @@ def _read_index(path: Path):
     is not an index). Read only as a regular file in the folder, of at most
     MAX_INDEX_BYTES."""
     try:
-        with _open_regular(path) as f:
+        with open_regular(path, follow_links=False) as f:
             data = f.read(MAX_INDEX_BYTES + 1)
     except FileNotFoundError:
         return _NO_INDEX, None
@@ -733,63 +734,32 @@ def _todo(all_frames, index, out_dir: Path, names) -> list:
     return todo
 
 
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-_PNG_END = b"\x00\x00\x00\x00IEND\xaeB`\x82"      # the empty IEND chunk that ends every PNG
-
-
 def image_problem(path, size=None) -> str | None:
     """Why ``path`` is not a usable frame image (None: it is), read from its first and
     last bytes only: it must be a regular file (not a link, pipe or device), a PNG of
     ``size`` (width, height) if given, and end with the PNG end chunk (not truncated).
     What this cannot see (damage inside the compressed pixels) the contact sheet finds."""
     try:
-        with _open_regular(path) as f:
-            head = f.read(24)                # the signature and the IHDR chunk's size fields
-            end = os.fstat(f.fileno()).st_size
-            f.seek(max(0, end - len(_PNG_END)))
-            tail = f.read()
+        with open_regular(path, follow_links=False) as f:
+            facts = png_facts(f)
     except FileNotFoundError:
         return "missing"
     except IsADirectoryError:
         return "a folder"
     except OSError as e:
         return _unreadable(e)
-    if not head.startswith(_PNG_SIGNATURE) or head[12:16] != b"IHDR" or len(head) < 24:
+    if facts is None:
         return "not a PNG"
-    width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    width, height, complete = facts
     if size is not None and (width, height) != tuple(size):
         return f"{width}×{height} pixels, not {size[0]}×{size[1]}"
-    if tail != _PNG_END:
-        return "truncated"
-    return None
-
-
-class _NotRegular(OSError):
-    """A path in the sweep's folder that is not a regular file."""
-
-
-def _open_regular(path):
-    """``path`` open for reading (binary), if it is a regular file: a symbolic link (which
-    could lead out of the folder) is not followed, and a pipe (which would block) or a
-    device is not read — both raise OSError. O_NONBLOCK means nothing to a regular file."""
-    flags = os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0)
-    fd = os.open(path, flags)
-    try:
-        mode = os.fstat(fd).st_mode
-        if stat.S_ISDIR(mode):
-            raise IsADirectoryError(f"{path}: is a folder")
-        if not stat.S_ISREG(mode):
-            raise _NotRegular(f"{path}: not a regular file")
-        return os.fdopen(fd, "rb")
-    except BaseException:
-        os.close(fd)
-        raise
+    return None if complete else "truncated"
 
 
 def _unreadable(error: OSError) -> str:
     import errno
-    if isinstance(error, _NotRegular):
-        return "not a regular file (a pipe or a device)"
+    if isinstance(error, NotRegularFile):
+        return f"{error}"
     if error.errno == errno.ELOOP:
         return "a symbolic link, which is not followed"
     return f"cannot be read ({error.strerror or error})"
@@ -879,7 +849,7 @@ def write_contact_sheet(out_dir, index: dict, cell: int = 160, size=None) -> Pat
         if entry["status"] == "done":
             name = file_name({"index": k, "values": entry["values"]}, named)
             try:
-                with _open_regular(out_dir / name) as f:
+                with open_regular(out_dir / name, follow_links=False) as f:
                     image = Image.open(f)
                     if size is not None and image.size != tuple(size):
                         raise ValueError(f"{image.size[0]}×{image.size[1]} pixels, not "

@@ -27,7 +27,7 @@ from .limits import MAX_IMAGE_MAP_PIXELS
 from .reading import NotRegularFile, open_regular
 from .rules import shortened
 
-__all__ = ["image_file_problem", "image_file_sentence", "MAX_IMAGE_MAP_PIXELS"]
+__all__ = ["image_file_problem", "image_file_sentence", "png_facts", "MAX_IMAGE_MAP_PIXELS"]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_END = b"IEND\xaeB`\x82"            # the IEND chunk's type and CRC (its length is 0)
@@ -99,6 +99,25 @@ def _check(path: str) -> None:
         raise _Problem(f"cannot read it: {e.strerror or e} ({where})") from None
 
 
+def png_facts(f) -> tuple[int, int, bool] | None:
+    """(width, height, complete) of the PNG open as ``f`` (binary, seekable; read from its
+    header and its end), or None when it is no PNG. ``complete``: it ends with its IEND
+    chunk (then zero bytes only)."""
+    f.seek(0)
+    head = f.read(33)
+    if not head.startswith(_PNG_SIGNATURE) or len(head) < 24 or head[12:16] != b"IHDR":
+        return None
+    width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
+    return width, height, _ends(f, _PNG_END)
+
+
+def _ends(f, end: bytes) -> bool:
+    """The file ends with ``end``, then nothing but zero bytes (within its last 64 KiB)."""
+    size = os.fstat(f.fileno()).st_size
+    f.seek(max(0, size - _TAIL))
+    return f.read(_TAIL).rstrip(b"\0").endswith(end)
+
+
 def _size(kind: str, width: int, height: int) -> None:
     if width == 0 or height == 0:
         raise _Problem(f"an empty {kind} ({width}x{height})")
@@ -109,9 +128,7 @@ def _size(kind: str, width: int, height: int) -> None:
 
 def _ends_with(f, end: bytes, kind: str, what: str) -> None:
     """The file ends with ``end``, then nothing but zero bytes (within its last 64 KiB)."""
-    size = os.fstat(f.fileno()).st_size
-    f.seek(max(0, size - _TAIL))
-    if not f.read(_TAIL).rstrip(b"\0").endswith(end):
+    if not _ends(f, end):
         raise _Problem(f"a truncated {kind}: it does not end with {what}", undecodable=True)
 
 

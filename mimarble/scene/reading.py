@@ -16,7 +16,8 @@ import stat
 __all__ = ["NotRegularFile", "not_regular", "open_regular"]
 
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
-          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+          (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
+          (stat.S_ISLNK, "a symbolic link, which is not followed"))
 
 
 class NotRegularFile(OSError):
@@ -43,13 +44,16 @@ def _check(mode: int, path) -> None:
         raise NotRegularFile(errno.EINVAL, problem, os.fspath(path))
 
 
-def open_regular(path):
+def open_regular(path, follow_links: bool = True):
     """``path`` opened for binary reading, when it is a regular file. Raises
     FileNotFoundError, PermissionError, IsADirectoryError, :class:`NotRegularFile`
     (anything else that is not a regular file: refused without being opened) or
-    another OSError."""
-    _check(os.stat(path).st_mode, path)
+    another OSError. ``follow_links=False``: a symbolic link is refused too (in a folder
+    of data, such as a sweep's, a link could lead out of it)."""
+    _check((os.stat if follow_links else os.lstat)(path).st_mode, path)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+    if not follow_links:
+        flags |= getattr(os, "O_NOFOLLOW", 0)   # a link swapped in since: ELOOP
     fd = os.open(path, flags)            # non-blocking: a FIFO swapped in does not wait
     try:
         _check(os.fstat(fd).st_mode, path)
