@@ -50,7 +50,7 @@ Links, pipes and devices in the folder are never followed or read.
 :data:`MAX_SETTINGS` settings per sweep (checked before a frame or a range's values
 are made), :data:`WORKERS_PER_CORE` LocalCluster workers per core, a scheduler's answer
 within :data:`SCHEDULER_TIMEOUT_S`, an index of :data:`MAX_INDEX_BYTES`, a contact sheet
-of :data:`CONTACT_SHEET_PIXELS`.
+of ``contact_sheet.CONTACT_SHEET_PIXELS``.
 """
 
 from __future__ import annotations
@@ -69,6 +69,7 @@ import numpy as np
 
 from . import files
 from . import scene as scene_language
+from .contact_sheet import draw_contact_sheet
 from .marble_parameters import IN_PLACE
 from .scene.image_header import png_facts
 from .scene.reading import NotRegularFile, open_regular
@@ -103,13 +104,6 @@ SCHEDULER_TIMEOUT_S = 10
 #: An index file larger than this is not one a sweep wrote (MAX_FRAMES entries of
 #: MAX_SETTINGS values each stay under 10 MB): it is taken as damaged, not read.
 MAX_INDEX_BYTES = 32 * 2**20
-#: The contact sheet's pixels at most (~150 MB as 8-bit RGB): past ~1 700 frames at the
-#: usual 160-pixel cells, the cells shrink (not below MIN_CELL) to keep it so.
-CONTACT_SHEET_PIXELS = 50_000_000
-MIN_CELL = 24
-#: One setting's frames stand in one row (the paper's figures) up to this many; more are
-#: a grid, each cell captioned.
-ONE_ROW = 16
 
 
 class SweepError(ValueError):
@@ -802,95 +796,20 @@ def _them(n: int) -> str:
 # Contact sheet
 
 def write_contact_sheet(out_dir, index: dict, cell: int = 160, size=None) -> Path:
-    """``contact.png``: the frames with their values beside them — a row for one setting
-    (the paper's figure layout; a grid past :data:`ONE_ROW` values), a grid of rows ×
-    columns for two (values along the top and the left), a grid of cells each captioned
-    with every value for more. Cells are
-    ``cell`` pixels wide, fewer for a sweep so large that the sheet would pass
-    :data:`CONTACT_SHEET_PIXELS`; drawn with Pillow (a sheet of 64 frames in a fraction of
-    a second).
-
-    Each done frame's image is read from its derived name (:func:`file_name`) in
-    ``out_dir``, nothing else; one that does not decode (or is not ``size``, (width,
-    height), if given) is drawn as a failed cell and marked failed in ``index``, with why,
-    so that it is rendered again."""
-    from PIL import Image, ImageDraw
-
+    """``contact.png`` of the sweep in ``out_dir`` (mimarble/contact_sheet.py). Each done
+    frame's image is read from its derived name (:func:`file_name`) in ``out_dir``,
+    nothing else; one that does not decode (or is not ``size``, (width, height), if
+    given) is drawn as a failed cell and marked failed in ``index``, with why, so that it
+    is rendered again."""
     out_dir = Path(out_dir)
-    settings, entries = index["settings"], index["frames"]
-    named = [Setting(s["key"], tuple(s["values"])) for s in settings]
-    if len(settings) == 2:
-        rows, columns = len(settings[0]["values"]), len(settings[1]["values"])
-    elif len(settings) == 1 and len(entries) <= ONE_ROW:
-        rows, columns = 1, len(entries)
-    else:
-        columns = math.ceil(math.sqrt(len(entries)))
-        rows = math.ceil(len(entries) / columns)
-    line = 12                                            # the default font's line height
-    caption = line * (1 if len(settings) <= 2 else len(settings)) + 4
-    left = 0 if len(settings) != 2 else 8 * max(len(_label(settings[0], v))
-                                                for v in settings[0]["values"]) + 8
-    top = line + 8 + (caption if len(settings) == 2 else 0)
-
-    def sheet_size(cell):
-        row_height = cell + (caption if len(settings) != 2 else 4)
-        return left + columns * cell + 8, top + rows * row_height + 4
-    while cell > MIN_CELL and math.prod(sheet_size(cell)) > CONTACT_SHEET_PIXELS:
-        cell -= 1                        # a large sweep: smaller cells, a bounded sheet
-    row_height = cell + (caption if len(settings) != 2 else 4)
-    sheet = Image.new("RGB", sheet_size(cell), "white")
-    draw = ImageDraw.Draw(sheet)
-    draw.text((4, 4), f"{Path(index['scene']).name}: "
-                      + ", ".join(s["key"] for s in settings), fill="black")
-    for k, entry in enumerate(entries):
-        r, c = divmod(k, columns)
-        x, y = left + c * cell + 4, top + r * row_height
-        image = None
-        if entry["status"] == "done":
-            name = file_name({"index": k, "values": entry["values"]}, named)
-            try:
-                with open_regular(out_dir / name, follow_links=False) as f:
-                    image = Image.open(f)
-                    if size is not None and image.size != tuple(size):
-                        raise ValueError(f"{image.size[0]}×{image.size[1]} pixels, not "
-                                         f"{size[0]}×{size[1]}")
-                    image = image.convert("RGB")          # decodes it all, here
-            except Image.DecompressionBombError:          # a frame too large to show, not bad
-                image = None
-            except Exception as e:       # truncated, garbled, replaced: render it again
-                image = None
-                entry.update(status="failed", error=f"its image does not decode "
-                                                    f"({error_text(e)})")
-        if image is not None:
-            image.thumbnail((cell - 4, cell - 4))
-            sheet.paste(image, (x, y))
-        else:                                            # a failed frame: a grey cell
-            draw.rectangle((x, y, x + cell - 5, y + cell - 5), fill=(200, 200, 200))
-            draw.text((x + 6, y + cell // 2 - 6), "failed", fill="black")
-        values = entry["values"]
-        if len(settings) == 2:
-            if r == 0:
-                draw.text((x, y - caption), _label(settings[1], values[settings[1]["key"]]),
-                          fill="black")
-            if c == 0:
-                draw.text((4, y + cell // 2), _label(settings[0], values[settings[0]["key"]]),
-                          fill="black")
-        else:
-            for n, setting in enumerate(settings):
-                draw.text((x, y + cell - 2 + n * line), _label(setting, values[setting["key"]]),
-                          fill="black")
+    named = [Setting(s["key"], tuple(s["values"])) for s in index["settings"]]
+    cells = [(entry["values"], out_dir / file_name({"index": k, "values": entry["values"]}, named)
+              if entry["status"] == "done" else None)
+             for k, entry in enumerate(index["frames"])]
     path = out_dir / CONTACT_SHEET
-    files.write_atomically(path, lambda tmp: sheet.save(tmp, compress_level=1))
+    title = f"{Path(index['scene']).name}: " + ", ".join(s["key"] for s in index["settings"])
+    undecodable = draw_contact_sheet(path, title, index["settings"], cells, cell, size)
+    for k, error in undecodable.items():
+        index["frames"][k].update(status="failed",
+                                  error=f"its image does not decode ({error_text(error)})")
     return path
-
-
-def _label(setting, value) -> str:
-    return f"{_short(setting['key'])} = {_text(value)}"
-
-
-def _short(key: str) -> str:
-    return key.split(".", 1)[1] if key.startswith("marble.") else key
-
-
-def _text(value) -> str:
-    return f"{value:g}" if isinstance(value, float) else str(value)

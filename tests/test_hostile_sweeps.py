@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from mimarble import scene as S
-from mimarble import sweeps
+from mimarble import contact_sheet, sweeps
 from mimarble.scene_edits import resized
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -341,7 +341,7 @@ def test_a_contact_sheet_of_many_frames_stays_within_its_pixels(tmp_path):
                         for k in range(n)]}
     path = sweeps.write_contact_sheet(tmp_path, index)
     width, height = Image.open(path).size
-    assert width * height <= sweeps.CONTACT_SHEET_PIXELS * 1.05
+    assert width * height <= contact_sheet.CONTACT_SHEET_PIXELS * 1.05
 
 
 # ---------------------------------------------------------------------------
