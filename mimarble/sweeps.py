@@ -71,7 +71,8 @@ from . import files
 from . import scene as scene_language
 from .contact_sheet import draw_contact_sheet
 from .marble_parameters import IN_PLACE
-from .scene.image_header import png_facts
+from .scene.image_header import check_image_maps, png_facts
+from .scene.rules import spp_problem
 from .scene.reading import NotRegularFile, open_regular
 from .scene_edits import KeyPathError, with_value
 
@@ -349,6 +350,16 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                 scene_language.model.samples_per_axis(frame["scene"].image.samples)
             except ValueError as e:
                 raise SweepError(f"the scene's samples: {e}; give --spp") from None
+    else:                                # the sample limit, before anything is written
+        width, height = _size(scene)
+        problem = spp_problem(spp, width, height)
+        if problem:
+            raise SweepError(problem)
+        try:
+            scene_language.model.samples_per_axis(spp)
+        except ValueError as e:
+            raise SweepError(str(e)) from None
+    check_image_maps(scene)              # built in Python: the parser never read its maps
     if workers is not None:
         check_workers(workers)
     if scheduler is not None:

@@ -127,3 +127,13 @@ def test_a_kernel_holds_one_noise_evaluation_per_marble(llvm):
     assert render_operations(8) == render_operations(4)
     one, four, eight = (render_operations(4, n) for n in (1, 4, 8))
     assert abs((eight - four) - 4 * (four - one) / 3) < 0.05 * (eight - four)   # linear
+
+
+def test_colours_past_one_and_python_built_negative_ones_render_as_the_reference(llvm):
+    """The language's colours have no upper bound (Mitsuba's reflectances must be in
+    [0, 1] unless unbounded), and a Python-built signed term of an add is taken too."""
+    from mimarble import reference
+    for diffuse in (S.ColorChannel((2.0, 0.5, 0.0)),
+                    S.Add((S.ColorChannel((0.9, 0.9, 0.9)), S.ColorChannel((-0.5, 0.0, 0.0))))):
+        scene = tiny(diffuse)
+        np.testing.assert_allclose(mimarble.render(scene), reference.render(scene), atol=1e-5)

@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 from PIL import Image as PILImage
 
+import mimarble
 from mimarble import marble_parameters
 from mimarble import scene as S
 from mimarble.reference import image_map
@@ -199,11 +200,11 @@ def test_the_reference_loader_checks_the_size_pillow_read(tmp_path, monkeypatch)
 
 
 def test_the_mitsuba_path_checks_headers_before_decoding(llvm, tmp_path):
-    from mimarble.mitsuba.render import check_images
+    """Every Mitsuba path goes through to_mitsuba, which checks a Python scene's maps."""
     bomb = tmp_path / "bomb.jpg"
     bomb.write_bytes(jpeg_header(40000, 40000))
     with pytest.raises(SceneError) as info:
-        quickly(lambda: check_images(python_scene(bomb), decode=False))
+        quickly(lambda: mimarble.to_mitsuba(python_scene(bomb)))
     assert info.value.message == image_file_sentence(str(bomb), str(bomb))
 
 
@@ -355,7 +356,7 @@ def test_the_mitsuba_path_refuses_a_truncated_map_in_the_parser_s_words(llvm, tm
     cut = tmp_path / "cut.jpg"
     cut.write_bytes(whole[:len(whole) // 2])
     with pytest.raises(SceneError) as info:
-        check_images(python_scene(cut), decode=False)
+        mimarble.to_mitsuba(python_scene(cut))
     assert info.value.message == image_file_sentence(str(cut), str(cut))
     check_images(python_scene(tmp_path / "whole.jpg"))          # a whole one decodes
 

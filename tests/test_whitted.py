@@ -171,7 +171,7 @@ def test_translator_shares_equal_marbles_and_inlines_colours():
     assert len(textures) == 1 and d[textures[0]]["type"] == "marble"
     bsdf = d["sphere_0"]["bsdf"]
     assert bsdf["ambient"] == bsdf["diffuse"] == {"type": "ref", "id": textures[0]}
-    assert bsdf["specular"]["type"] == "rgb"
+    assert bsdf["specular"]["type"] == "srgb" and bsdf["specular"]["unbounded"]   # HDR colours
     assert d["integrator"]["type"] == "whitted"
     assert d["sensor"]["sampler"] == {"type": "stratified", "sample_count": 4, "jitter": False}
 

@@ -162,6 +162,7 @@ class ChannelExpression(RGBTexture):
         """Decide again what can be skipped, from the operands' values as they are now."""
         if self.weight_value is not None:
             dr.make_opaque(self.weight_value)
+        self._operand_parameters = None          # traversed again: an operand may be new
         self._state = self._operand_state()
         self.constants = [_constant(t) for t in self.operands]
         self.constant = _opaque(self._combined(self.constants))
@@ -180,10 +181,15 @@ class ChannelExpression(RGBTexture):
     def _operand_state(self):
         """A fingerprint of every value inside the operands (and a weight texture): their
         Dr.Jit variables, or their values in the scalar variant. ``mi.traverse`` edits
-        replace the variables, so an edit that reached only another parent shows here."""
+        replace the variables, so an edit that reached only another parent shows here.
+        The operands are traversed once (:meth:`parameters_changed`); their values are
+        read again each time, through those parameter maps."""
+        if getattr(self, "_operand_parameters", None) is None:
+            self._operand_parameters = [
+                mi.traverse(t) for t in self.operands
+                + ([self.weight] if self.weight is not None else [])]
         items = []
-        for texture in self.operands + ([self.weight] if self.weight is not None else []):
-            params = mi.traverse(texture)
+        for params in self._operand_parameters:
             for key in params.keys():
                 value = params[key]
                 items.append((key, tuple(dr.detail.collect_indices(value))

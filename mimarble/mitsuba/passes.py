@@ -59,7 +59,8 @@ def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
     else only the first shape hit (``tracer.first_shape``); ``with_shapes``:
     also reduce the first shape hit per pixel. ``pass_samples``: lanes per pass
     (default :data:`PASS_SAMPLES`). A pass's sampler seed (path mode) is its number
-    plus ``seed``·2¹⁶, so renders of different seeds draw different samples.
+    plus ``seed`` times an odd 32-bit constant (Fibonacci hashing), modulo 2³², so that
+    renders of different seeds draw different samples (seed 0: the pass's number).
 
     A pixel split over passes is summed in float64 in pass order and handed
     back whole, by the pass that takes its last samples.
@@ -80,7 +81,8 @@ def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
             # Only the later passes of a split pixel start past sample 0.
             sub = lane % u32(n_samples) if q0 == 0 else u32(q0) + lane % u32(n_samples)
         if with_radiance:
-            value, hit_shape = tracer.trace(pixel, sub, spp, (seed << 16) + index, with_shapes)
+            value, hit_shape = tracer.trace(pixel, sub, spp,
+                                            (seed * 0x9E3779B1 + index) & 0xFFFFFFFF, with_shapes)
         else:
             value, hit_shape = None, tracer.first_shape(pixel, sub, spp)
         traced = _pixel_sums(value, hit_shape, lanes, n_samples)

@@ -19,6 +19,7 @@ from .. import environment
 from .. import scene as scene_language
 from ..progress import report
 from ..scene.model import samples_per_axis
+from ..scene.rules import seed_problem, spp_problem
 from .passes import trace_in_passes
 from .pixel_tracer import PixelTracer
 from .silhouettes import edge_sample_passes
@@ -35,11 +36,12 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
 
     Everything but the scene is a keyword (``mi.render``'s second argument is
     ``params``, not ``spp``). ``mode``: ``whitted`` (the default for a model or a file)
-    or ``path``. A loaded ``mi.Scene`` renders as it is — its integrator (``whitted``
-    mode for the ``whitted`` integrator), its sensor's sample count unless ``spp`` is
-    given; ``tolerance`` and ``filter``, which the translator applies, are refused
-    for it in one sentence. ``seed``: path mode's sampler seed (whitted mode is
-    deterministic).
+    or ``path``. A loaded ``mi.Scene`` renders as ``mi.render`` renders it — its
+    integrator, film and sensor's sample count unless ``spp`` is given; with the
+    ``whitted`` integrator in a JIT variant through the pass renderer below (the same
+    image, in bounded memory, one kernel for every spp); ``tolerance`` and ``filter``,
+    which the translator applies, are refused for it in one sentence. ``seed``: the
+    sampler seed of path mode, 0..2³²−1 (whitted mode is deterministic).
 
     Memory is the image plus a bounded working set whatever the size and spp:
     JIT variants render in passes of up to
@@ -60,14 +62,15 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
                               edge_spp, seed)
     mode = "whitted" if mode is None else mode
     check_edge_spp(edge_spp, mode)
+    problem = seed_problem(seed)
+    if problem:
+        raise ValueError(f"render: {problem}")
     scene = scene_or_path
     if isinstance(scene_or_path, (str, os.PathLike)):
         scene = scene_language.load(scene_or_path)
     elif not isinstance(scene_or_path, scene_language.Scene):
         raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
-    else:
-        check_images(scene, decode=False)   # built in Python: the parser never read its maps
     scene_dict = to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance, filter=filter)
     try:
         mitsuba_scene = mi.load_dict(scene_dict)
@@ -101,33 +104,27 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
     if not mitsuba_scene.sensors():
         raise ValueError("render: the mi.Scene has no sensor to render from")
     whitted = isinstance(mitsuba_scene.integrator(), Whitted)
-    mode = ("whitted" if whitted else "path") if mode is None else mode
-    if mode == "whitted" and not whitted:
-        raise ValueError(f"render: mode='whitted' needs the scene's integrator to be "
-                         f"'whitted'; it is {type(mitsuba_scene.integrator()).__name__}")
-    spp = mitsuba_scene.sensors()[0].sampler().sample_count() if spp is None else spp
-    check_edge_spp(edge_spp, mode)
-    if not dr.is_jit_v(mi.Float):
-        return np.array(mi.render(mitsuba_scene, spp=spp, seed=seed),
-                        dtype=np.float32)[..., :3]
-    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed)
+    if mode is not None and mode != ("whitted" if whitted else "path"):
+        raise ValueError(f"render: mode={mode!r:.40} does not fit the scene's integrator "
+                         f"({type(mitsuba_scene.integrator()).__name__}); leave mode out")
+    sensor = mitsuba_scene.sensors()[0]
+    spp = sensor.sampler().sample_count() if spp is None else spp
+    width, height = (int(x) for x in sensor.film().crop_size())
+    problem = spp_problem(spp, width, height) or seed_problem(seed)
+    if problem:
+        raise ValueError(f"render: {problem}")
+    check_edge_spp(edge_spp, "whitted" if whitted else "path")
+    if whitted and dr.is_jit_v(mi.Float):   # its stratum centres, in passes (one kernel)
+        return render_in_passes(mitsuba_scene, spp, "whitted", progress, edge_spp=edge_spp)
+    # Any other integrator, film filter or AOV: Mitsuba's own render, as it would be.
+    return np.array(mi.render(mitsuba_scene, spp=spp, seed=seed), dtype=np.float32)[..., :3]
 
 
-def check_images(scene, decode: bool = True) -> None:
-    """Every image map passes the parser's header check (a regular file, a complete 8-bit
-    PNG or JPEG within the pixel limit: ``mimarble.scene.image_header``, the parser's own
-    sentence) and, with ``decode``, decodes: else a SceneError at its ``file`` string.
-    The header is checked before anything is decoded, so a decompression bomb or a FIFO
-    is refused, not read. Called when loading the scene failed, so a good image is not
-    decoded twice; ``decode=False`` reads headers only (milliseconds), for a scene built
-    in Python, which the parser never saw, before ``mi.load_dict`` decodes its maps."""
-    from ..scene.image_header import image_file_sentence
+def check_images(scene) -> None:
+    """Every image map decodes (``to_mitsuba`` checked the headers: regular files,
+    complete 8-bit PNG or JPEG within the pixel limit), else a SceneError at its ``file``
+    string. Called when loading the scene failed, so a good image is not decoded twice."""
     for channel in scene.image_maps():
-        sentence = image_file_sentence(channel.file, channel.location)
-        if sentence:
-            raise scene_language.SceneError.in_file(scene.source, channel.pos, sentence)
-        if not decode:
-            continue
         try:
             mi.Bitmap(channel.location)
         except Exception as e:   # Mitsuba's reader raises RuntimeError with libpng's reason

@@ -81,7 +81,8 @@ class SphereTable:
             return cls(scene)
         boxes = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
         boxes_then, table = cls._scalar_tables.get(id(scene), (None, None))
-        if boxes_then != boxes:
+        # The very shapes too: a new scene may take a freed one's id.
+        if boxes_then != boxes or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
             if len(cls._scalar_tables) > 16:
                 cls._scalar_tables.clear()
             table = cls(scene)

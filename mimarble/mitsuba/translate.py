@@ -33,7 +33,10 @@ import math
 import warnings
 
 from .. import error_budget
-from ..scene import LIMITS, model
+from ..marble_parameters import checked
+from ..scene import model
+from ..scene.image_header import check_image_maps
+from ..scene.rules import spp_problem
 
 MODES = ("whitted", "path")
 
@@ -50,7 +53,9 @@ def texture_dict(channel, tolerance: float | None = None, operand=None) -> dict:
         def operand(inner):
             return texture_dict(inner, tolerance)
     if isinstance(channel, model.ColorChannel):
-        return {"type": "rgb", "value": list(channel.rgb)}
+        # Mitsuba's reflectance colours must lie in [0, 1] unless "unbounded": the language's
+        # colours have no upper bound (and Python's may be negative).
+        return {"type": "srgb", "color": list(channel.rgb), "unbounded": True}
     if isinstance(channel, model.ImageChannel):
         # Mitsuba's bitmap defaults, said out loud: sRGB → linear, bilinear, repeat.
         return {"type": "bitmap", "filename": channel.location, "raw": False,
@@ -63,8 +68,12 @@ def texture_dict(channel, tolerance: float | None = None, operand=None) -> dict:
             weight = channel.weight
             out["weight"] = weight if isinstance(weight, float) else operand(weight)
         return out
+    # The plugin takes properties of the very type (as Mitsuba's do); a model built in
+    # Python may hold 8.0 octaves or "true": normalised here by the table's text rule,
+    # and refused in its words (ValueError) before Mitsuba sees them.
     out = {"type": "marble"}
-    out.update({p.name: p.property_value(value) for p, value in channel.items()})
+    out.update({p.name: p.property_value(checked(p, value, text=True))
+                for p, value in channel.items()})
     out["tolerance"] = float(next(t for t in (tolerance, channel.tolerance,
                                               error_budget.DEFAULT_TOLERANCE) if t is not None))
     return out
@@ -243,13 +252,10 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     if mode not in MODES:
         raise ValueError(f"mode={mode!r:.40} must be one of {', '.join(MODES)}")
     spp = scene.image.samples if spp is None else spp
-    if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
-        raise ValueError(f"spp={spp!r:.40} must be a whole number ≥ 1")
-    samples = scene.image.width * scene.image.height * spp
-    if samples > LIMITS["max_image_samples"]:
-        raise ValueError(f"spp={spp}: {scene.image.width}x{scene.image.height} pixels at {spp} "
-                         f"spp is {samples} samples, more than the "
-                         f"{LIMITS['max_image_samples']} allowed")
+    problem = spp_problem(spp, scene.image.width, scene.image.height)
+    if problem:
+        raise ValueError(problem)
+    check_image_maps(scene)        # the header check of maps the parser never saw
     for problem in float32_range_problems(scene):
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
     if mode == "whitted":

@@ -43,7 +43,7 @@ Every shape's BSDF must be a ``channel_material``; lights must be point-like
 from __future__ import annotations
 
 from .. import environment
-from ..plugins import plugin
+from ..plugins import describe, numbers, plugin
 from . import sphere_hit
 from .material import ChannelMaterial
 
@@ -90,7 +90,9 @@ class Whitted:
         cb.put("background", self.background, mi.ParamFlags.Differentiable)
 
     def to_string(self):
-        return f"Whitted[ambient={self.ambient}, background={self.background}, shadows={self.shadows}]"
+        return describe("Whitted", {"ambient": numbers(self.ambient).tolist(),
+                                    "background": numbers(self.background).tolist(),
+                                    "shadows": self.shadows})
 
     @staticmethod
     def _materials(scene):

@@ -17,11 +17,12 @@ The rendering contract both renderers follow is docs/rendering-model.md.
 
 from __future__ import annotations
 
-from pathlib import Path
+import os
 
 from mimarble.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
 from mimarble.scene import Scene, SceneError, load
-from mimarble.scene.image_header import image_file_sentence
+from mimarble.scene.image_header import check_image_maps
+from mimarble.scene.rules import spp_problem
 
 from . import image_map, marble, noise, tracer
 from .marble import marble_color, ramp, stripe
@@ -66,7 +67,7 @@ __all__ = [
 ]
 
 
-def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
+def render(scene: Scene | str | os.PathLike, spp: int | None = None, progress=False):
     """Render a scene (model, or path to a scene file) -> float64 (H, W, 3), linear.
 
     ``spp=None`` uses ``scene.image.samples``; spp must be a perfect square n².
@@ -75,14 +76,19 @@ def render(scene: Scene | str | Path, spp: int | None = None, progress=False):
     terminal; or a callable ``progress(samples_done, samples_total)``, called
     before the first batch of rays and after each one.
     """
-    if isinstance(scene, (str, Path)):
+    if isinstance(scene, (str, os.PathLike)):
         scene = load(scene)
+    elif not isinstance(scene, Scene):
+        raise TypeError(f"reference.render: {scene!r:.80} is not a scene: give a scene "
+                        f"file's path or a mimarble.scene.Scene")
+    spp = scene.image.samples if spp is None else spp
+    problem = spp_problem(spp, scene.image.width, scene.image.height)
+    if problem:
+        raise ValueError(f"reference.render: {problem}")
+    # Headers first, in the parser's words (a scene built in Python was not parsed):
+    # nothing is decoded from a file the parser would refuse.
+    check_image_maps(scene)
     for channel in scene.image_maps():      # decoded now: a bad file is a SceneError at it
-        # Its header first, in the parser's words (a scene built in Python was not parsed):
-        # nothing is decoded from a file the parser would refuse.
-        sentence = image_file_sentence(channel.file, channel.location)
-        if sentence:
-            raise SceneError.in_file(scene.source, channel.pos, sentence)
         try:
             image_map.load_image(channel.location)
         except ValueError as e:   # "image file '/abs/path': reason" → at the file string

@@ -27,7 +27,8 @@ from .limits import MAX_IMAGE_MAP_PIXELS
 from .reading import NotRegularFile, open_regular
 from .rules import shortened
 
-__all__ = ["image_file_problem", "image_file_sentence", "png_facts", "MAX_IMAGE_MAP_PIXELS"]
+__all__ = ["image_file_problem", "image_file_sentence", "check_image_maps", "png_facts",
+           "MAX_IMAGE_MAP_PIXELS"]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_END = b"IEND\xaeB`\x82"            # the IEND chunk's type and CRC (its length is 0)
@@ -74,6 +75,18 @@ def image_file_sentence(name: str, path: str) -> str | None:
         name = shortened(name, 256)
         return f"image file '{name}'{' cannot be decoded' if p.undecodable else ''}: {p.reason}"
     return None
+
+
+def check_image_maps(scene) -> None:
+    """Every image map of ``scene`` passes the header check, else a SceneError at its
+    ``file`` string in the parser's own sentence: for a scene built in Python, which the
+    parser never saw, before anything decodes a map (both renderers, every Mitsuba path
+    through ``to_mitsuba``)."""
+    from .errors import SceneError
+    for channel in scene.image_maps():
+        sentence = image_file_sentence(channel.file, channel.location)
+        if sentence:
+            raise SceneError.in_file(scene.source, channel.pos, sentence)
 
 
 def _check(path: str) -> None:

@@ -296,10 +296,15 @@ class Light:
 
 @dataclass(frozen=True)
 class ColorChannel:
-    """``color < r g b >``: a constant colour (the paper's ChannelColor)."""
+    """``color < r g b >``: a constant colour (the paper's ChannelColor): three finite
+    numbers. The language writes them ≥ 0; built in Python they may be negative (a
+    signed term of an ``add``), and both renderers take them so."""
 
     rgb: RGB
     pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        _store(self, rgb=_vector(self.rgb, "color (a colour < r g b >)"))
 
 
 @dataclass(frozen=True)
@@ -428,9 +433,7 @@ class Mix:
         if isinstance(self.weight, bool) or not isinstance(self.weight, CHANNEL_TYPES + (int, float)):
             raise TypeError(f"mix: weight={self.weight!r} must be a channel or a number")
         if isinstance(self.weight, (int, float)):
-            if not math.isfinite(self.weight):
-                raise ValueError(f"mix: weight={self.weight!r} must be finite")
-            object.__setattr__(self, "weight", float(self.weight))
+            object.__setattr__(self, "weight", _number(self.weight, "mix: weight"))
         _nest(self)
 
     @property

@@ -18,7 +18,7 @@ from .limits import (FLT_MAX, LIMITS, MAX_CHANNEL_DEPTH, MAX_IMAGE_SAMPLES, MAX_
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
-           "shininess_problem", "material_name_problem", "unknown_material", "count_problem",
+           "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
            "depth_problem", "listed_names", "shortened"]
 
 
@@ -90,6 +90,25 @@ def image_samples_problem(width: int, height: int, samples: int) -> str | None:
     if total > MAX_IMAGE_SAMPLES:
         return (f"image too large: width*height*samples = {total} exceeds 2^28 = "
                 f"{MAX_IMAGE_SAMPLES}")
+    return None
+
+
+def spp_problem(spp, width: int, height: int) -> str | None:
+    """A renderer's samples per pixel for an image of width × height: a whole number ≥ 1
+    within the sample limit (Python callers: ``render``, ``reference.render``, sweeps)."""
+    if isinstance(spp, bool) or not isinstance(spp, int) or spp < 1:
+        return f"spp={shortened(repr(spp), 40)} must be a whole number ≥ 1"
+    total = width * height * spp
+    if total > MAX_IMAGE_SAMPLES:
+        return (f"spp={spp}: {width}x{height} pixels at {spp} spp is {total} samples, more "
+                f"than the {MAX_IMAGE_SAMPLES} allowed")
+    return None
+
+
+def seed_problem(seed) -> str | None:
+    """A sampler seed: a whole number in 0..2³²−1 (Mitsuba's seeds are 32-bit)."""
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:
+        return f"seed={shortened(repr(seed), 40)} must be a whole number in 0..{2 ** 32 - 1}"
     return None
 
 
