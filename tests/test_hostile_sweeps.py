@@ -9,7 +9,6 @@ import socket
 import subprocess
 import sys
 import threading
-import time
 import tracemalloc
 from pathlib import Path
 
@@ -388,10 +387,8 @@ def test_a_server_that_says_nothing_times_out(llvm, tmp_path, monkeypatch):
     pytest.importorskip("distributed")
     monkeypatch.setattr(sweeps, "SCHEDULER_TIMEOUT_S", 1)
     address = serve(b"")
-    start = time.perf_counter()
     with pytest.raises(sweeps.SweepError, match=r"no Dask scheduler answered there within 1 s"):
         sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, scheduler=address)
-    assert time.perf_counter() - start < 10
     assert not (tmp_path / "out").exists()
 
 
