@@ -144,7 +144,7 @@ def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
 
 
 def _spp(args, scene) -> int:
-    from .scene import LIMITS
+    from .scene.rules import spp_problem
     from .scene.model import samples_per_axis
     spp = scene.image.samples if args.spp is None else args.spp
     whitted = getattr(args, "mode", "whitted") == "whitted"
@@ -157,11 +157,9 @@ def _spp(args, scene) -> int:
                              f"sample an n×n grid, so it must be a perfect square (1, 4, 9, 16, …); "
                              f"path mode takes any count (--mode path), or override it with --spp")
     _check_spp(spp, whitted)
-    samples = scene.image.width * scene.image.height * spp
-    if samples > LIMITS["max_image_samples"]:
-        raise UsageError(f"--spp {spp}: {scene.image.width}x{scene.image.height} pixels at {spp} "
-                         f"spp is {samples} samples, more than the {LIMITS['max_image_samples']} "
-                         f"allowed")
+    problem = spp_problem(spp, scene.image.width, scene.image.height)
+    if problem:
+        raise UsageError(f"--{problem}")
     return spp
 
 
