@@ -19,7 +19,7 @@ from . import environment, error_budget, pixel_filter
 from .finite_arithmetic import finite_product
 from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS,
                                 MarbleParameters, ParameterError, checked, parameter_table)
-from .noise import fractal_sum
+from .noise import fractal_sum, lattice_tables
 from .plugins import RGBTexture, describe, first_number, plugin
 from .ramp import Ramp, ramp_storage
 from .stripes import STRIPES
@@ -52,6 +52,8 @@ class Marble(RGBTexture):
         self.ramp = Ramp(self.editable["ramp"])
         self.mapping = TextureMapping.from_properties(props)
         self.editable["to_world"] = self.mapping.to_world
+        if dr.is_jit_v(mi.Float):        # the noise's tables, held (see lattice_tables)
+            self.lattice = lattice_tables(mi.UInt32)
         self.pixel_filter = None
         self.parameters_changed()
 
@@ -113,6 +115,14 @@ class Marble(RGBTexture):
             return self.ramp.numpy()
         number = first_number(value)
         return int(number) if parameter.kind == INTEGER and number.is_integer() else number
+
+    def recording_key(self) -> tuple:
+        """Everything outside Dr.Jit's variables that decides the code ``eval`` traces: a
+        recording of its kernels (mimarble/mitsuba/replay.py) is replayed only for the
+        same key; the values themselves are the recording's inputs."""
+        return ("marble", self.function, self.axis, self.turbulence,
+                type(self.pixel_filter).__name__, self.octaves_evaluated, self.needs_noise,
+                self.ramp.size, self.mapping.to_texture is None)
 
     def to_string(self):
         return describe("Marble", {

@@ -132,6 +132,14 @@ def _corner_table(uint_type):
     return uint_type(entries) if dr.is_jit_v(uint_type) else tuple(entries.tolist())
 
 
+def lattice_tables(uint_type) -> tuple:
+    """The two permutation tables every noise evaluation gathers from (made once per
+    type). A texture holds them as its own members, as Mitsuba's C++ plugins hold their
+    data, so that Dr.Jit's traversal finds them: a recording of its kernels
+    (``dr.freeze``) refuses a variable made before it that no input reaches."""
+    return _corner_table(uint_type), _pair_table(uint_type)
+
+
 def _gather_corners(table, index):
     """(P[A], P[A+1], P[B], P[B+1]) from one gather of :func:`_corner_table`."""
     packed = table[index] if isinstance(table, tuple) else dr.gather(type(table), table, index)

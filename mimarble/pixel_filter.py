@@ -35,8 +35,13 @@ GAUSS_NODE = 0.5 / math.sqrt(3.0)
 
 
 class PixelFilter:
-    """What every filter is: made for one marble, told when its ramp's colours change."""
+    """What every filter is: made for one marble, told when its ramp's colours change.
 
+    ``DRJIT_STRUCT`` names the Dr.Jit state a filter holds (none here; the prefilter's
+    tables), so that Dr.Jit's traversal (``dr.freeze``) sees it through the texture —
+    not the marble it points back to."""
+
+    DRJIT_STRUCT: dict = {}
     needs_footprint = False
 
     def __init__(self, marble):
@@ -83,6 +88,7 @@ class Prefilter(PixelFilter):
     resolution of the phase, the colour at the point.
     """
 
+    DRJIT_STRUCT = {"average": PhaseAverage}
     needs_footprint = True
 
     def __init__(self, marble):

@@ -54,6 +54,18 @@ def transform_matrix(transform):
     return np.array([[first_number(m[i][j]) for j in range(4)] for i in range(4)])
 
 
+def recording_key(plugin) -> tuple | None:
+    """What decides the code a plugin traces besides its Dr.Jit variables: a mimarble
+    plugin's ``recording_key()``; a Mitsuba plugin's type (its structure is fixed when
+    it is loaded); None for none. A recording of kernels (mimarble/mitsuba/replay.py) is
+    replayed only for the same keys."""
+    if plugin is None:
+        return None
+    own = getattr(plugin, "recording_key", None)
+    return own() if own is not None else (type(plugin).__name__, plugin.class_name()
+                                          if hasattr(plugin, "class_name") else None)
+
+
 # kind -> (mitsuba base class name, registration function name)
 _KINDS = {
     "texture": ("Texture", "register_texture"),

@@ -78,8 +78,11 @@ class PhaseAverage:
     """ramp∘t averaged over phase intervals, for one stripe function and ramp.
 
     The ramp (mimarble/ramp.py) is read through its own ``piece`` and ``colour``, so
-    exactly as the unfiltered texture reads it.
+    exactly as the unfiltered texture reads it. ``DRJIT_STRUCT``: the tables, for Dr.Jit's
+    traversal (``dr.freeze``) through the texture.
     """
+
+    DRJIT_STRUCT = {"boundaries": object, "cumulative": object}
 
     def __init__(self, stripe, ramp):
         self.shape = stripe.shape

@@ -27,7 +27,12 @@ def ramp_storage(colours):
 
 
 class Ramp:
-    """The colours, their lookups in the kernel, and their facts (size, mean)."""
+    """The colours, their lookups in the kernel, and their facts (size, mean).
+
+    ``DRJIT_STRUCT``: Dr.Jit's traversal (``dr.freeze``) sees the colours through the
+    texture that holds the ramp, so a recording takes them as inputs."""
+
+    DRJIT_STRUCT = {"storage": object, "colours": object}
 
     def __init__(self, storage):
         self.storage = storage

@@ -39,7 +39,13 @@ class TexturePoint(NamedTuple):
 
 
 class TextureMapping:
-    """p ↦ v = scale · to_world⁻¹ · p, for points, footprints and gradients."""
+    """p ↦ v = scale · to_world⁻¹ · p, for points, footprints and gradients.
+
+    ``DRJIT_STRUCT``: its transforms and scale are seen by Dr.Jit's traversal
+    (``dr.freeze``) through the texture; to_world⁻¹ is opaque, so a recording takes it
+    as an input rather than baking it into the kernel."""
+
+    DRJIT_STRUCT = {"to_world": object, "to_texture": object, "scale": object}
 
     def __init__(self, to_world):
         """``to_world``: an editable transform (checked and inverted in :meth:`check` and
@@ -68,6 +74,8 @@ class TextureMapping:
         self.scale = scale
         identity = np.array_equal(transform_matrix(self.to_world), np.eye(4))
         self.to_texture = None if identity else self.to_world.inverse()
+        if self.to_texture is not None and dr.is_jit_v(mi.Float):
+            dr.make_opaque(self.to_texture)
 
     def point(self, p):
         """v at world points p."""

@@ -7,7 +7,7 @@ import pytest
 
 import mimarble
 from mimarble.mitsuba import silhouettes, to_mitsuba
-from mimarble.mitsuba.pixel_tracer import PixelTracer
+from mimarble.mitsuba.pixel_tracer import PassNumbers, PixelTracer
 from mimarble.scene_edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
@@ -65,7 +65,7 @@ def test_ray_differentials_reach_the_next_pixels_hit(llvm):
     mitsuba_scene = loaded(scene, 1)
     tracer = PixelTracer(mitsuba_scene, "whitted")
     pixel = mi.UInt32([100 * 256 + 100, 100 * 256 + 101, 101 * 256 + 100])
-    ray, _ = tracer.ray(pixel, mi.UInt32([0, 0, 0]), 1, 0)
+    ray, _ = tracer.ray(pixel, mi.UInt32([0, 0, 0]), PassNumbers(0, 0, 1, 1, 0, True))
     si = mitsuba_scene.ray_intersect(ray)
     si.compute_uv_partials(ray)
     dp_dx = np.array(si.dp_du * si.duv_dx.x + si.dp_dv * si.duv_dx.y)[:, 0]

@@ -49,7 +49,7 @@ import threading
 import numpy as np
 
 from .. import environment
-from ..plugins import RGBTexture, describe, luminance, numbers, plugin
+from ..plugins import RGBTexture, describe, luminance, numbers, plugin, recording_key
 from ..properties import numbered_properties
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -205,6 +205,16 @@ class ChannelExpression(RGBTexture):
         """The operands that change over the surface (read now: a shared operand's ramp
         may have gained colours)."""
         return [t for t in self.operands if t.is_spatially_varying()]
+
+    def recording_key(self) -> tuple:
+        """What decides the code ``eval`` traces besides Dr.Jit's variables (see
+        ``Marble.recording_key``): the operation, the skipping decisions in force, which
+        operands are constant or vary, and the operands' own keys."""
+        return ("channel_expression", self.op, self._shortcuts(), self.zero_product,
+                self.mix_side, tuple(c is None for c in self.constants),
+                tuple(t.is_spatially_varying() for t in self.operands),
+                self.weight is None, tuple(recording_key(t) for t in self.operands),
+                recording_key(self.weight))
 
     def to_string(self):
         fields = {"op": self.op}

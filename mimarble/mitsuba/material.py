@@ -27,7 +27,7 @@ Under any other integrator it behaves as a Lambertian BSDF with reflectance
 from __future__ import annotations
 
 from .. import environment
-from ..plugins import describe, first_number, plugin
+from ..plugins import describe, first_number, plugin, recording_key
 from .channel_expression import evaluate, shared_evaluations, textures_within
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -129,6 +129,12 @@ class ChannelMaterial:
             self.exponent = self.shininess
         else:                       # the scalar variant computes on a Python float
             self.exponent = first_number(self.shininess)
+
+    def recording_key(self) -> tuple:
+        """Its channels' keys (see ``Marble.recording_key``): which are present, and
+        what each traces."""
+        return ("channel_material",) + tuple(recording_key(getattr(self, name))
+                                             for name in CHANNELS)
 
     def to_string(self):
         fields = {name: getattr(self, name) for name in CHANNELS if self.has_channel(name)}

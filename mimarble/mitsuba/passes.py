@@ -10,9 +10,12 @@ or, when one pixel has more samples than a pass, runs of that pixel's samples
 reduces it in Dr.Jit, so that memory is a pass's working set whatever the
 image size and spp, and only values per pixel come back to NumPy.
 
-Pass offsets and sizes are opaque, so every pass and spp of a scene runs one
-compiled kernel (a new image size compiles another: docs/design-decisions.md,
-"Start-up and the kernel cache").
+A pass is traced once and then replayed from its recording (mimarble/mitsuba/
+replay.py): its numbers (offsets, samples, seed) are opaque inputs, and its width
+and samples per pixel part of the recording's key, so a scene's passes replay one
+recording per pass width and spp, and compile one kernel for every spp (a new
+image size compiles another: docs/design-decisions.md, "Start-up and the kernel
+cache").
 """
 
 from __future__ import annotations
@@ -22,6 +25,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import environment
+from .pixel_tracer import PassNumbers, PixelTracer
+from .replay import Recorded, scene_inputs, scene_key
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -31,32 +36,65 @@ dr, mi = environment.import_drjit_and_mitsuba()
 PASS_SAMPLES = 1 << 22
 
 
+class Target(NamedTuple):
+    """What passes trace: a loaded scene, in ``whitted`` or ``path`` mode, drawing from
+    ``sampler`` (path mode), into an image of ``width`` × ``height`` pixels."""
+    scene: object
+    mode: str
+    sampler: object
+    width: int
+    height: int
+
+    @classmethod
+    def of(cls, scene, mode: str) -> "Target":
+        film = scene.sensors()[0].film()
+        width, height = (int(x) for x in film.crop_size())
+        return cls(scene, mode, _sampler(scene, mode), width, height)
+
+
+#: Path mode's sampler for each scene's sensor sampler: a clone made once (a new one
+#: per render would be a new instance in Dr.Jit's registry, which a recording sees),
+#: held with the sampler it was cloned from, so that neither id is reused while kept.
+_CLONES: dict = {}
+
+
+def _sampler(scene, mode: str):
+    original = scene.sensors()[0].sampler()
+    if mode == "whitted":                      # draws nothing: the sensor's own will do
+        return original
+    if id(original) not in _CLONES:
+        if len(_CLONES) >= 16:
+            _CLONES.pop(next(iter(_CLONES)))
+        _CLONES[id(original)] = (original, original.clone())
+    return _CLONES[id(original)][1]
+
+
 class TracedPass(NamedTuple):
     """The pixels one pass completed, and how many samples it traced.
 
     ``pixels`` indexes the image's pixels (a slice, or an array of pixel
     indices); it is empty after a pass that took only some of a split pixel's
-    samples, which the arrays then match. ``sums``: (len, 3) float64, each
-    pixel's radiance summed over all of its spp samples (None when radiance
-    was not traced); ``first_shape``, ``last_shape``: uint32, the smallest and
-    largest id of the first shape hit among them, 0 for a miss (None unless
-    asked for).
+    samples, which the arrays then match. ``means``: (len, 3) float32, each
+    pixel's radiance summed over all of its spp samples in float64, divided by
+    the spp and rounded once (None when radiance was not traced);
+    ``first_shape``, ``last_shape``: uint32, the smallest and largest id of the
+    first shape hit among them, 0 for a miss (None unless asked for).
     """
     pixels: slice | np.ndarray
     samples: int
-    sums: np.ndarray | None
+    means: np.ndarray | None
     first_shape: np.ndarray | None
     last_shape: np.ndarray | None
 
 
-def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
+def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, *,
                     with_radiance: bool = True, with_shapes: bool = False,
                     pass_samples: int | None = None, seed: int = 0):
     """Yield a :class:`TracedPass` per pass of ``spp`` samples in each pixel.
 
-    ``pixels``: uint32 pixel indices, default every pixel of ``tracer``'s
-    image in order. ``with_radiance``: trace the integrator (``tracer.trace``),
-    else only the first shape hit (``tracer.first_shape``); ``with_shapes``:
+    ``pixels``: uint32 pixel indices, default every pixel of ``target``'s
+    image in order. ``with_radiance``: trace the integrator (``PixelTracer.trace``),
+    else only the first shape hit (``PixelTracer.first_shape``); ``with_shapes``:
     also reduce the first shape hit per pixel. ``pass_samples``: lanes per pass
     (default :data:`PASS_SAMPLES`). A pass's sampler seed (path mode) is its number
     plus ``seed`` times an odd 32-bit constant (Fibonacci hashing), modulo 2³², so that
@@ -66,61 +104,88 @@ def trace_in_passes(tracer, spp: int, pixels: np.ndarray | None = None, *,
     back whole, by the pass that takes its last samples.
     """
     pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
-    count = tracer.width * tracer.height if pixels is None else len(pixels)
-    u32 = tracer.u32
+    count = target.width * target.height if pixels is None else len(pixels)
+    key, inputs = scene_key(target.scene), scene_inputs(target.scene)
     so_far = None                    # a split pixel's (sums, first, last) so far
     for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, spp, pass_samples)):
         lanes = n_pixels * n_samples
-        lane = dr.arange(mi.UInt32, lanes)
-        if pixels is None:                           # opaque offsets: one kernel for every pass
-            pixel = u32(p0) + lane // u32(n_samples)
-            sub = u32(q0) + lane % u32(n_samples)
-        else:
-            pixel = dr.gather(mi.UInt32, mi.UInt32(pixels[p0:p0 + n_pixels]),
-                              lane // u32(n_samples))
-            # Only the later passes of a split pixel start past sample 0.
-            sub = lane % u32(n_samples) if q0 == 0 else u32(q0) + lane % u32(n_samples)
-        if with_radiance:
-            value, hit_shape = tracer.trace(pixel, sub, spp,
-                                            (seed * 0x9E3779B1 + index) & 0xFFFFFFFF, with_shapes)
-        else:
-            value, hit_shape = None, tracer.first_shape(pixel, sub, spp)
-        traced = _pixel_sums(value, hit_shape, lanes, n_samples)
-        if n_samples < spp:                          # one pixel, over several passes
+        numbers = PassNumbers(p0, q0, n_samples, spp, (seed * 0x9E3779B1 + index) & 0xFFFFFFFF,
+                              target.mode == "whitted")
+        subset = None if pixels is None else mi.UInt32(pixels[p0:p0 + n_pixels])
+        split = n_samples < spp                      # one pixel, over several passes
+        values, first, last = _traced_pass(target.scene, inputs, target.mode, target.sampler,
+                                           key, lanes, n_samples, numbers, subset,
+                                           with_radiance, with_shapes, split)
+        # Views of the Dr.Jit arrays (no copy): means interleaved per pixel, or a split
+        # pixel's sums as Color3d (3, 1).
+        traced = (None if values is None else
+                  values.numpy().T.astype(np.float64) if split else
+                  values.numpy().reshape(-1, 3),
+                  None if first is None else first.numpy(),
+                  None if last is None else last.numpy())
+        if split:
             so_far = _accumulate(so_far if q0 else None, traced)
             n_pixels = int(q0 + n_samples == spp)     # none until its last samples are in
             traced = tuple(None if x is None else x[:n_pixels] for x in so_far)
+            if traced[0] is not None:
+                traced = ((traced[0] / spp).astype(np.float32),) + traced[1:]
         span = slice(p0, p0 + n_pixels)
         yield TracedPass(span if pixels is None else pixels[span], lanes, *traced)
 
 
-def _pixel_sums(radiance, shapes, lanes: int, n_samples: int):
-    """(sums, first, last) of each run of ``n_samples`` lanes: the sums of ``radiance``
-    (a Color3f per lane, or None) in float64 → (lanes/n_samples, 3); the smallest and
-    largest of ``shapes`` (a UInt32 per lane, or None). None where its input is None.
+def _trace_pass(scene, inputs: tuple, mode: str, sampler, key: tuple, lanes: int,
+                n_samples: int,
+                numbers: PassNumbers, subset, with_radiance: bool, with_shapes: bool,
+                split: bool):
+    """One pass, in Dr.Jit: (values, first, last) of each run of ``n_samples`` lanes of
+    ``lanes`` — the radiance summed in float64, then (unless ``split``: the pass holds
+    only some of one pixel's samples) divided by ``n_samples`` and rounded to float32,
+    the pixels' RGB interleaved in one Float (``split``: the sums, a Color3d); the
+    smallest and largest id of the first shape hit (UInt32); None where not asked for.
+    Lane k is sample
+    ``first_sample + k mod n`` of pixel ``first_pixel + ⌊k / n⌋`` (n = ``numbers.samples``),
+    or of pixel ``subset[⌊k / n⌋]``.
 
-    Reduced by Dr.Jit (``block_sum``, ``block_reduce``) after one kernel that computes
-    every lane, so only values per pixel come back to NumPy; sums in float64, whose
-    rounding is far below float32's.
+    Recorded and replayed (:class:`~mimarble.mitsuba.replay.Recorded`): everything it
+    reads is an argument — the scene, what it does not hold (``inputs``:
+    :func:`~mimarble.mitsuba.replay.scene_inputs`), the opaque ``numbers`` and ``subset``;
+    ``key`` (:func:`~mimarble.mitsuba.replay.scene_key`), the mode, the widths and the
+    switches as the recording's key. One kernel computes every lane, then Dr.Jit's block
+    reductions (``block_sum``, ``block_reduce``) make the values per pixel; sums in
+    float64, whose rounding is far below float32's.
     """
-    if radiance is not None:
+    tracer = PixelTracer(scene, mode, sampler)
+    lane = dr.arange(mi.UInt32, lanes)
+    pixel = numbers.first_pixel + lane // numbers.samples if subset is None else \
+        dr.gather(mi.UInt32, subset, lane // numbers.samples)
+    sub = numbers.first_sample + lane % numbers.samples
+    if with_radiance:
+        radiance, shapes = tracer.trace(pixel, sub, numbers, with_shapes)
         radiance = mi.Color3d(radiance) + dr.zeros(mi.Color3d, lanes)   # constants: full width
+    else:
+        radiance, shapes = None, tracer.first_shape(pixel, sub, numbers)
     dr.eval(*(x for x in (radiance, shapes) if x is not None))         # one kernel for all
     if radiance is not None and n_samples > 1:
         radiance = dr.block_sum(radiance, n_samples)
+    if radiance is not None and not split:
+        # A true division by an opaque count (not a product with its reciprocal), so the
+        # mean is rounded as NumPy's float64 division and float32 cast round it.
+        mean = mi.Color3f(radiance / mi.Float64(numbers.samples))
+        radiance = dr.ravel(mean, order="F")          # r0 g0 b0 r1 …: NumPy's (pixels, 3)
     first = last = shapes
     if shapes is not None and n_samples > 1:
         first = dr.block_reduce(dr.ReduceOp.Min, shapes, n_samples)
         last = dr.block_reduce(dr.ReduceOp.Max, shapes, n_samples)
-    return (None if radiance is None else np.array(radiance, dtype=np.float64).T,
-            None if shapes is None else np.array(first, dtype=np.uint32),
-            None if shapes is None else np.array(last, dtype=np.uint32))
+    return radiance, first, last
+
+
+_traced_pass = Recorded(_trace_pass)
 
 
 def _accumulate(so_far, traced):
-    """A split pixel's (sums, first, last) after one more pass's ``traced``: sums added
-    in pass order, from 0.0, in float64; shape ids by min and max. ``so_far``: None at
-    the pixel's first pass."""
+    """A split pixel's (sums, first, last) after one more pass's ``traced`` (the same,
+    for that pass): sums added in pass order, from 0.0, in float64; shape ids by min and
+    max. ``so_far``: None at the pixel's first pass."""
     if so_far is None:
         so_far = (None if traced[0] is None else np.zeros_like(traced[0]),) + traced[1:]
     return tuple(None if old is None else combine(old, new)

@@ -20,8 +20,7 @@ from .. import scene as scene_language
 from ..progress import report
 from ..scene.model import samples_per_axis
 from ..scene.rules import seed_problem, spp_problem
-from .passes import trace_in_passes
-from .pixel_tracer import PixelTracer
+from .passes import Target, trace_in_passes
 from .silhouettes import edge_sample_passes
 from .translate import to_mitsuba
 
@@ -180,8 +179,8 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     check_edge_spp(edge_spp, mode)
     if edge_spp is not None and edge_spp <= spp:
         edge_spp = None                                # fewer samples would not help a pixel
-    tracer = PixelTracer(mitsuba_scene, mode)
-    width, height = tracer.width, tracer.height
+    target = Target.of(mitsuba_scene, mode)
+    width, height = target.width, target.height
     pixels = width * height
     image = np.empty((pixels, 3), dtype=np.float32)   # the only full-size array
     # First and last shape hit among each pixel's samples (0: a miss), for edge_spp.
@@ -192,13 +191,13 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     # they take, so that a bar stays open until the edge pass has said how much it adds.
     pending = 1 if edge_spp else 0
     done(0, samples_total + pending)                   # a bar's delay counts from here
-    first_passes = trace_in_passes(tracer, spp, with_shapes=shapes is not None,
+    first_passes = trace_in_passes(target, spp, with_shapes=shapes is not None,
                                    pass_samples=pass_samples, seed=seed)
     for samples in _fill(image, first_passes, spp, shapes):
         samples_done += samples
         done(samples_done, samples_total + pending)
     if edge_spp:
-        edge_samples, edge_passes = edge_sample_passes(tracer, shapes, edge_spp, pass_samples)
+        edge_samples, edge_passes = edge_sample_passes(target, shapes, edge_spp, pass_samples)
         samples_total += edge_samples
         done(samples_done, samples_total)
         for samples in _fill(image, edge_passes, edge_spp):
@@ -212,7 +211,7 @@ def _fill(image: np.ndarray, traced_passes, spp: int, shapes: np.ndarray | None 
     ``image`` (pixels, 3), and with ``shapes`` their first-hit shape ranges in it
     (2, pixels); yields the samples each pass traced, once it is stored."""
     for traced in traced_passes:
-        image[traced.pixels] = traced.sums / spp
+        image[traced.pixels] = traced.means
         if shapes is not None:
             shapes[0, traced.pixels] = traced.first_shape
             shapes[1, traced.pixels] = traced.last_shape

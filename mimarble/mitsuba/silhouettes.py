@@ -16,8 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .passes import trace_in_passes
-from .pixel_tracer import PixelTracer
+from .passes import Target, trace_in_passes
 
 
 def silhouette_pixels(shapes: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -37,13 +36,13 @@ def silhouette_pixels(shapes: np.ndarray, width: int, height: int) -> np.ndarray
     return np.flatnonzero(least != most).astype(np.uint32)
 
 
-def edge_sample_passes(tracer: PixelTracer, shapes: np.ndarray, edge_spp: int,
+def edge_sample_passes(target: Target, shapes: np.ndarray, edge_spp: int,
                        pass_samples: int | None = None):
     """(samples, passes): the edge pass of an image whose first passes found ``shapes``
     ((2, pixels), as for :func:`silhouette_pixels`). ``passes`` traces ``edge_spp``
     stratum centres in every silhouette pixel (whitted mode), ``samples`` in all."""
-    edges = silhouette_pixels(shapes, tracer.width, tracer.height)
-    return len(edges) * edge_spp, trace_in_passes(tracer, edge_spp, edges,
+    edges = silhouette_pixels(shapes, target.width, target.height)
+    return len(edges) * edge_spp, trace_in_passes(target, edge_spp, edges,
                                                   pass_samples=pass_samples)
 
 
@@ -51,12 +50,12 @@ def edge_mask(mitsuba_scene, spp: int = 16) -> np.ndarray:
     """(H, W) bool: the pixels :func:`~mimarble.mitsuba.render.render_in_passes` gives
     edge samples, found with ``spp`` stratum centres per pixel, tracing only the
     first shape hit (the benchmark's "edge" pixels; the rest is the interior)."""
-    tracer = PixelTracer(mitsuba_scene, "whitted")
-    pixels = tracer.width * tracer.height
+    target = Target.of(mitsuba_scene, "whitted")
+    pixels = target.width * target.height
     shapes = np.zeros((2, pixels), dtype=np.uint32)
-    for traced in trace_in_passes(tracer, spp, with_radiance=False, with_shapes=True):
+    for traced in trace_in_passes(target, spp, with_radiance=False, with_shapes=True):
         shapes[0, traced.pixels] = traced.first_shape
         shapes[1, traced.pixels] = traced.last_shape
     mask = np.zeros(pixels, dtype=bool)
-    mask[silhouette_pixels(shapes, tracer.width, tracer.height)] = True
-    return mask.reshape(tracer.height, tracer.width)
+    mask[silhouette_pixels(shapes, target.width, target.height)] = True
+    return mask.reshape(target.height, target.width)

@@ -66,28 +66,37 @@ def _sphere_geometry(shape):
 
 
 class SphereTable:
-    """Centres and radii of a scene's spheres, looked up per lane by the hit shape."""
+    """Centres and radii of a scene's spheres, looked up per lane by the hit shape.
 
-    #: The scalar variant's tables by scene, kept while the scene's bounding boxes stay:
-    #: its integrator shades one sample at a time, and a table costs a ``mi.traverse``
-    #: per sphere (a JIT variant builds one per traced kernel).
-    _scalar_tables: dict = {}
+    A scene's table is built once and kept while its shapes' bounding boxes stay (a
+    ``mi.traverse`` per sphere builds it). Its columns are opaque Dr.Jit arrays that the
+    table holds (``DRJIT_STRUCT``), so that a recording of the kernels (mimarble/mitsuba/
+    replay.py) takes them as inputs; what decides the traced code, :attr:`structure`, is
+    part of the recording's key.
+    """
+
+    DRJIT_STRUCT = {"columns": list}
+    #: Tables by scene, with the bounding boxes they were built for.
+    _tables: dict = {}
 
     @classmethod
     def of(cls, scene) -> "SphereTable":
-        """The table of ``scene``: built anew in JIT variants; in the scalar variant the
-        one built before, unless a shape has moved or changed size since."""
-        if dr.is_jit_v(mi.Float):
-            return cls(scene)
+        """The table of ``scene``: the one built before, unless a shape has moved or
+        changed size since."""
         boxes = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
-        boxes_then, table = cls._scalar_tables.get(id(scene), (None, None))
+        boxes_then, table = cls._tables.get(id(scene), (None, None))
         # The very shapes too: a new scene may take a freed one's id.
         if boxes_then != boxes or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
-            if len(cls._scalar_tables) > 16:
-                cls._scalar_tables.clear()
+            if len(cls._tables) > 16:
+                cls._tables.clear()
             table = cls(scene)
-            cls._scalar_tables[id(scene)] = (boxes, table)
+            cls._tables[id(scene)] = (boxes, table)
         return table
+
+    @property
+    def structure(self) -> tuple:
+        """What decides the code :func:`refine` and :func:`occluded` trace."""
+        return (getattr(self, "size", None), self.large)
 
     def __init__(self, scene):
         self.shapes = list(scene.shapes())
@@ -103,6 +112,7 @@ class SphereTable:
                         column[shape_id] = value
             self.size = size
             self.columns = [mi.Float64(c) for c in columns]
+            dr.make_opaque(*self.columns)     # evaluated, never a literal: recorded as inputs
         # Whether Mitsuba's float32 error on some sphere can reach the shadow-ray offset
         # ε ≥ EPS_REL (max|c_k| + r > 419): then refine() works in float64 and occluded()
         # looks for false hits on the own sphere; below it both would change nothing.

@@ -81,6 +81,7 @@ class Whitted:
         self.ambient = _colour(props, "ambient")
         self.background = _colour(props, "background")
         self.shadows = bool(props.get("shadows", True))
+        self.parameters_changed()
 
     def aov_names(self):
         return []
@@ -88,6 +89,23 @@ class Whitted:
     def traverse(self, cb):
         cb.put("ambient", self.ambient, mi.ParamFlags.Differentiable)
         cb.put("background", self.background, mi.ParamFlags.Differentiable)
+
+    def parameters_changed(self, keys=[]):
+        """The colours opaque, as an edit left them: a new value reuses the kernel (and
+        a recording of it takes them as inputs)."""
+        if dr.is_jit_v(mi.Float):
+            dr.make_opaque(self.ambient, self.background)
+
+    def recording_key(self, scene) -> tuple:
+        """What decides the code :meth:`sample` traces for ``scene`` besides Dr.Jit's
+        variables and the materials' own keys (see ``Marble.recording_key``): the shadow
+        switch and the sphere table's structure."""
+        return ("whitted", self.shadows, sphere_hit.SphereTable.of(scene).structure)
+
+    def recording_inputs(self, scene) -> tuple:
+        """The Dr.Jit state :meth:`sample` reads for ``scene`` that the scene does not hold
+        (the sphere table it keeps for it): a recording's inputs."""
+        return (sphere_hit.SphereTable.of(scene),)
 
     def to_string(self):
         return describe("Whitted", {"ambient": numbers(self.ambient).tolist(),
