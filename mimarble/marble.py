@@ -78,13 +78,15 @@ class Marble(RGBTexture):
                 # In place: mi.traverse holds these very objects.
                 mi.set_property(self.editable[name], value)
             raise
+        if dr.is_jit_v(mi.Float):
+            # Opaque, before they are copied: a new value reuses the compiled kernel, and
+            # a recording of it (dr.freeze) takes every one as an input, copies too.
+            dr.make_opaque(*self.editable.values())
         self._last_valid = {name: type(value)(value) for name, value in self.editable.items()}
         self.ramp.changed()
         if dr.is_jit_v(mi.Float):   # the kernel reads the traversed values themselves
             self.scale, self.period, self.distortion = (
                 self.editable[name] for name in ("scale", "period", "distortion"))
-            for value in (self.scale, self.period, self.distortion):
-                dr.make_opaque(value)
         else:                       # the scalar variant computes on Python floats
             self.scale, self.period, self.distortion = (
                 values[name] for name in ("scale", "period", "distortion"))

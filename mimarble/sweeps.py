@@ -15,12 +15,11 @@ Frames are the combinations of all settings (the last varies fastest). Every fra
 scene is made before the first render, so a bad key or value (checked by the marble's
 parameter table) is an error before any work.
 
-**One compile per structure.** Frames are rendered through a cache of loaded Mitsuba
-scenes keyed by their *structure* — the scene dict with the values a sweep can
-change in place (``marble_parameters.IN_PLACE``) masked out — so frames that differ
-only in ``scale``, ``period`` or ``distortion`` reuse one scene: the new values go in
-through ``mi.traverse`` (they are opaque: the compiled kernels are reused). Another
-structure (octaves, function, …) loads and compiles once.
+**One compile per structure.** Frames are rendered through the loaded scenes kept by
+structure (mimarble/mitsuba/loaded_scenes.py) — so frames that differ only in
+``scale``, ``period`` or ``distortion`` reuse one scene: the new values go in through
+``mi.traverse`` (they are opaque: the compiled kernels and the recorded passes are
+replayed). Another structure (octaves, function, …) loads and compiles once.
 
 **Nothing lost.** ``sweep.json`` in the output folder lists every frame with its
 values, file, status, error and render time; it is rewritten whole (temporary
@@ -70,7 +69,6 @@ import numpy as np
 from . import files
 from . import scene as scene_language
 from .contact_sheet import draw_contact_sheet
-from .marble_parameters import IN_PLACE
 from .scene.image_header import check_image_maps, png_facts
 from .scene.rules import spp_problem
 from .scene.reading import NotRegularFile, open_regular
@@ -228,51 +226,6 @@ def file_name(frame, settings) -> str:
 # ---------------------------------------------------------------------------
 # Rendering one frame (in this process, or in a Dask worker)
 
-class _SceneCache:
-    """Loaded Mitsuba scenes (and their traversed parameters) by structure; a new frame
-    of a known structure only updates the in-place values of its marbles."""
-
-    def __init__(self, size: int = 8):
-        self.size, self.scenes = size, {}
-
-    def scene_for(self, frame_scene, spp: int):
-        import mitsuba as mi
-        from .mitsuba.translate import to_mitsuba
-        scene_dict = to_mitsuba(frame_scene, spp=spp)
-        structure, values = _structure(scene_dict)
-        key = (mi.variant(), structure)
-        if key not in self.scenes:
-            if len(self.scenes) >= self.size:
-                self.scenes.pop(next(iter(self.scenes)))
-            mitsuba_scene = mi.load_dict(scene_dict)
-            self.scenes[key] = (mitsuba_scene, mi.traverse(mitsuba_scene))
-            return mitsuba_scene
-        mitsuba_scene, params = self.scenes[key]
-        try:   # every in-place value, every frame (cheap): nothing left from another frame
-            for name, value in values.items():
-                params[name] = value
-            params.update()
-        except BaseException:
-            self.scenes.pop(key, None)   # a half-updated scene is never used again
-            raise
-        return mitsuba_scene
-
-
-def _structure(scene_dict) -> tuple[str, dict]:
-    """(the dict with in-place marble values masked, as JSON; those values by traverse key)."""
-    values, masked = {}, {}
-    for name, item in scene_dict.items():
-        if isinstance(item, dict) and item.get("type") == "marble":
-            item = dict(item)
-            for key in IN_PLACE:
-                values[f"{name}.{key}"] = item.pop(key)
-        masked[name] = item
-    return json.dumps(masked, sort_keys=True, default=str), values
-
-
-_CACHE = _SceneCache()
-
-
 def render_frame(job: dict) -> dict:
     """Render one frame: {"index", "scene", "spp", "compare", "variant", "threads",
     "encode"} → {"index", "image" (linear, or 8-bit sRGB with "encode"), "render_s",
@@ -288,11 +241,13 @@ def render_frame(job: dict) -> dict:
             mimarble.dr.set_thread_count(job["threads"])
         from .compare import image_metrics
         from .mitsuba.image_output import srgb8
+        from .mitsuba.loaded_scenes import LOADED
         from .mitsuba.render import render_in_passes
+        from .mitsuba.translate import to_mitsuba
         frame_scene = job["scene"]
         spp = job["spp"] or frame_scene.image.samples
         start = time.perf_counter()
-        mitsuba_scene = _CACHE.scene_for(frame_scene, spp)
+        mitsuba_scene = LOADED.scene_for(to_mitsuba(frame_scene, spp=spp))
         image = render_in_passes(mitsuba_scene, spp)
         out["render_s"] = time.perf_counter() - start
         if job.get("compare"):

@@ -74,8 +74,10 @@ class TextureMapping:
         self.scale = scale
         identity = np.array_equal(transform_matrix(self.to_world), np.eye(4))
         self.to_texture = None if identity else self.to_world.inverse()
-        if self.to_texture is not None and dr.is_jit_v(mi.Float):
-            dr.make_opaque(self.to_texture)
+        if dr.is_jit_v(mi.Float):   # an edit's new value reuses the kernel and its recording
+            dr.make_opaque(self.to_world)
+            if self.to_texture is not None:
+                dr.make_opaque(self.to_texture)
 
     def point(self, p):
         """v at world points p."""

@@ -36,6 +36,7 @@ from mimarble import sweeps  # noqa: E402
 from mimarble import scene as S  # noqa: E402
 from mimarble.machine import machine_facts  # noqa: E402
 from mimarble.mitsuba.render import render_in_passes  # noqa: E402
+from mimarble.mitsuba.loaded_scenes import LOADED  # noqa: E402
 from mimarble.scene_edits import resized  # noqa: E402
 
 dr, mi = mimarble.dr, mimarble.mi
@@ -63,7 +64,7 @@ def main(out_json=None):
         one_process_runs.append(time.perf_counter() - start)
     compile_s = sum(k["codegen_time"] + k["backend_time"] for k in history
                     if not k["cache_hit"]) / 1000
-    mitsuba_scene = next(iter(sweeps._CACHE.scenes.values()))[0]
+    mitsuba_scene = next(iter(LOADED.scenes.values()))[0]
     spp = scene.image.samples
     runs = []
     for _ in range(9):

@@ -14,6 +14,7 @@ from mimarble import scene as S
 from mimarble import sweeps
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.render import render_in_passes
+from mimarble.mitsuba.loaded_scenes import LOADED
 from mimarble.scene_edits import resized, with_marbles, with_value
 
 dr, mi = mimarble.dr, mimarble.mi
@@ -63,16 +64,16 @@ def test_a_sweep_writes_every_frame_an_index_and_a_contact_sheet(llvm, tmp_path)
 
 
 def test_in_place_values_reuse_the_loaded_scene_and_its_kernels(llvm, tmp_path):
-    sweeps._CACHE.scenes.clear()
+    LOADED.scenes.clear()
     scene = small()
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
         sweeps.sweep(scene, {"marble.period": [0.7, 1.1, 1.9, 2.3]}, tmp_path / "a", spp=1)
         kernels = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
-    assert len(sweeps._CACHE.scenes) == 1               # one structure, loaded once
+    assert len(LOADED.scenes) == 1               # one structure, loaded once
     render_kernels = [k for k in kernels if k["operation_count"] > 500]
     assert len(render_kernels) == 4 and all(k["cache_hit"] for k in render_kernels[1:])
     sweeps.sweep(scene, {"marble.octaves": [3, 5]}, tmp_path / "b", spp=1)
-    assert len(sweeps._CACHE.scenes) == 3               # each octave count: a structure
+    assert len(LOADED.scenes) == 3               # each octave count: a structure
 
 
 def test_an_interrupted_sweep_resumes_with_only_what_is_missing(llvm, tmp_path):

@@ -192,8 +192,10 @@ class ChannelExpression(RGBTexture):
         for params in self._operand_parameters:
             for key in params.keys():
                 value = params[key]
+                # JIT variants: the variables only (transforms too), never their values,
+                # which a recording of the kernels (dr.freeze) cannot read.
                 items.append((key, tuple(dr.detail.collect_indices(value))
-                              if dr.is_jit_v(type(value)) else repr(value)))
+                              if dr.is_jit_v(mi.Float) else repr(value)))
         return hash(tuple(items))
 
     def _shortcuts(self) -> bool:

@@ -123,9 +123,10 @@ class ChannelMaterial:
             if hasattr(self, "_last_shininess"):
                 mi.set_property(self.shininess, self._last_shininess)
             raise
-        self._last_shininess = type(self.shininess)(self.shininess)
         if dr.is_jit_v(mi.Float):   # the kernel reads the traversed value itself, opaque
             dr.make_opaque(self.shininess)
+        self._last_shininess = type(self.shininess)(self.shininess)
+        if dr.is_jit_v(mi.Float):
             self.exponent = self.shininess
         else:                       # the scalar variant computes on a Python float
             self.exponent = first_number(self.shininess)

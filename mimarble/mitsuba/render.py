@@ -22,6 +22,7 @@ from ..scene.model import samples_per_axis
 from ..scene.rules import seed_problem, spp_problem
 from .passes import Target, trace_in_passes
 from .silhouettes import edge_sample_passes
+from .loaded_scenes import LOADED
 from .translate import to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -41,6 +42,11 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     image, in bounded memory, one kernel for every spp); ``tolerance`` and ``filter``,
     which the translator applies, are refused for it in one sentence. ``seed``: the
     sampler seed of path mode, 0..2³²−1 (whitted mode is deterministic).
+
+    A scene model or file is loaded once and kept by its structure
+    (mimarble/mitsuba/loaded_scenes.py): another render of it, or of a scene that
+    differs only in its marbles' scale, period or distortion, edits the loaded scene in
+    place, and its passes replay their recorded kernels (mimarble/mitsuba/replay.py).
 
     Memory is the image plus a bounded working set whatever the size and spp:
     JIT variants render in passes of up to
@@ -72,7 +78,7 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
     scene_dict = to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance, filter=filter)
     try:
-        mitsuba_scene = mi.load_dict(scene_dict)
+        mitsuba_scene = LOADED.scene_for(scene_dict)
     except RuntimeError:
         check_images(scene)              # an image map that does not decode: said at its file
         raise

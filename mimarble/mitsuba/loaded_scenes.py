@@ -1,0 +1,93 @@
+"""Loaded Mitsuba scenes, kept by structure: a scene is loaded once, then edited in place.
+
+``mimarble.render`` of a scene model or file, a sweep's frames, the command line and
+the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
+:data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
+in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size and time
+of every image file it reads — matches a loaded one gets that loaded ``mi.Scene``,
+with the in-place values that differ from the ones it holds written through
+``mi.traverse``; anything else is loaded anew (``mi.load_dict``). So repeated renders
+of one scene, and frames that differ only in a marble's scale, period or distortion,
+re-use the loaded scene, its compiled kernels and its recorded passes
+(mimarble/mitsuba/replay.py); an edited scene file or image map is seen, because its
+new text or bytes make another structure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+from .. import environment
+from ..marble_parameters import IN_PLACE
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+#: Loaded scenes kept (least recently used dropped first). Each holds its textures and
+#: image maps; eight paper scenes at 500² are a few MB.
+SCENES = 8
+
+
+class LoadedScenes:
+    """Loaded scenes by structure (module docstring)."""
+
+    def __init__(self, size: int = SCENES):
+        self.size, self.scenes = size, {}
+
+    def scene_for(self, scene_dict: dict):
+        """The loaded scene of ``scene_dict`` (a ``to_mitsuba`` dict): a kept one of the
+        same structure with its in-place values set, else a new one."""
+        structure, values = _structure(scene_dict)
+        key = (mi.variant(), structure)
+        entry = self.scenes.pop(key, None)
+        if entry is None:
+            if len(self.scenes) >= self.size:
+                self.scenes.pop(next(iter(self.scenes)))
+            mitsuba_scene = mi.load_dict(scene_dict)
+            entry = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
+        else:
+            mitsuba_scene, params, held = entry
+            changed = {name: value for name, value in values.items() if held.get(name) != value}
+            if changed:            # should this raise, the entry stays out: never half-updated
+                for name, value in changed.items():
+                    params[name] = value
+                params.update()
+                held.update(changed)
+        self.scenes[key] = entry               # the most recently used last
+        return entry[0]
+
+    def clear(self) -> None:
+        self.scenes.clear()
+
+
+def _structure(scene_dict) -> tuple[str, dict]:
+    """(the dict with in-place marble values masked and image files' sizes and times
+    added, as JSON; those values by traverse key)."""
+    values, masked = {}, {}
+    for name, item in scene_dict.items():
+        if isinstance(item, dict) and item.get("type") == "marble":
+            item = dict(item)
+            for key in IN_PLACE:
+                if key in item:
+                    values[f"{name}.{key}"] = item.pop(key)
+        masked[name] = item
+    return json.dumps([masked, _image_files(scene_dict)], sort_keys=True, default=str), values
+
+
+def _image_files(item) -> list:
+    """(path, size, modification time) of every ``bitmap``'s file in the dict, nested."""
+    found = []
+    if isinstance(item, dict):
+        if item.get("type") == "bitmap" and isinstance(item.get("filename"), str):
+            try:
+                facts = os.stat(item["filename"])
+                found.append((item["filename"], facts.st_size, facts.st_mtime_ns, facts.st_ino))
+            except OSError:
+                found.append((item["filename"], None, None, None))   # load_dict will say
+        for value in item.values():
+            found += _image_files(value)
+    return found
+
+
+#: The loaded scenes of this process (a Dask worker has its own).
+LOADED = LoadedScenes()

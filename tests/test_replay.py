@@ -1,0 +1,222 @@
+"""Replayed passes are never stale: every edit, in place or structural, renders as a fresh
+trace of the same scene does (mimarble/mitsuba/replay.py).
+
+Each test renders a loaded scene once (recording its pass), edits it through
+``mi.traverse``, and compares the replayed render with a render traced from scratch
+(``MIMARBLE_FREEZE=0``) of the very same scene, bit for bit. An in-place edit must not
+record again; a structural one must change the recording's key.
+"""
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble import scene as scene_language
+
+mi, dr = mimarble.mi, mimarble.dr
+
+from mimarble.mitsuba import passes  # noqa: E402
+from mimarble.mitsuba.render import render_in_passes  # noqa: E402
+from mimarble.mitsuba.replay import scene_key  # noqa: E402
+from mimarble.scene_edits import resized  # noqa: E402
+
+SCENE = """
+image    { width 24 height 20 samples 1 background < 0.1 0.1 0.2 > }
+camera   { eye < 0 0 9 > lookat < 0 0 0 > up < 0 1 0 > fov 40 }
+ambient  < 0.2 0.2 0.2 >
+light    { position < 10 10 10 > color < 1 1 1 > }
+light    { position < -10 5 10 > color < 0.3 0.3 0.3 > }
+material "veins" {
+  diffuse { marble { scale 1 period 1.3 distortion 3 octaves 4 filter FILTER
+                     ramp { < 1 0 0 > < 1 0.5 0 > < 1 1 0.5 > } } }
+  ambient {
+    mix {
+      marble { scale 2 period 1 distortion 1 octaves 3 axis y
+               ramp { < 0.9 0.9 0.9 > < 0.2 0.2 0.3 > } }
+      color < 0.3 0.2 0.1 >
+      weight 0.4
+    }
+  }
+  specular { color < 0.3 0.3 0.3 > }
+  shininess 20
+}
+material "grey" { diffuse { color < 0.5 0.5 0.5 > } }
+sphere { center < -1 0 0 > radius 1.5 material "veins" }
+sphere { center < 1.8 0.5 -1 > radius 1 material "grey" }
+"""
+
+FILTERS = ("none", "prefilter")
+
+
+def loaded(filter="none", to_world=None):
+    scene = scene_language.parse(SCENE.replace("FILTER", filter))
+    scene_dict = mimarble.to_mitsuba(scene)
+    if to_world is not None:
+        scene_dict["texture_0"]["to_world"] = to_world
+    return mi.load_dict(scene_dict)
+
+
+def traced_afresh(mitsuba_scene, monkeypatch, spp=1, **kwargs):
+    with monkeypatch.context() as m:
+        m.setenv("MIMARBLE_FREEZE", "0")
+        return render_in_passes(mitsuba_scene, spp, **kwargs)
+
+
+def assert_replay_is_fresh(mitsuba_scene, monkeypatch, recorded_again: bool | None,
+                           key_before=None, **kwargs):
+    """The replayed render equals a fresh trace of the same scene. ``recorded_again``
+    False: it replayed (no new recording, the same key); True: its recording's key
+    changed since ``key_before`` (a recording of that key may exist already: a freed
+    scene's id can be taken by a new one); None: either."""
+    before = passes._traced_pass.recordings
+    replayed = render_in_passes(mitsuba_scene, 1, **kwargs)
+    again = passes._traced_pass.recordings > before
+    np.testing.assert_array_equal(replayed, traced_afresh(mitsuba_scene, monkeypatch, **kwargs))
+    if recorded_again is False:
+        assert not again
+    if recorded_again is True:
+        assert scene_key(mitsuba_scene) != key_before
+
+
+def recorded(mitsuba_scene, **kwargs):
+    """Render twice: recorded, and the values made opaque by the first edit settled."""
+    render_in_passes(mitsuba_scene, 1, **kwargs)
+    return render_in_passes(mitsuba_scene, 1, **kwargs)
+
+
+def edit(mitsuba_scene, **values):
+    params = mi.traverse(mitsuba_scene)
+    for key, value in values.items():
+        params[key.replace("__", ".")] = value
+    params.update()
+
+
+IN_PLACE = {
+    "scale": {"texture_0__scale": 1.7},
+    "period": {"texture_0__period": 2.2},
+    "distortion": {"texture_0__distortion": 0.5},
+    "ramp colours": {"texture_0__ramp": mi.Color3f([0, 0.5, 1], [1, 0.5, 0], [0.2, 0.4, 0.6])},
+    "mix weight": {"texture_1__weight": 0.9},
+    "operand inside an expression": {"texture_2__period": 3.0},
+    "shininess": {"sphere_0__bsdf__shininess": 5.0},
+    "ambient light": {"integrator__ambient": mi.Color3f(0.5, 0.1, 0.1)},
+    "background": {"integrator__background": mi.Color3f(0.0, 0.3, 0.0)},
+    "light intensity": {"light_1__intensity__value": mi.Color3f(2.0, 0.5, 0.5)},
+    "light position": {"light_0__position": mi.Point3f(-3.0, 8.0, 6.0)},
+    "constant colour": {"sphere_1__bsdf__diffuse__value": mi.Color3f(0.1, 0.9, 0.1)},
+}
+
+
+@pytest.mark.parametrize("filter", FILTERS)
+@pytest.mark.parametrize("name", list(IN_PLACE))
+def test_an_in_place_edit_replays_what_a_fresh_trace_renders(llvm, monkeypatch, name, filter):
+    scene = loaded(filter)
+    before = recorded(scene)
+    edit(scene, **IN_PLACE[name])
+    recorded(scene)                    # a literal made opaque by the edit may record once
+    edit(scene, **{k: v * 0.5 if not isinstance(v, float) else v * 0.75
+                   for k, v in IN_PLACE[name].items()})
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=False)
+    assert not np.array_equal(before, render_in_passes(scene, 1))   # the edit shows
+
+
+def test_a_moved_texture_replays_what_a_fresh_trace_renders(llvm, monkeypatch):
+    scene = loaded("prefilter", to_world=mi.ScalarTransform4f().rotate([0, 0, 1], 30))
+    before = recorded(scene)
+    for angle in (60, 75):
+        edit(scene, texture_0__to_world=mi.Transform4f().rotate([0, 1, 0], angle))
+        recorded(scene)
+    edit(scene, texture_0__to_world=mi.Transform4f().rotate([1, 0, 0], 45).scale(2.0))
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=False)
+    assert not np.array_equal(before, render_in_passes(scene, 1))
+
+
+def test_a_moved_sphere_and_camera_replay_what_a_fresh_trace_renders(llvm, monkeypatch):
+    scene = loaded()
+    before = recorded(scene)
+    edit(scene, sphere_1__to_world=mi.Transform4f().translate([1.5, -0.5, 0]))
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=None)   # a new sphere table
+    edit(scene, sensor__to_world=mi.Transform4f().look_at([1, 1, 9], [0, 0, 0], [0, 1, 0]))
+    recorded(scene)
+    edit(scene, sensor__to_world=mi.Transform4f().look_at([2, 1, 9], [0, 0, 0], [0, 1, 0]))
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=False)
+    assert not np.array_equal(before, render_in_passes(scene, 1))
+
+
+STRUCTURAL = {
+    "octaves": {"texture_0__octaves": 7},
+    "ramp size": {"texture_0__ramp": mi.Color3f([0, 1, 0.5, 1], [1, 0, 0.5, 1], [0, 0, 1, 1])},
+    "one-colour ramp": {"texture_0__ramp": mi.Color3f([0.3], [0.6], [0.9])},
+    "mix weight 0": {"texture_1__weight": 0.0},
+    "mix weight 1": {"texture_1__weight": 1.0},
+    "no noise": {"texture_0__distortion": 0.0},
+    "a sphere grown large": {"sphere_1__to_world": mi.Transform4f().translate([0, 0, -3000])
+                             .scale(1000.0)},
+}
+
+
+@pytest.mark.parametrize("filter", FILTERS)
+@pytest.mark.parametrize("name", list(STRUCTURAL))
+def test_a_structural_edit_records_again(llvm, monkeypatch, name, filter):
+    scene = loaded(filter)
+    recorded(scene)
+    key = scene_key(scene)
+    edit(scene, **STRUCTURAL[name])
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=True, key_before=key)
+
+
+def test_an_edit_of_a_marble_two_expressions_share_replays_what_a_fresh_trace_renders(
+        llvm, monkeypatch):
+    # mi.traverse tells only a node's first parent of an edit: the other expression's
+    # skipping decisions no longer hold, and it evaluates everything (its key changes).
+    scene = scene_language.load("scenes/future-work/two-pass-marble.scene")
+    mitsuba_scene = mi.load_dict(mimarble.to_mitsuba(resized(scene, 24), spp=1))
+    recorded(mitsuba_scene)
+    for ramp in ([0.5, 0.1, 0.9], [0.4, 0.2, 0.8]):
+        edit(mitsuba_scene, texture_0__ramp=mi.Color3f(ramp, ramp[::-1], ramp),
+             texture_0__period=ramp[0] * 3)
+        np.testing.assert_array_equal(render_in_passes(mitsuba_scene, 1),
+                                      traced_afresh(mitsuba_scene, monkeypatch))
+
+
+def test_differentiating_keeps_every_octave_in_the_replay_too(llvm, monkeypatch):
+    scene = loaded()
+    recorded(scene)
+    key = scene_key(scene)
+    params = mi.traverse(scene)
+    dr.enable_grad(params["texture_0.distortion"])
+    params.update()
+    with dr.suspend_grad():
+        assert_replay_is_fresh(scene, monkeypatch, recorded_again=True, key_before=key)
+
+
+def test_edge_samples_and_path_mode_replay_what_a_fresh_trace_renders(llvm, monkeypatch):
+    scene = loaded("prefilter")
+    recorded(scene, edge_spp=4)
+    edit(scene, texture_0__period=0.7)
+    recorded(scene, edge_spp=4)
+    edit(scene, texture_0__period=0.9)
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=False, edge_spp=4)
+    path = mi.load_dict(mimarble.to_mitsuba(scene_language.parse(SCENE.replace("FILTER", "none")),
+                                            mode="path"))
+    for seed in (0, 1):
+        replayed = render_in_passes(path, 4, "path", seed=seed)
+        np.testing.assert_array_equal(replayed, traced_afresh(path, monkeypatch, spp=4,
+                                                              mode="path", seed=seed))
+
+
+def test_two_scenes_of_one_structure_never_share_a_recording(llvm):
+    first, second = loaded(), loaded()
+    edit(second, texture_0__period=2.5)
+    a = recorded(first)
+    b = recorded(second)
+    assert not np.array_equal(a, b)
+    np.testing.assert_array_equal(a, render_in_passes(first, 1))
+
+
+def test_replay_can_be_turned_off(llvm, monkeypatch):
+    scene = loaded()
+    monkeypatch.setenv("MIMARBLE_FREEZE", "0")
+    before = passes._traced_pass.recordings
+    render_in_passes(scene, 1)
+    assert passes._traced_pass.recordings == before
