@@ -165,7 +165,7 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
     scenes = [(Path(p).stem, scene_language.load(p)) for p in scene_paths]
     steps = len(scenes) * (1 + len(modes) * len(spps))
     steps += sum(1 for name, _ in scenes if name in PAPER_SECONDS) if paper else 0
-    steps += 8 if targets else 0           # measure_targets' 7 steps, then the whole process
+    steps += 9 if targets else 0           # measure_targets' 7 steps, the whole process, calls
     step = _stepper(report(progress, "bench", unit="step"), steps)
     results = {"machine": machine_facts(), "size": size, "converged_spp": converged_spp,
                "repeats": repeats, "tolerance": tolerance, "runs": [], "paper": [],
@@ -213,6 +213,9 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
         if povray:
             results["povray"] = against_povray(targets, repeats,
                                                results["process"]["render_warm_s"])
+        from .bench_calls import measure as measure_calls
+        results["calls"] = measure_calls(targets)
+        step("whole calls against their kernels")
     return results
 
 

@@ -52,6 +52,21 @@ def _povray_lines(p) -> list[str]:
             f"{p['ours_process_s']:.2f} s (POV-Ray / ours {p['process_over_ours']:.2f}×)"]
 
 
+def calls_lines(calls: dict) -> list[str]:
+    """Whole calls against their kernels (mimarble/bench_calls.py), as a table."""
+    lines = ["", "Whole call against its kernels (warm; kernels: Dr.Jit's kernel history):",
+             "| call | replay | whole call | its kernels | ratio | launches |",
+             "|---|---|---|---|---|---|"]
+    for r in calls["renders"]:
+        lines.append(f"| {r['call']} | {'on' if r['replay'] else 'off'} | "
+                     f"{r['whole_ms']:.2f} ms | {r['kernels_ms']:.2f} ms | "
+                     f"{r['ratio']:.2f}× | {r['launches']} |")
+    s = calls["sweep"]
+    lines.append(f"| {s['call']} | on | {s['whole_s']:.2f} s | {s['kernels_s']:.2f} s "
+                 f"+ compile {s['compile_s']:.2f} s | {s['ratio']:.2f}× | |")
+    return lines
+
+
 def format_report(results: dict) -> str:
     """The whole report: every run, the speed-ups, the paper comparison, the targets, the
     whole-process times and POV-Ray, each section where the results have it."""
@@ -106,4 +121,6 @@ def format_report(results: dict) -> str:
         lines += _process_lines(results["process"], results.get("povray"))
     if results.get("povray"):
         lines += _povray_lines(results["povray"])
+    if results.get("calls"):
+        lines += calls_lines(results["calls"])
     return "\n".join(lines)

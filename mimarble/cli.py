@@ -36,6 +36,7 @@ def _doctor(args) -> int:
         scenes = [(path, scene_language.load(path)) for path in _scene_list(args.warm)]
     rows, ok = environment.doctor(args.variant)
     rows.append(("kernel cache", kernel_cache.describe()))
+    rows.append(("replay", environment.replay_sentence()))
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"{key:<{width}}  {value}")

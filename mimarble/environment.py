@@ -225,6 +225,23 @@ def _quiet_stderr(enabled: bool):
         os.close(saved)
 
 
+#: ``MIMARBLE_FREEZE=0`` turns off the replay of recorded passes (mimarble/mitsuba/replay.py).
+FREEZE_ENV = "MIMARBLE_FREEZE"
+
+
+def replay_wanted() -> bool:
+    """Whether ``$MIMARBLE_FREEZE`` leaves replay on (anything but ``0``); read each time."""
+    return os.environ.get(FREEZE_ENV, "1").strip() != "0"
+
+
+def replay_sentence() -> str:
+    """What ``mimarble doctor`` says about replay."""
+    if replay_wanted():
+        return (f"on in JIT variants (recorded passes replayed, dr.freeze; {FREEZE_ENV}=0 "
+                f"turns it off)")
+    return f"off ({FREEZE_ENV}=0)"
+
+
 JIT_DEBUG_ENV = "MIMARBLE_JIT_DEBUG"
 _jit_configured = False
 

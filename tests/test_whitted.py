@@ -207,7 +207,8 @@ def test_whitted_refuses_other_bsdfs(llvm):
     assert any("channel_material" in m for m in messages)
 
 
-def test_specular_work_is_skipped_without_specular_channels(llvm):
+def test_specular_work_is_skipped_without_specular_channels(llvm, monkeypatch):
+    monkeypatch.setenv("MIMARBLE_FREEZE", "0")      # the code traced, not a replay of it
     def operations(scene):
         with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
             mimarble.render(scene)

@@ -150,9 +150,9 @@ def _trace_pass(scene, inputs: tuple, mode: str, sampler, key: tuple, lanes: int
     reads is an argument — the scene, what it does not hold (``inputs``:
     :func:`~mimarble.mitsuba.replay.scene_inputs`), the opaque ``numbers`` and ``subset``;
     ``key`` (:func:`~mimarble.mitsuba.replay.scene_key`), the mode, the widths and the
-    switches as the recording's key. One kernel computes every lane (at one sample a
-    pixel, its means too), then Dr.Jit's block reductions (``block_sum``,
-    ``block_reduce``) make the values per pixel; sums in float64, whose rounding is far
+    switches as the recording's key. One kernel computes every lane, the same for every
+    spp, then Dr.Jit's block reductions (``block_sum``, ``block_reduce``) make the values
+    per pixel, and a last kernel their means; sums in float64, whose rounding is far
     below float32's.
     """
     tracer = PixelTracer(scene, mode, sampler)
@@ -165,8 +165,7 @@ def _trace_pass(scene, inputs: tuple, mode: str, sampler, key: tuple, lanes: int
         radiance = mi.Color3d(radiance) + dr.zeros(mi.Color3d, lanes)   # constants: full width
     else:
         radiance, shapes = None, tracer.first_shape(pixel, sub, numbers)
-    if n_samples > 1:        # one kernel for all lanes, then the reductions
-        dr.eval(*(x for x in (radiance, shapes) if x is not None))
+    dr.eval(*(x for x in (radiance, shapes) if x is not None))         # one kernel for all
     if radiance is not None and n_samples > 1:
         radiance = dr.block_sum(radiance, n_samples)
     if radiance is not None and not split:

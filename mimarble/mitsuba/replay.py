@@ -27,8 +27,6 @@ docs/design-decisions.md, "Replaying recorded kernels".
 
 from __future__ import annotations
 
-import os
-
 from .. import environment
 from ..plugins import recording_key
 
@@ -40,16 +38,7 @@ RECORDINGS = 32
 
 def enabled() -> bool:
     """Whether passes are replayed: a JIT variant, and ``MIMARBLE_FREEZE`` is not ``0``."""
-    return dr.is_jit_v(mi.Float) and os.environ.get("MIMARBLE_FREEZE", "1").strip() != "0"
-
-
-def describe() -> str:
-    """What ``mimarble doctor`` says about replay."""
-    if not dr.is_jit_v(mi.Float):
-        return f"off ({mi.variant()} traces every sample in Python's stead)"
-    if enabled():
-        return "on (dr.freeze; MIMARBLE_FREEZE=0 turns it off)"
-    return "off (MIMARBLE_FREEZE=0)"
+    return dr.is_jit_v(mi.Float) and environment.replay_wanted()
 
 
 def scene_key(scene) -> tuple:

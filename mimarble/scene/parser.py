@@ -186,9 +186,10 @@ def _oversized(text) -> bool:
 # --------------------------------------------------------------------------
 
 
-#: Scenes parsed from files, by file name (and where it is) and a digest of the bytes read: the model is
-#: immutable, so a file read again with the same bytes is not parsed again (a warm
-#: ``mimarble.render(path)`` reads the file, ~20 µs, where parsing took ~2 ms).
+#: Scenes parsed from files, by file name (and where it is) and a digest of the bytes
+#: read, with their image maps' file facts: the model is immutable, so a file read again
+#: with the same bytes and maps is not parsed again (a warm ``mimarble.render(path)``
+#: reads the file, ~20 µs, where parsing took ~2 ms).
 _PARSED: dict = {}
 _PARSED_KEPT = 16
 
@@ -219,12 +220,26 @@ def load(path: str | os.PathLike) -> Scene:
     except OSError as e:
         raise SceneError(f"cannot read scene file: {e.strerror or e}", filename=filename) from None
     key = (os.path.abspath(filename), filename, hashlib.blake2b(data, digest_size=16).digest())
-    if key not in _PARSED:
+    kept = _PARSED.get(key)
+    # The parser also checks the image maps' headers: a map changed since is read again.
+    if kept is None or kept[1] != _image_files(kept[0]):
         scene = parse(data, filename=filename, source=filename)   # errors are not kept
         if len(_PARSED) >= _PARSED_KEPT:
             _PARSED.pop(next(iter(_PARSED)))
-        _PARSED[key] = scene
-    return _PARSED[key]
+        kept = _PARSED[key] = (scene, _image_files(scene))
+    return kept[0]
+
+
+def _image_files(scene) -> tuple:
+    """(size, modification time, inode) of each image map's file (None: unreadable)."""
+    facts = []
+    for channel in scene.image_maps():
+        try:
+            found = os.stat(channel.location)
+            facts.append((found.st_size, found.st_mtime_ns, found.st_ino))
+        except OSError:
+            facts.append(None)
+    return tuple(facts)
 
 
 def parse(text: str | bytes, filename: str = "<string>", *, source: str | None = None) -> Scene:

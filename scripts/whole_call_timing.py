@@ -1,0 +1,66 @@
+"""Issue 27's figures in one run: whole calls against their kernels, POV-Ray, the peers.
+
+    ./go python scripts/whole_call_timing.py [OUT.json]      # prints the tables; ~2 minutes
+
+* warm ``mimarble.render`` at 500², 1 spp of fig11a with 8-octave marbles, with
+  constant colours, and of the file itself (12 octaves), replay on and off
+  (mimarble/bench_calls.py: whole call, its kernels, launches);
+* a 64-frame period sweep at 256², 4 spp in this process, against its frames' kernels
+  plus its first frame's compile;
+* POV-Ray 3.7's own "Trace Time" for the same 8-octave sphere (mimarble/povray.py;
+  skipped when ``povray`` is not installed) over the warm ``mimarble.render`` call;
+* the noise alone against the peers, one thread each (mimarble/bench_peers.py; a peer
+  not installed is skipped: ``pip install mimarble[peers]``).
+
+Every table names the machine. Medians; the machine is shared, so run it on a quiet one.
+"""
+
+import json
+import sys
+from pathlib import Path
+
+import mimarble
+
+mimarble.start()
+
+from mimarble import bench_calls, bench_peers  # noqa: E402
+from mimarble import scene as scene_language  # noqa: E402
+from mimarble.bench_report import calls_lines  # noqa: E402
+from mimarble.machine import machine_facts, machine_line  # noqa: E402
+from mimarble.povray import time_povray  # noqa: E402
+from mimarble.scene_edits import resized, with_marbles  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+SCENE = ROOT / "scenes" / "fig11a.scene"
+
+
+def main(out_json=None) -> int:
+    machine = machine_line(machine_facts())
+    calls = bench_calls.measure(SCENE)
+    print(f"Machine: {machine}")
+    print("\n".join(calls_lines(calls)))
+
+    sphere = with_marbles(resized(scene_language.load(SCENE), 500), octaves=8)
+    povray = time_povray(sphere, 500, repeats=5)
+    ours_ms = calls["renders"][0]["whole_ms"]
+    if povray is None:
+        print("\nPOV-Ray: not installed (apt-get install povray); no row")
+    else:
+        povray["ours_ms"] = ours_ms
+        povray["trace_over_ours"] = povray["trace_s"] * 1000 / ours_ms
+        print(f"\nPOV-Ray 3.7 trace of the same 8-octave sphere (500², 1 sample): "
+              f"{povray['trace_s'] * 1000:.1f} ms; warm mimarble.render {ours_ms:.2f} ms: "
+              f"POV-Ray / ours {povray['trace_over_ours']:.1f}×")
+
+    peers = bench_peers.peer_rates()
+    print()
+    print(bench_peers.peers_table(peers, machine))
+    if out_json:
+        Path(out_json).write_text(json.dumps({"machine": machine, "calls": calls,
+                                              "povray": povray, "peers": peers}, indent=1,
+                                             default=str))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(*sys.argv[1:2]))
