@@ -49,8 +49,20 @@ def scene_key(scene) -> tuple:
     film = scene.sensors()[0].film()
     return (id(scene), tuple(film.crop_size()), tuple(film.crop_offset()),
             own(scene) if own is not None else recording_key(integrator),
-            tuple(recording_key(shape.bsdf()) for shape in scene.shapes()),
+            tuple(_material_key(shape.bsdf()) for shape in scene.shapes()),
             len(scene.emitters()))
+
+
+def _material_key(bsdf) -> tuple | None:
+    """A BSDF's key: a mimarble material's own (it holds its channels' keys); for a
+    Mitsuba BSDF (``diffuse`` with a marble reflectance, under ``prb``), its type and the
+    keys of the mimarble textures among its parameters' owners."""
+    if bsdf is None or hasattr(bsdf, "recording_key"):
+        return recording_key(bsdf)
+    params = mi.traverse(bsdf)
+    owners = {id(node): node for _, _, node, _ in (params.properties[k] for k in params.keys())}
+    return (recording_key(bsdf),) + tuple(recording_key(node) for node in owners.values()
+                                          if hasattr(node, "recording_key"))
 
 
 def scene_inputs(scene) -> tuple:
