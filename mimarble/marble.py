@@ -20,7 +20,7 @@ from .finite_arithmetic import finite_product
 from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS,
                                 MarbleParameters, ParameterError, checked, parameter_table)
 from .noise import fractal_sum, lattice_tables
-from .plugins import RGBTexture, describe, first_number, plugin
+from .plugins import Kept, RGBTexture, describe, first_number, plugin
 from .ramp import Ramp, ramp_storage
 from .stripes import STRIPES
 from .texture_mapping import TextureMapping
@@ -74,7 +74,7 @@ class Marble(RGBTexture):
                       for name in self.editable if name in BY_NAME}
             self.mapping.check()
         except ParameterError:
-            for name, value in getattr(self, "_last_valid", {}).items():
+            for name, value in getattr(self, "_last_valid", Kept({})).value.items():
                 # In place: mi.traverse holds these very objects.
                 mi.set_property(self.editable[name], value)
             raise
@@ -82,7 +82,7 @@ class Marble(RGBTexture):
             # Opaque, before they are copied: a new value reuses the compiled kernel, and
             # a recording of it (dr.freeze) takes every one as an input, copies too.
             dr.make_opaque(*self.editable.values())
-        self._last_valid = {name: type(value)(value) for name, value in self.editable.items()}
+        self._last_valid = Kept({name: type(value)(value) for name, value in self.editable.items()})
         self.ramp.changed()
         if dr.is_jit_v(mi.Float):   # the kernel reads the traversed values themselves
             self.scale, self.period, self.distortion = (

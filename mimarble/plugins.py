@@ -54,6 +54,18 @@ def transform_matrix(transform):
     return np.array([[first_number(m[i][j]) for j in range(4)] for i in range(4)])
 
 
+class Kept:
+    """A holder Dr.Jit's traversal does not enter (it knows no such type): what a plugin
+    keeps for itself rather than for its kernels — the last valid values it restores after
+    a refused edit — so that a recording's inputs (mimarble/mitsuba/replay.py) do not
+    carry it, and every replay does not traverse it."""
+
+    __slots__ = ("value",)
+
+    def __init__(self, value):
+        self.value = value
+
+
 def recording_key(plugin) -> tuple | None:
     """What decides the code a plugin traces besides its Dr.Jit variables: a mimarble
     plugin's ``recording_key()``; a Mitsuba plugin's type (its structure is fixed when

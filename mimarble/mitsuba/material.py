@@ -27,7 +27,7 @@ Under any other integrator it behaves as a Lambertian BSDF with reflectance
 from __future__ import annotations
 
 from .. import environment
-from ..plugins import describe, first_number, plugin, recording_key
+from ..plugins import Kept, describe, first_number, plugin, recording_key
 from .channel_expression import evaluate, shared_evaluations, textures_within
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -121,11 +121,11 @@ class ChannelMaterial:
             _check_shininess(first_number(self.shininess))
         except ValueError:
             if hasattr(self, "_last_shininess"):
-                mi.set_property(self.shininess, self._last_shininess)
+                mi.set_property(self.shininess, self._last_shininess.value)
             raise
         if dr.is_jit_v(mi.Float):   # the kernel reads the traversed value itself, opaque
             dr.make_opaque(self.shininess)
-        self._last_shininess = type(self.shininess)(self.shininess)
+        self._last_shininess = Kept(type(self.shininess)(self.shininess))
         if dr.is_jit_v(mi.Float):
             self.exponent = self.shininess
         else:                       # the scalar variant computes on a Python float
