@@ -79,8 +79,10 @@ def octaves_needed(tolerance: float, octaves: int, distortion: float, colours,
     last = min(int(octaves), MAX_OCTAVES_EVALUATED)
     if tolerance <= 0:
         return last
+    # colour_bound(k, …) for each k, its factors S·R·|distortion| computed once.
+    gain = STRIPES[function].slope_bound * ramp_lipschitz(colours) * abs(float(distortion))
     for k in range(last + 1):
-        if colour_bound(k, octaves, distortion, colours, function) <= tolerance:
+        if (gain * tail_bound(k, last) if k < last else 0.0) <= tolerance:
             return k
     return last
 

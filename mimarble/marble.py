@@ -15,12 +15,14 @@ not given, a constant when the ramp has one colour.
 
 from __future__ import annotations
 
+import numpy as np
+
 from . import environment, error_budget, pixel_filter
 from .finite_arithmetic import finite_product
 from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS,
                                 MarbleParameters, ParameterError, checked, parameter_table)
 from .noise import fractal_sum, lattice_tables
-from .plugins import Kept, RGBTexture, describe, first_number, plugin
+from .plugins import Kept, RGBTexture, describe, first_number, plugin, transform_matrix
 from .ramp import Ramp, ramp_storage
 from .stripes import STRIPES
 from .texture_mapping import TextureMapping
@@ -69,19 +71,21 @@ class Marble(RGBTexture):
         """Check the values as ``mi.traverse`` left them, with the table's rules; an
         invalid edit raises and puts the last valid values back, so the texture never
         renders with them. Then decide what the kernel evaluates."""
+        if dr.is_jit_v(mi.Float):
+            # Opaque, first: a new value reuses the compiled kernel, a recording of it
+            # (dr.freeze) takes every one as an input, copies too, and reading an
+            # evaluated value back launches nothing (a literal's read evaluates a copy).
+            dr.make_opaque(*self.editable.values())
         try:
             values = {name: checked(BY_NAME[name], self._read_back(BY_NAME[name]))
                       for name in self.editable if name in BY_NAME}
-            self.mapping.check()
+            to_world = transform_matrix(self.mapping.to_world)
+            self.mapping.check(to_world)
         except ParameterError:
             for name, value in getattr(self, "_last_valid", Kept({})).value.items():
                 # In place: mi.traverse holds these very objects.
                 mi.set_property(self.editable[name], value)
             raise
-        if dr.is_jit_v(mi.Float):
-            # Opaque, before they are copied: a new value reuses the compiled kernel, and
-            # a recording of it (dr.freeze) takes every one as an input, copies too.
-            dr.make_opaque(*self.editable.values())
         self._last_valid = Kept({name: type(value)(value) for name, value in self.editable.items()})
         self.ramp.changed()
         if dr.is_jit_v(mi.Float):   # the kernel reads the traversed values themselves
@@ -90,7 +94,7 @@ class Marble(RGBTexture):
         else:                       # the scalar variant computes on Python floats
             self.scale, self.period, self.distortion = (
                 values[name] for name in ("scale", "period", "distortion"))
-        self.mapping.changed(self.scale)
+        self.mapping.changed(self.scale, to_world)
         # Structural: a new count traces a new kernel at the next eval. The budget bounds
         # the colour's error, not its derivatives' (every octave's gradient is of the same
         # size, 2^i·2^−i): a parameter being differentiated keeps every octave.
@@ -107,7 +111,7 @@ class Marble(RGBTexture):
         else:                       # a filter's tables are made for a number of colours
             self.pixel_filter = pixel_filter.choose(self, self.filter)
         self._ramp_size = self.ramp.size
-        self._max = float(self.ramp.numpy().max())
+        self._max = float(np.max(values["ramp"]))
 
     def _read_back(self, parameter):
         """A traversed parameter's value as the table holds it (an edit may have left

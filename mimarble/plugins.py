@@ -21,6 +21,11 @@ def numbers(value) -> np.ndarray:
     plugin reads back of its own parameters (one lane each) after ``mi.traverse`` edits."""
     if isinstance(value, (int, float)):
         return np.array([float(value)])
+    if dr.is_jit_v(type(value)):    # each component's own memory: no kernel packs them
+        value = dr.detach(value)
+        if dr.depth_v(value) > 1:
+            return np.concatenate([numbers(value[k]) for k in range(len(value))])
+        return np.asarray(value.numpy(), dtype=np.float64).ravel()
     return np.ravel(np.array(dr.detach(value), dtype=np.float64))
 
 

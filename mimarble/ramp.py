@@ -51,8 +51,9 @@ class Ramp:
 
     def numpy(self) -> np.ndarray:
         """The colours as float64 (K, 3)."""
-        if dr.is_jit_v(mi.Float):
-            return np.array(self.storage, dtype=np.float64).T   # Color3f converts as (3, K)
+        if dr.is_jit_v(mi.Float):   # component by component: no kernel packs them first
+            return np.stack([np.asarray(dr.detach(self.storage[k]).numpy(), dtype=np.float64)
+                             for k in range(3)], axis=1)
         return np.array(self.storage, dtype=np.float64).reshape(-1, 3)
 
     def mean(self, stripe):

@@ -18,7 +18,6 @@ import numpy as np
 from . import environment
 from .finite_arithmetic import finite_product
 from .marble_parameters import ParameterError
-from .plugins import transform_matrix
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -62,17 +61,17 @@ class TextureMapping:
             if "to_world" in props else np.eye(4)
         return cls(mi.Transform4f(mi.Matrix4f(matrix.tolist())))
 
-    def check(self) -> None:
-        """ParameterError unless ``to_world`` (as ``mi.traverse`` may have left it) can be
-        inverted."""
-        check_invertible(transform_matrix(self.to_world))
+    def check(self, matrix: np.ndarray) -> None:
+        """ParameterError unless ``to_world`` (``matrix``: its 4×4 as ``mi.traverse`` may
+        have left it, read once by the texture) can be inverted."""
+        check_invertible(matrix)
 
-    def changed(self, scale) -> None:
+    def changed(self, scale, matrix: np.ndarray) -> None:
         """After the parameters changed: the scale (in JIT variants the texture's very
         opaque ``mi.Float``, which ``mi.traverse`` edits in place), and to_world⁻¹
         (None: the identity)."""
         self.scale = scale
-        identity = np.array_equal(transform_matrix(self.to_world), np.eye(4))
+        identity = np.array_equal(matrix, np.eye(4))
         self.to_texture = None if identity else self.to_world.inverse()
         if dr.is_jit_v(mi.Float):   # an edit's new value reuses the kernel and its recording
             dr.make_opaque(self.to_world)

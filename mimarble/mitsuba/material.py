@@ -117,16 +117,16 @@ class ChannelMaterial:
     def parameters_changed(self, keys=[]):
         """Check ``shininess`` as an edit left it: refused (and the last valid value put
         back) unless positive and finite."""
+        if dr.is_jit_v(mi.Float):   # opaque first: reading an evaluated value launches nothing
+            dr.make_opaque(self.shininess)
         try:
             _check_shininess(first_number(self.shininess))
         except ValueError:
             if hasattr(self, "_last_shininess"):
                 mi.set_property(self.shininess, self._last_shininess.value)
             raise
-        if dr.is_jit_v(mi.Float):   # the kernel reads the traversed value itself, opaque
-            dr.make_opaque(self.shininess)
         self._last_shininess = Kept(type(self.shininess)(self.shininess))
-        if dr.is_jit_v(mi.Float):
+        if dr.is_jit_v(mi.Float):   # the kernel reads the traversed value itself, opaque
             self.exponent = self.shininess
         else:                       # the scalar variant computes on a Python float
             self.exponent = first_number(self.shininess)
