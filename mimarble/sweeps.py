@@ -243,11 +243,10 @@ def render_frame(job: dict) -> dict:
         from .mitsuba.image_output import srgb8
         from .mitsuba.loaded_scenes import LOADED
         from .mitsuba.render import render_in_passes
-        from .mitsuba.translate import to_mitsuba
         frame_scene = job["scene"]
         spp = job["spp"] or frame_scene.image.samples
         start = time.perf_counter()
-        mitsuba_scene = LOADED.scene_for(to_mitsuba(frame_scene, spp=spp))
+        mitsuba_scene = LOADED.scene_of(frame_scene, spp=spp)
         image = render_in_passes(mitsuba_scene, spp)
         out["render_s"] = time.perf_counter() - start
         if job.get("compare"):

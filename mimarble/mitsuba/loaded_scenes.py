@@ -20,12 +20,15 @@ import os
 
 from .. import environment
 from ..marble_parameters import IN_PLACE
+from .translate import to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-#: Loaded scenes kept (least recently used dropped first). Each holds its textures and
-#: image maps; eight paper scenes at 500² are a few MB.
-SCENES = 8
+#: Loaded scenes kept (least recently used dropped first). Few: every replay of a
+#: recorded pass traverses every live instance of the variant's plugins (Dr.Jit walks its
+#: registry for the virtual calls it may record), about 0.16 ms per kept paper scene on
+#: the AMD EPYC — so a scene a render no longer uses should not stay alive.
+SCENES = 2
 
 
 class LoadedScenes:
@@ -33,16 +36,40 @@ class LoadedScenes:
 
     def __init__(self, size: int = SCENES):
         self.size, self.scenes = size, {}
+        self.translated = {}          # (variant, model, options) → (dict, structure, values)
+
+    def scene_of(self, scene, **options):
+        """The loaded scene of a scene model, translated by ``to_mitsuba(scene,
+        **options)``. The same model (an immutable value) with the same options is not
+        translated again while its image files are unchanged: a warm render skips the
+        translation and the structure's JSON too."""
+        try:
+            memo = (mi.variant(), scene, tuple(sorted(options.items())))
+            hash(memo)
+        except TypeError:            # a model built in Python with unhashable parts
+            return self.scene_for(to_mitsuba(scene, **options))
+        kept = self.translated.get(memo)
+        if kept is None or _image_files(kept[0]) != kept[3]:
+            scene_dict = to_mitsuba(scene, **options)
+            structure, values = _structure(scene_dict)
+            if len(self.translated) >= 4 * self.size:
+                self.translated.pop(next(iter(self.translated)))
+            kept = self.translated[memo] = (scene_dict, structure, values,
+                                            _image_files(scene_dict))
+        return self._loaded(kept[0], kept[1], kept[2])
 
     def scene_for(self, scene_dict: dict):
         """The loaded scene of ``scene_dict`` (a ``to_mitsuba`` dict): a kept one of the
         same structure with its in-place values set, else a new one."""
         structure, values = _structure(scene_dict)
+        return self._loaded(scene_dict, structure, values)
+
+    def _loaded(self, scene_dict: dict, structure: str, values: dict):
         key = (mi.variant(), structure)
         entry = self.scenes.pop(key, None)
         if entry is None:
             if len(self.scenes) >= self.size:
-                self.scenes.pop(next(iter(self.scenes)))
+                forget(self.scenes.pop(next(iter(self.scenes)))[0])
             mitsuba_scene = mi.load_dict(scene_dict)
             entry = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
         else:
@@ -57,7 +84,17 @@ class LoadedScenes:
         return entry[0]
 
     def clear(self) -> None:
+        for mitsuba_scene, _, _ in self.scenes.values():
+            forget(mitsuba_scene)
         self.scenes.clear()
+        self.translated.clear()
+
+
+def forget(mitsuba_scene) -> None:
+    """Drop what is kept for a scene that is no longer used (its sphere table holds its
+    shapes), so that the scene is freed with its last reference."""
+    from .sphere_hit import SphereTable
+    SphereTable.forget(mitsuba_scene)
 
 
 def _structure(scene_dict) -> tuple[str, dict]:

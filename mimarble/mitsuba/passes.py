@@ -63,7 +63,7 @@ def _sampler(scene, mode: str):
     if mode == "whitted":                      # draws nothing: the sensor's own will do
         return original
     if id(original) not in _CLONES:
-        if len(_CLONES) >= 16:
+        if len(_CLONES) >= 4:
             _CLONES.pop(next(iter(_CLONES)))
         _CLONES[id(original)] = (original, original.clone())
     return _CLONES[id(original)][1]

@@ -23,7 +23,6 @@ from ..scene.rules import seed_problem, spp_problem
 from .passes import Target, trace_in_passes
 from .silhouettes import edge_sample_passes
 from .loaded_scenes import LOADED
-from .translate import to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -76,9 +75,9 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     elif not isinstance(scene_or_path, scene_language.Scene):
         raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
-    scene_dict = to_mitsuba(scene, mode=mode, spp=spp, tolerance=tolerance, filter=filter)
     try:
-        mitsuba_scene = LOADED.scene_for(scene_dict)
+        mitsuba_scene = LOADED.scene_of(scene, mode=mode, spp=spp, tolerance=tolerance,
+                                        filter=filter)
     except RuntimeError:
         check_images(scene)              # an image map that does not decode: said at its file
         raise

@@ -76,8 +76,10 @@ class SphereTable:
     """
 
     DRJIT_STRUCT = {"columns": list}
-    #: Tables by scene, with the bounding boxes they were built for.
+    #: Tables by scene, with the bounding boxes they were built for; a table holds its
+    #: scene's shapes (to tell a new scene that took a freed one's id), so few are kept.
     _tables: dict = {}
+    KEPT = 4
 
     @classmethod
     def of(cls, scene) -> "SphereTable":
@@ -87,11 +89,16 @@ class SphereTable:
         boxes_then, table = cls._tables.get(id(scene), (None, None))
         # The very shapes too: a new scene may take a freed one's id.
         if boxes_then != boxes or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
-            if len(cls._tables) > 16:
-                cls._tables.clear()
+            if len(cls._tables) >= cls.KEPT:
+                cls._tables.pop(next(iter(cls._tables)))
             table = cls(scene)
             cls._tables[id(scene)] = (boxes, table)
         return table
+
+    @classmethod
+    def forget(cls, scene) -> None:
+        """Drop the table of ``scene`` (which holds its shapes alive)."""
+        cls._tables.pop(id(scene), None)
 
     @property
     def structure(self) -> tuple:

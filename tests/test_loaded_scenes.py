@@ -1,0 +1,105 @@
+"""Scenes are loaded once and kept by structure, and what changed on disk is seen
+(mimarble/mitsuba/loaded_scenes.py, scene/parser.py's parsed files)."""
+
+import shutil
+
+import numpy as np
+from PIL import Image
+
+import mimarble
+from mimarble import scene as scene_language
+
+mi, dr = mimarble.mi, mimarble.dr
+
+from mimarble.mitsuba import loaded_scenes  # noqa: E402
+from mimarble.mitsuba.loaded_scenes import LOADED  # noqa: E402
+
+SCENE = """
+image    { width 16 height 12 samples 1 }
+camera   { eye < 0 0 9 > lookat < 0 0 0 > up < 0 1 0 > fov 30 }
+light    { position < 10 10 10 > color < 1 1 1 > }
+material "m" { diffuse { marble { period PERIOD distortion 2 octaves 3 } } }
+sphere { center < 0 0 0 > radius 2 material "m" }
+"""
+
+
+def counting_loads(monkeypatch):
+    loads = []
+    original = mi.load_dict
+    monkeypatch.setattr(loaded_scenes.mi, "load_dict",
+                        lambda d, *a, **k: (loads.append(1), original(d, *a, **k))[1])
+    return loads
+
+
+def fresh(text, monkeypatch):
+    """The image of ``text`` rendered from nothing kept: a new load, traced afresh."""
+    LOADED.clear()
+    with monkeypatch.context() as m:
+        m.setenv("MIMARBLE_FREEZE", "0")
+        image = mimarble.render(scene_language.parse(text))
+    LOADED.clear()
+    return image
+
+
+def test_a_warm_render_loads_and_translates_nothing(llvm, monkeypatch):
+    scene = scene_language.parse(SCENE.replace("PERIOD", "1.3"))
+    LOADED.clear()
+    loads = counting_loads(monkeypatch)
+    first = mimarble.render(scene)
+    translated = []
+    monkeypatch.setattr(loaded_scenes, "to_mitsuba",
+                        lambda *a, **k: translated.append(1))   # would fail if called
+    again = mimarble.render(scene)
+    assert loads == [1] and translated == []
+    np.testing.assert_array_equal(first, again)
+
+
+def test_in_place_values_reuse_the_loaded_scene(llvm, monkeypatch):
+    LOADED.clear()
+    loads = counting_loads(monkeypatch)
+    images = [mimarble.render(scene_language.parse(SCENE.replace("PERIOD", p)))
+              for p in ("1.3", "2.1", "1.3")]
+    assert loads == [1]
+    np.testing.assert_array_equal(images[0], images[2])
+    np.testing.assert_array_equal(images[1], fresh(SCENE.replace("PERIOD", "2.1"), monkeypatch))
+
+
+def test_a_scene_file_edited_on_disk_is_seen(llvm, tmp_path, monkeypatch):
+    path = tmp_path / "s.scene"
+    path.write_text(SCENE.replace("PERIOD", "1.3"))
+    before = mimarble.render(str(path))
+    path.write_text(SCENE.replace("PERIOD", "0.6"))
+    after = mimarble.render(str(path))
+    assert not np.array_equal(before, after)
+    np.testing.assert_array_equal(after, fresh(SCENE.replace("PERIOD", "0.6"), monkeypatch))
+
+
+def test_an_image_map_rewritten_on_disk_is_seen(llvm, tmp_path):
+    folder = tmp_path / "scene"
+    shutil.copytree("scenes/future-work", folder)
+    path = folder / "veins-over-image.scene"
+    text = path.read_text()
+    text = text[:text.index("image ")] + "image { width 16 height 16 samples 1 }\n" \
+        + text[text.index("\n", text.index("image ")) + 1:]
+    path.write_text(text)
+    before = mimarble.render(str(path))
+    grey = np.full((8, 8, 3), 128, dtype=np.uint8)
+    Image.fromarray(grey).save(folder / "maps" / "flagstones.png")
+    after = mimarble.render(str(path))
+    assert not np.array_equal(before, after)
+    LOADED.clear()
+    np.testing.assert_array_equal(after, mimarble.render(scene_language.parse(
+        text, filename=str(path))))
+
+
+def test_few_scenes_are_kept_and_their_sphere_tables_go_with_them(llvm):
+    from mimarble.mitsuba.sphere_hit import SphereTable
+    LOADED.clear()
+    SphereTable._tables.clear()
+    for period in ("0.5", "0.7", "0.9"):
+        scene = scene_language.parse(SCENE.replace("PERIOD", period).replace("octaves 3",
+                                                                              f"octaves {period[-1]}"))
+        mimarble.render(scene)
+    kept = [id(s) for s, _, _ in LOADED.scenes.values()]
+    assert len(kept) == loaded_scenes.SCENES
+    assert all(k in kept for k in SphereTable._tables)
