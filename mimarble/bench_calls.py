@@ -123,7 +123,25 @@ def sweep_row(scene_path, frames: int = 64, size: int = 256, spp: int = 4) -> di
             "compile_s": compile_s, "ratio": seconds / budget_s}
 
 
+def povray_row(scene_path, ours_ms: float) -> dict | None:
+    """POV-Ray 3.7's own "Trace Time" of the scene's sphere with 8-octave marbles at 500²,
+    1 sample (mimarble/povray.py), against ``ours_ms``; None without ``povray``."""
+    from .povray import time_povray
+    sphere = with_marbles(resized(scene_language.load(scene_path), 500), octaves=8)
+    theirs = time_povray(sphere, 500, repeats=5)
+    if theirs is None:
+        return None
+    return {**theirs, "ours_ms": ours_ms, "trace_over_ours": theirs["trace_s"] * 1000 / ours_ms}
+
+
 def measure(scene_path, repeats: int = 15, sweep_frames: int = 64) -> dict:
-    """Every row of this module (a ``results["calls"]`` of the benchmark)."""
-    return {"renders": render_rows(scene_path, repeats),
-            "sweep": sweep_row(scene_path, sweep_frames)}
+    """Every row (a ``results["calls"]`` of the benchmark): the renders, the sweep, one
+    Adam step of notebook 02 (mimarble/bench_adam.py), POV-Ray on the renders' 8-octave
+    sphere, and the noise alone against its peers (mimarble/bench_peers.py)."""
+    from .bench_adam import step_rows
+    from .bench_peers import peer_rates
+    renders = render_rows(scene_path, repeats)
+    return {"renders": renders, "sweep": sweep_row(scene_path, sweep_frames),
+            "adam_step": step_rows(),
+            "povray": povray_row(scene_path, renders[0]["whole_ms"]),
+            "peers": peer_rates()}

@@ -64,6 +64,28 @@ def calls_lines(calls: dict) -> list[str]:
     s = calls["sweep"]
     lines.append(f"| {s['call']} | on | {s['whole_s']:.2f} s | {s['kernels_s']:.2f} s "
                  f"+ compile {s['compile_s']:.2f} s | {s['ratio']:.2f}× | |")
+    adam = calls.get("adam_step")
+    if adam:
+        for name in ("traced", "frozen"):
+            r = adam[name]
+            lines.append(f"| one Adam step of notebook 02 (64², 16 spp prb), {name} | "
+                         f"{'on' if name == 'frozen' else 'off'} | {r['whole_ms']:.1f} ms | "
+                         f"{r['kernels_ms']:.1f} ms | {r['whole_ms'] / r['kernels_ms']:.2f}× | "
+                         f"{r['launches']:g} |")
+        lines.append(f"Adam step frozen against traced: "
+                     f"{adam['traced']['whole_ms'] / adam['frozen']['whole_ms']:.2f}×; largest "
+                     f"difference of losses {adam['loss_difference']:.3g}, of parameters "
+                     f"{adam['parameter_difference']:.3g}")
+    p = calls.get("povray")
+    if p:
+        lines.append(f"POV-Ray ({p['version']}) trace of the 8-octave sphere, 500², 1 sample: "
+                     f"{p['trace_s'] * 1000:.1f} ms; warm mimarble.render {p['ours_ms']:.2f} ms: "
+                     f"POV-Ray / ours {p['trace_over_ours']:.1f}×")
+    if calls.get("peers"):
+        lines += ["", "The noise alone, one thread (M octave-evals/s):"]
+        lines += [f"  {r['name']}: " + (f"{r['m_octave_evals_per_s']:.1f}" if
+                                        r["m_octave_evals_per_s"] is not None else "—")
+                  + f" ({r['points']} points; {r['note']})" for r in calls["peers"]]
     return lines
 
 

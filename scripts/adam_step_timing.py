@@ -25,79 +25,21 @@ of the timed runs are printed too. The loss is the notebook's mse, the sum times
 (``dr.mean`` divides by n inside ``dr.freeze``, times 1/n outside: 1 ulp apart).
 """
 
-import math
 import os
 import platform
-import statistics
 import sys
-import time
 
 import numpy as np
 
 import mimarble
 
+mimarble.start()
+
+from mimarble.bench_adam import (RES, SPP, STEPS, TRUE, WARM, adam_step,  # noqa: E402
+                                 marble_scene, run)
+
 dr, mi = mimarble.dr, mimarble.mi
-RES, SPP, STEPS, WARM, CHECK = 64, 16, 33, 3, 20
-KEY = "sphere.bsdf.reflectance."
-TRUE = {"period": 1.3, "distortion": 2.0, "vein": (0.55, 0.35, 0.25)}
-START = {"period": 1.35, "distortion": 2.25, "vein": (0.5, 0.5, 0.5)}   # as the coarse search
-
-
-def marble_scene(period, distortion, vein):
-    """Notebook 02's scene (part 3)."""
-    ramp = f"0.95 0.92 0.85, {vein[0]} {vein[1]} {vein[2]}, 0.12 0.08 0.06"
-    return mi.load_dict({
-        "type": "scene",
-        "integrator": {"type": "prb", "max_depth": 2},
-        "sensor": {"type": "perspective", "fov": 32,
-                   "to_world": mi.ScalarTransform4f().look_at([0, 0, 4], [0, 0, 0], [0, 1, 0]),
-                   "film": {"type": "hdrfilm", "width": RES, "height": RES,
-                            "rfilter": {"type": "box"}}},
-        "sphere": {"type": "sphere", "radius": 1.0, "bsdf": {"type": "diffuse", "reflectance": {
-            "type": "marble", "scale": 1.5, "period": period, "distortion": distortion,
-            "octaves": 5, "ramp": ramp}}},
-        "sky": {"type": "constant", "radiance": 1.0},
-    })
-
-
-def adam_step(scene, marble, opt, target, seed):
-    """The notebook's step (full resolution): Dr.Jit work only, no value read."""
-    params = mi.traverse(scene)
-    params[KEY + "period"], params[KEY + "distortion"] = opt["period"], opt["distortion"]
-    params[KEY + "ramp"] = dr.select(marble["free"], opt["vein"], marble["known_ramp"])
-    params.update()
-    image = mi.render(scene, params, spp=SPP, seed=seed)
-    loss = dr.sum(dr.square(image - target), axis=None) * (1 / math.prod(image.shape))
-    dr.backward(loss)
-    opt.step()
-    opt["vein"] = dr.clip(opt["vein"], 0.0, 1.0)
-    return loss
-
-
-def run(step, target, steps=STEPS):
-    """`steps` steps from START: per-step wall ms, kernel ms, launches; losses; final values."""
-    scene = marble_scene(**START)
-    marble = {"known_ramp": mi.Color3f(mi.traverse(scene)[KEY + "ramp"]),
-              "free": dr.arange(mi.UInt32, 3) == 1}
-    opt = mi.ad.Adam(lr=0.02)
-    opt["period"], opt["distortion"] = mi.Float(START["period"]), mi.Float(START["distortion"])
-    opt["vein"] = mi.Color3f(START["vein"])
-    wall, kernels, launches, losses = [], [], [], []
-    with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
-        for it in range(steps):
-            dr.sync_thread()
-            dr.kernel_history()                                 # empties it
-            start = time.perf_counter()
-            loss = step(scene, marble, opt, target, mi.UInt32(it))
-            dr.eval(loss, opt["period"], opt["distortion"], opt["vein"])
-            dr.sync_thread()
-            wall.append((time.perf_counter() - start) * 1e3)
-            jit = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
-            kernels.append(sum(k["execution_time"] for k in jit))
-            launches.append(len(jit))
-            losses.append(loss.numpy().item())
-    final = np.concatenate([np.ravel(opt[k].numpy()) for k in ("period", "distortion", "vein")])
-    return [statistics.median(x[WARM:]) for x in (wall, kernels, launches)], np.array(losses), final
+CHECK = 20
 
 
 def cpu():

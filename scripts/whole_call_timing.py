@@ -1,6 +1,6 @@
 """Issue 27's figures in one run: whole calls against their kernels, POV-Ray, the peers.
 
-    ./go python scripts/whole_call_timing.py [OUT.json]      # prints the tables; ~2 minutes
+    ./go python scripts/whole_call_timing.py [OUT.json]      # prints the tables; ~40 s
 
 * warm ``mimarble.render`` at 500², 1 spp of fig11a with 8-octave marbles, with
   constant colours, and of the file itself (12 octaves), replay on and off
@@ -9,6 +9,7 @@
   plus its first frame's compile;
 * POV-Ray 3.7's own "Trace Time" for the same 8-octave sphere (mimarble/povray.py;
   skipped when ``povray`` is not installed) over the warm ``mimarble.render`` call;
+* one Adam step of notebook 02, traced and frozen (mimarble/bench_adam.py);
 * the noise alone against the peers, one thread each (mimarble/bench_peers.py; a peer
   not installed is skipped: ``pip install mimarble[peers]``).
 
@@ -23,12 +24,10 @@ import mimarble
 
 mimarble.start()
 
-from mimarble import bench_calls, bench_peers  # noqa: E402
-from mimarble import scene as scene_language  # noqa: E402
+from mimarble import bench_calls  # noqa: E402
+from mimarble.bench_peers import peers_table  # noqa: E402
 from mimarble.bench_report import calls_lines  # noqa: E402
 from mimarble.machine import machine_facts, machine_line  # noqa: E402
-from mimarble.povray import time_povray  # noqa: E402
-from mimarble.scene_edits import resized, with_marbles  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "scenes" / "fig11a.scene"
@@ -38,26 +37,11 @@ def main(out_json=None) -> int:
     machine = machine_line(machine_facts())
     calls = bench_calls.measure(SCENE)
     print(f"Machine: {machine}")
-    print("\n".join(calls_lines(calls)))
-
-    sphere = with_marbles(resized(scene_language.load(SCENE), 500), octaves=8)
-    povray = time_povray(sphere, 500, repeats=5)
-    ours_ms = calls["renders"][0]["whole_ms"]
-    if povray is None:
-        print("\nPOV-Ray: not installed (apt-get install povray); no row")
-    else:
-        povray["ours_ms"] = ours_ms
-        povray["trace_over_ours"] = povray["trace_s"] * 1000 / ours_ms
-        print(f"\nPOV-Ray 3.7 trace of the same 8-octave sphere (500², 1 sample): "
-              f"{povray['trace_s'] * 1000:.1f} ms; warm mimarble.render {ours_ms:.2f} ms: "
-              f"POV-Ray / ours {povray['trace_over_ours']:.1f}×")
-
-    peers = bench_peers.peer_rates()
+    print("\n".join(calls_lines({**calls, "peers": None})))
     print()
-    print(bench_peers.peers_table(peers, machine))
+    print(peers_table(calls["peers"], machine))
     if out_json:
-        Path(out_json).write_text(json.dumps({"machine": machine, "calls": calls,
-                                              "povray": povray, "peers": peers}, indent=1,
+        Path(out_json).write_text(json.dumps({"machine": machine, **calls}, indent=1,
                                              default=str))
     return 0
 

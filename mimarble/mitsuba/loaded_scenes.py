@@ -20,6 +20,7 @@ import os
 
 from .. import environment
 from ..marble_parameters import IN_PLACE
+from .sphere_hit import SphereTable
 from .translate import to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -93,7 +94,6 @@ class LoadedScenes:
 def forget(mitsuba_scene) -> None:
     """Drop what is kept for a scene that is no longer used (its sphere table holds its
     shapes), so that the scene is freed with its last reference."""
-    from .sphere_hit import SphereTable
     SphereTable.forget(mitsuba_scene)
 
 
