@@ -171,7 +171,7 @@ class Marble(RGBTexture):
         point = self.mapping.map(si, self.pixel_filter.needs_footprint)
         # A NaN or infinite point gets a NaN colour, decided here once rather than left to
         # how each backend's min/max and float→int conversions treat NaN (they differ).
-        colour = dr.select(point.finite, self.pixel_filter.colour(point), dr.nan)
+        colour = dr.select(point.finite, self.pixel_filter.colour(self, point), dr.nan)
         return dr.select(active, colour, 0.0)
 
     def eval_1_grad(self, si, active=True):

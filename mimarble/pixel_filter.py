@@ -9,8 +9,10 @@ marble's phase, stripe and ramp — at the point, or over the pixel's footprint:
     prefilter:  mean of ramp∘t over the pixel's   F and ∇F without the octaves finer than
                 interval of phase                 the pixel; their spread widens the interval
 
-The texture chooses one when its parameters change (:func:`choose`); ``marble`` is the
-texture (mimarble/marble.py), read for its parameters as they are now.
+The texture chooses one when its parameters change (:func:`choose`) and hands itself to
+it at every evaluation (``marble``, mimarble/marble.py), read for its parameters as they
+are now: a filter holds no reference to its texture, so a texture is freed with its last
+reference, not by Python's cycle collector at some later moment.
 """
 
 from __future__ import annotations
@@ -35,17 +37,17 @@ GAUSS_NODE = 0.5 / math.sqrt(3.0)
 
 
 class PixelFilter:
-    """What every filter is: made for one marble, told when its ramp's colours change.
+    """What every filter is: made for one marble's stripe and ramp, told when the ramp's
+    colours change.
 
     ``DRJIT_STRUCT`` names the Dr.Jit state a filter holds (none here; the prefilter's
-    tables), so that Dr.Jit's traversal (``dr.freeze``) sees it through the texture —
-    not the marble it points back to."""
+    tables), so that Dr.Jit's traversal (``dr.freeze``) sees it through the texture."""
 
     DRJIT_STRUCT: dict = {}
     needs_footprint = False
 
     def __init__(self, marble):
-        self.marble = marble
+        pass
 
     def changed(self) -> None:
         """The ramp's colours changed (a ``mi.traverse`` edit; not their number)."""
@@ -54,13 +56,11 @@ class PixelFilter:
 class PointSample(PixelFilter):
     """``none``: the colour at the point."""
 
-    def noise(self, point):
-        m = self.marble
+    def noise(self, m, point):
         return fractal3(point.v, m.octaves_evaluated, m.turbulence)
 
-    def colour(self, point):
-        m = self.marble
-        phase = m.phase(point.v, self.noise(point) if m.needs_noise else None)
+    def colour(self, m, point):
+        phase = m.phase(point.v, self.noise(m, point) if m.needs_noise else None)
         return m.ramp(m.stripe.t(phase))
 
 
@@ -69,8 +69,7 @@ class BandLimit(PointSample):
 
     needs_footprint = True
 
-    def noise(self, point):
-        m = self.marble
+    def noise(self, m, point):
         band = band_limit(point.footprint, m.octaves_evaluated)
         return fractal_sum(point.v, m.octaves_evaluated, m.turbulence, band=band).value
 
@@ -92,14 +91,13 @@ class Prefilter(PixelFilter):
     needs_footprint = True
 
     def __init__(self, marble):
-        super().__init__(marble)
         self.average = PhaseAverage(marble.stripe, marble.ramp)
 
     def changed(self) -> None:
         self.average.update()
 
-    def colour(self, point):
-        m, v = self.marble, point.v
+    def colour(self, m, point):
+        v = point.v
         if m.needs_noise:
             octaves = m.octaves_evaluated
             band = band_limit(point.footprint, octaves, PREFILTER_MARGIN)

@@ -27,6 +27,8 @@ docs/design-decisions.md, "Replaying recorded kernels".
 
 from __future__ import annotations
 
+import gc
+
 from .. import environment
 from ..plugins import recording_key
 
@@ -81,7 +83,18 @@ class Recorded:
         self.frozen = dr.freeze(function, limit=RECORDINGS, warn_after=10 ** 6)
 
     def __call__(self, *args):
-        return (self.frozen if enabled() else self.function)(*args)
+        if not enabled():
+            return self.function(*args)
+        # Python's cycle collector may free unreachable Mitsuba objects (a dropped scene's
+        # plugins) at any allocation; during a recording that changes Dr.Jit's registry and
+        # variables under the recorder (under --jit-debug: an abort). Not while it runs.
+        collecting = gc.isenabled()
+        gc.disable()
+        try:
+            return self.frozen(*args)
+        finally:
+            if collecting:
+                gc.enable()
 
     @property
     def recordings(self) -> int:
