@@ -103,3 +103,27 @@ def test_few_scenes_are_kept_and_their_sphere_tables_go_with_them(llvm):
     kept = [id(s) for s, _, _ in LOADED.scenes.values()]
     assert len(kept) == loaded_scenes.SCENES
     assert all(k in kept for k in SphereTable._tables)
+
+
+def test_an_image_map_copied_over_with_its_old_modification_time_is_seen(llvm, tmp_path):
+    # What cp -p, rsync -t and tar x do: the same size and modification time, new bytes.
+    import os
+    folder = tmp_path / "scene"
+    shutil.copytree("scenes/future-work", folder)
+    path = folder / "veins-over-image.scene"
+    text = path.read_text()
+    text = text[:text.index("image ")] + "image { width 16 height 16 samples 1 }\n" \
+        + text[text.index("\n", text.index("image ")) + 1:]
+    path.write_text(text)
+    image_map = folder / "maps" / "flagstones.png"
+    Image.fromarray(np.full((8, 8, 3), 40, dtype=np.uint8)).save(image_map)
+    before = mimarble.render(str(path))
+    facts = os.stat(image_map)
+    for level in range(41, 256):                 # another grey whose PNG is as long
+        Image.fromarray(np.full((8, 8, 3), level, dtype=np.uint8)).save(image_map)
+        if os.stat(image_map).st_size == facts.st_size:
+            break
+    assert os.stat(image_map).st_size == facts.st_size
+    os.utime(image_map, ns=(facts.st_atime_ns, facts.st_mtime_ns))
+    after = mimarble.render(str(path))
+    assert not np.array_equal(before, after)

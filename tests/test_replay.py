@@ -220,3 +220,81 @@ def test_replay_can_be_turned_off(llvm, monkeypatch):
     before = passes._traced_pass.recordings
     render_in_passes(scene, 1)
     assert passes._traced_pass.recordings == before
+
+
+# ---------------------------------------------------------------------------
+# Found by a review: each once replayed stale, or lost its error's type
+
+def test_an_expression_inside_a_mitsuba_bsdf_is_in_the_key(llvm, monkeypatch):
+    # path mode: the material is Mitsuba's diffuse, whose reflectance is an expression
+    # multiplying a marble by a constant 0 (evaluated as 0, skipping the marble).
+    text = SCENE.replace("""    mix {
+      marble { scale 2 period 1 distortion 1 octaves 3 axis y
+               ramp { < 0.9 0.9 0.9 > < 0.2 0.2 0.3 > } }
+      color < 0.3 0.2 0.1 >
+      weight 0.4
+    }""", "color < 0.1 0.1 0.1 >").replace(
+        "diffuse { marble {", "diffuse { multiply { color < 0 0 0 > marble {").replace(
+        "ramp { < 1 0 0 > < 1 0.5 0 > < 1 1 0.5 > } } }",
+        "ramp { < 1 0 0 > < 1 0.5 0 > < 1 1 0.5 > } } } }").replace("FILTER", "none")
+    scene = mi.load_dict(mimarble.to_mitsuba(scene_language.parse(text), mode="path"))
+    key = [k for k in mi.traverse(scene).keys() if k.endswith("operand_0.value")][0]
+    for value in (0.0, 0.5):
+        edit(scene, **{key.replace(".", "__"): mi.Color3f(value)})
+        replayed = render_in_passes(scene, 4, "path")
+        np.testing.assert_array_equal(replayed, traced_afresh(scene, monkeypatch, 4, mode="path"))
+    assert replayed.max() > 0
+
+
+def test_a_marble_in_an_emitter_is_in_the_key(llvm, monkeypatch):
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "path", "max_depth": 3},
+        "sensor": {"type": "perspective", "fov": 30,
+                   "to_world": mi.ScalarTransform4f().look_at([0, 0, 9], [0, 0, 0], [0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 16, "height": 12},
+                   "sampler": {"type": "independent", "sample_count": 4}},
+        "glow": {"type": "sphere", "radius": 2.0,
+                 "emitter": {"type": "area", "radiance": {"type": "marble", "period": 1.3,
+                                                          "distortion": 2.0, "octaves": 3}}}})
+    render_in_passes(scene, 4, "path")
+    for name, value in (("octaves", 1.0), ("distortion", 0.0)):
+        key = scene_key(scene)
+        edit(scene, **{f"glow__emitter__radiance__{name}": value})
+        assert scene_key(scene) != key
+        np.testing.assert_array_equal(render_in_passes(scene, 4, "path"),
+                                      traced_afresh(scene, monkeypatch, 4, mode="path"))
+
+
+def test_a_sensor_number_that_is_no_dr_jit_value_is_in_the_key(llvm, monkeypatch):
+    scene = loaded()
+    recorded(scene)
+    for near in (0.5, 2.0, 3.0):
+        edit(scene, sensor__near_clip=near)
+        assert_replay_is_fresh(scene, monkeypatch, recorded_again=None)
+
+
+def test_a_large_sphere_moved_by_less_than_its_bounding_box_shows(llvm, monkeypatch):
+    text = """
+image    { width 32 height 32 samples 1 }
+camera   { eye < 0 3 1003 > lookat < 0 0 1000 > up < 0 1 0 > fov 40 }
+light    { position < 10 50 1020 > color < 1 1 1 > }
+material "m" { diffuse { marble { period 1.3 distortion 2 octaves 3 } } }
+material "g" { diffuse { color < 0.5 0.5 0.5 > } }
+sphere { center < CX 0 0 > radius 1000 material "g" }
+sphere { center < 0 1 1001 > radius 0.8 material "m" }
+"""
+    def load(cx):
+        return mi.load_dict(mimarble.to_mitsuba(scene_language.parse(text.replace("CX", cx))))
+    scene = load("0")
+    recorded(scene)
+    for dx in ("0.00002", "0.00005"):
+        edit(scene, sphere_0__to_world=mi.Transform4f().translate([float(dx), 0, 0]).scale(1000.0))
+        np.testing.assert_array_equal(render_in_passes(scene, 1),
+                                      traced_afresh(load(dx), monkeypatch))
+
+
+def test_a_recording_stopped_by_a_plugin_error_raises_that_error(llvm):
+    bad = mimarble.to_mitsuba(scene_language.parse(SCENE.replace("FILTER", "none")))
+    bad["sphere_0"]["bsdf"] = {"type": "diffuse"}
+    with pytest.raises(ValueError, match="needs 'channel_material'"):
+        render_in_passes(mi.load_dict(bad), 1)

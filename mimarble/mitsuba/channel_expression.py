@@ -45,11 +45,12 @@ from __future__ import annotations
 import contextlib
 import operator
 import threading
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import environment
-from ..plugins import RGBTexture, describe, luminance, numbers, plugin, recording_key
+from ..plugins import Kept, RGBTexture, describe, luminance, numbers, plugin, recording_key
 from ..properties import numbered_properties
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -62,6 +63,12 @@ MEAN_POINTS = 1 << 14
 #: Step of the central differences of eval_1_grad for products and mixes, relative
 #: to |∂p/∂u| (sums add their operands' own gradients).
 GRADIENT_STEP = 1e-3
+
+
+class OperandState(NamedTuple):
+    """The operands' values as :meth:`ChannelExpression._operand_state` saw them."""
+    fingerprint: int
+    held: Kept
 
 
 class ChannelExpressionError(ValueError):
@@ -181,26 +188,31 @@ class ChannelExpression(RGBTexture):
     def _operand_state(self):
         """A fingerprint of every value inside the operands (and a weight texture): their
         Dr.Jit variables, or their values in the scalar variant. ``mi.traverse`` edits
-        replace the variables, so an edit that reached only another parent shows here.
-        The operands are traversed once (:meth:`parameters_changed`); their values are
-        read again each time, through those parameter maps."""
+        replace the variables, so an edit that reached only another parent shows here;
+        the state holds copies of the variables (``held``), so that none of them can be
+        freed and its index reused by another value while the state is kept. The operands
+        are traversed once (:meth:`parameters_changed`); their values are read again each
+        time, through those parameter maps."""
         if getattr(self, "_operand_parameters", None) is None:
             self._operand_parameters = [
                 mi.traverse(t) for t in self.operands
                 + ([self.weight] if self.weight is not None else [])]
-        items = []
+        items, held = [], []
         for params in self._operand_parameters:
             for key in params.keys():
                 value = params[key]
                 # JIT variants: the variables only (transforms too), never their values,
                 # which a recording of the kernels (dr.freeze) cannot read.
-                items.append((key, tuple(dr.detail.collect_indices(value))
-                              if dr.is_jit_v(mi.Float) else repr(value)))
-        return hash(tuple(items))
+                if dr.is_jit_v(mi.Float):
+                    held.append(type(value)(value))
+                    items.append((key, tuple(dr.detail.collect_indices(value))))
+                else:
+                    items.append((key, repr(value)))
+        return OperandState(hash(tuple(items)), Kept(held))
 
     def _shortcuts(self) -> bool:
         """The skipping decisions of :meth:`parameters_changed` still hold."""
-        return self._state == self._operand_state()
+        return self._state.fingerprint == self._operand_state().fingerprint
 
     @property
     def varying(self):
@@ -259,7 +271,7 @@ class ChannelExpression(RGBTexture):
         the unit square) — in the scalar variant, the operands' means combined as if
         independent."""
         state = self._operand_state()
-        if self._mean is None or self._mean_state != state:
+        if self._mean is None or self._mean_state.fingerprint != state.fingerprint:
             self._mean, self._mean_state = self._compute_mean(), state
         return mi.Float(self._mean)
 

@@ -3,8 +3,8 @@
 ``mimarble.render`` of a scene model or file, a sweep's frames, the command line and
 the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
 :data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
-in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size and time
-of every image file it reads — matches a loaded one gets that loaded ``mi.Scene``,
+in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, times and
+inode of every image file it reads — matches a loaded one gets that loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
 ``mi.traverse``; anything else is loaded anew (``mi.load_dict``). So repeated renders
 of one scene, and frames that differ only in a marble's scale, period or distortion,
@@ -77,12 +77,24 @@ class LoadedScenes:
             mitsuba_scene, params, held = entry
             changed = {name: value for name, value in values.items() if held.get(name) != value}
             if changed:            # should this raise, the entry stays out: never half-updated
-                for name, value in changed.items():
-                    params[name] = value
-                params.update()
+                try:
+                    for name, value in changed.items():
+                        params[name] = value
+                    params.update()
+                except BaseException:
+                    forget(mitsuba_scene)
+                    raise
                 held.update(changed)
         self.scenes[key] = entry               # the most recently used last
         return entry[0]
+
+    def parameters_of(self, mitsuba_scene):
+        """The ``mi.traverse`` of a scene loaded here (None: not one of these): a pass
+        reads its replay key from it rather than traversing the scene again."""
+        for loaded, params, _ in self.scenes.values():
+            if loaded is mitsuba_scene:
+                return params
+        return None
 
     def clear(self) -> None:
         for mitsuba_scene, _, _ in self.scenes.values():
@@ -112,13 +124,16 @@ def _structure(scene_dict) -> tuple[str, dict]:
 
 
 def _image_files(item) -> list:
-    """(path, size, modification time) of every ``bitmap``'s file in the dict, nested."""
+    """(path, size, modification and change times, inode) of every ``bitmap``'s file in
+    the dict, nested. The change time is the kernel's: a copy that puts the modification
+    time back (``cp -p``, ``rsync -t``) still changes it."""
     found = []
     if isinstance(item, dict):
         if item.get("type") == "bitmap" and isinstance(item.get("filename"), str):
             try:
                 facts = os.stat(item["filename"])
-                found.append((item["filename"], facts.st_size, facts.st_mtime_ns, facts.st_ino))
+                found.append((item["filename"], facts.st_size, facts.st_mtime_ns,
+                              facts.st_ctime_ns, facts.st_ino))
             except OSError:
                 found.append((item["filename"], None, None, None))   # load_dict will say
         for value in item.values():

@@ -26,7 +26,7 @@ import numpy as np
 
 from .. import environment
 from .pixel_tracer import PassNumbers, PixelTracer
-from .replay import Recorded, scene_inputs, scene_key
+from .replay import Recorded, scene_facts
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -38,18 +38,20 @@ PASS_SAMPLES = 1 << 22
 
 class Target(NamedTuple):
     """What passes trace: a loaded scene, in ``whitted`` or ``path`` mode, drawing from
-    ``sampler`` (path mode), into an image of ``width`` × ``height`` pixels."""
+    ``sampler`` (path mode), into an image of ``width`` × ``height`` pixels; ``params``: the
+    scene's ``mi.traverse`` if one is kept (the loaded scenes keep theirs), else None."""
     scene: object
     mode: str
     sampler: object
     width: int
     height: int
+    params: object = None
 
     @classmethod
-    def of(cls, scene, mode: str) -> "Target":
+    def of(cls, scene, mode: str, params=None) -> "Target":
         film = scene.sensors()[0].film()
         width, height = (int(x) for x in film.crop_size())
-        return cls(scene, mode, _sampler(scene, mode), width, height)
+        return cls(scene, mode, _sampler(scene, mode), width, height, params)
 
 
 #: Path mode's sampler for each scene's sensor sampler: a clone made once (a new one
@@ -64,8 +66,9 @@ def _sampler(scene, mode: str):
         return original
     if id(original) not in _CLONES:
         if len(_CLONES) >= 4:
-            _CLONES.pop(next(iter(_CLONES)))
+            _CLONES.pop(next(iter(_CLONES)))       # the least recently used
         _CLONES[id(original)] = (original, original.clone())
+    _CLONES[id(original)] = _CLONES.pop(id(original))
     return _CLONES[id(original)][1]
 
 
@@ -105,7 +108,7 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
     """
     pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
     count = target.width * target.height if pixels is None else len(pixels)
-    key, inputs = scene_key(target.scene), scene_inputs(target.scene)
+    key, inputs = scene_facts(target.scene, target.params)
     so_far = None                    # a split pixel's (sums, first, last) so far
     for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, spp, pass_samples)):
         lanes = n_pixels * n_samples
@@ -113,9 +116,10 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
                               target.mode == "whitted")
         subset = None if pixels is None else mi.UInt32(pixels[p0:p0 + n_pixels])
         split = n_samples < spp                      # one pixel, over several passes
-        values, first, last = _traced_pass(target.scene, inputs, target.mode, target.sampler,
-                                           key, lanes, n_samples, numbers, subset,
-                                           with_radiance, with_shapes, split)
+        values, first, last = _traced_pass(
+            (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
+             split), target.scene, inputs, target.sampler, lanes, n_samples, numbers, subset,
+            with_radiance, with_shapes, split, target.mode)
         # Views of the Dr.Jit arrays (no copy): means interleaved per pixel, or a split
         # pixel's sums as Color3d (3, 1).
         traced = (None if values is None else
@@ -133,10 +137,9 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
         yield TracedPass(span if pixels is None else pixels[span], lanes, *traced)
 
 
-def _trace_pass(scene, inputs: tuple, mode: str, sampler, key: tuple, lanes: int,
-                n_samples: int,
+def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples: int,
                 numbers: PassNumbers, subset, with_radiance: bool, with_shapes: bool,
-                split: bool):
+                split: bool, mode: str):
     """One pass, in Dr.Jit: (values, first, last) of each run of ``n_samples`` lanes of
     ``lanes`` — the radiance summed in float64, then (unless ``split``: the pass holds
     only some of one pixel's samples) divided by ``n_samples`` and rounded to float32,
@@ -148,9 +151,9 @@ def _trace_pass(scene, inputs: tuple, mode: str, sampler, key: tuple, lanes: int
 
     Recorded and replayed (:class:`~mimarble.mitsuba.replay.Recorded`): everything it
     reads is an argument — the scene, what it does not hold (``inputs``:
-    :func:`~mimarble.mitsuba.replay.scene_inputs`), the opaque ``numbers`` and ``subset``;
-    ``key`` (:func:`~mimarble.mitsuba.replay.scene_key`), the mode, the widths and the
-    switches as the recording's key. One kernel computes every lane, the same for every
+    :func:`~mimarble.mitsuba.replay.scene_facts`), the opaque ``numbers`` and ``subset``;
+    ``key`` (the scene's key from :func:`~mimarble.mitsuba.replay.scene_facts`, with the
+    mode, the widths and the switches) selects the recording. One kernel computes every lane, the same for every
     spp, then Dr.Jit's block reductions (``block_sum``, ``block_reduce``) make the values
     per pixel, and a last kernel their means; sums in float64, whose rounding is far
     below float32's.

@@ -184,7 +184,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     check_edge_spp(edge_spp, mode)
     if edge_spp is not None and edge_spp <= spp:
         edge_spp = None                                # fewer samples would not help a pixel
-    target = Target.of(mitsuba_scene, mode)
+    target = Target.of(mitsuba_scene, mode, LOADED.parameters_of(mitsuba_scene))
     width, height = target.width, target.height
     pixels = width * height
     image = np.empty((pixels, 3), dtype=np.float32)   # the only full-size array

@@ -28,13 +28,15 @@ docs/design-decisions.md, "Replaying recorded kernels".
 from __future__ import annotations
 
 import gc
+from typing import NamedTuple
 
 from .. import environment
 from ..plugins import recording_key
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-#: Recordings kept (least recently used dropped first): a few scenes × spp × pass widths.
+#: Keys whose recordings are kept (least recently used dropped first): a few scenes ×
+#: spp × pass widths.
 RECORDINGS = 32
 
 
@@ -43,55 +45,96 @@ def enabled() -> bool:
     return dr.is_jit_v(mi.Float) and environment.replay_wanted()
 
 
-def scene_key(scene) -> tuple:
-    """What decides the code a pass over ``scene`` traces, besides the Dr.Jit values
-    that are its inputs (module docstring)."""
+class SceneFacts(NamedTuple):
+    """What a pass over a scene needs besides its Dr.Jit inputs: the recording's ``key``
+    and the Dr.Jit state the scene does not hold (``inputs``). See :func:`scene_facts`."""
+    key: tuple
+    inputs: tuple
+
+
+def scene_facts(scene, params=None) -> SceneFacts:
+    """The key and extra inputs of a pass over ``scene`` (module docstring), from its
+    ``mi.traverse`` (``params``: one already made, e.g. by the loaded scenes; else made
+    here). The key holds: the scene's id, film size, number of lights, the ``recording_key``
+    of every mimarble plugin anywhere in the scene (materials, textures inside Mitsuba's
+    BSDFs, emitters or expressions), and every traversed value that is not a Dr.Jit
+    variable (a Python number such as the sensor's ``near_clip``, which Mitsuba's C++
+    plugins read as a constant of the traced code)."""
+    params = mi.traverse(scene) if params is None else params
     integrator = scene.integrator()
-    own = getattr(integrator, "recording_key", None)
+    plugins = tuple(recording_key(node) for node in params.hierarchy
+                    if hasattr(node, "recording_key") and node is not integrator)
+    constants, placements = [], []
+    for name in params.keys():
+        value, value_type, node, _ = params.properties[name]
+        if value_type is not None:
+            value = mi.get_property(value, value_type, node)
+        if isinstance(node, mi.Shape) and name.endswith("to_world"):
+            placements.append(value)
+        elif not dr.detail.collect_indices(value):
+            constants.append((name, repr(value)))
+    own_key = getattr(integrator, "recording_key", None)
+    own_inputs = getattr(integrator, "recording_inputs", None)
     film = scene.sensors()[0].film()
-    return (id(scene), tuple(film.crop_size()), tuple(film.crop_offset()),
-            own(scene) if own is not None else recording_key(integrator),
-            tuple(_material_key(shape.bsdf()) for shape in scene.shapes()),
-            len(scene.emitters()))
+    key = (id(scene), tuple(film.crop_size()), tuple(film.crop_offset()), len(scene.emitters()),
+           own_key(scene, placements) if own_key is not None else recording_key(integrator),
+           plugins, tuple(constants))
+    return SceneFacts(key, own_inputs(scene, placements) if own_inputs is not None else ())
 
 
-def _material_key(bsdf) -> tuple | None:
-    """A BSDF's key: a mimarble material's own (it holds its channels' keys); for a
-    Mitsuba BSDF (``diffuse`` with a marble reflectance, under ``prb``), its type and the
-    keys of the mimarble textures among its parameters' owners."""
-    if bsdf is None or hasattr(bsdf, "recording_key"):
-        return recording_key(bsdf)
-    params = mi.traverse(bsdf)
-    owners = {id(node): node for _, _, node, _ in (params.properties[k] for k in params.keys())}
-    return (recording_key(bsdf),) + tuple(recording_key(node) for node in owners.values()
-                                          if hasattr(node, "recording_key"))
+def scene_key(scene, params=None) -> tuple:
+    """:func:`scene_facts`' key: pass it to your own frozen function as an argument, so that
+    a structural change of a mimarble plugin records it again (docs/mitsuba-scene.md)."""
+    return scene_facts(scene, params).key
 
 
-def scene_inputs(scene) -> tuple:
-    """The Dr.Jit state a pass over ``scene`` reads that the scene does not hold: the
-    integrator's ``recording_inputs`` (whitted: its sphere table)."""
-    own = getattr(scene.integrator(), "recording_inputs", None)
-    return own(scene) if own is not None else ()
+def _own_error(error: RuntimeError) -> BaseException:
+    """The error a recording was stopped by, when it is not Dr.Jit's own: the recorder
+    wraps it ("record(): error encountered while recording…"), so that a plugin's
+    ``ValueError`` (whitted's "shape … needs 'channel_material'") would reach the caller as
+    a ``RuntimeError`` whose reason is only in its cause. Else the error itself."""
+    cause = error
+    while isinstance(cause, RuntimeError) and cause.__cause__ is not None:
+        cause = cause.__cause__
+    return cause if not isinstance(cause, RuntimeError) else error
 
 
 class Recorded:
-    """``function`` replayed from its recordings while :func:`enabled`, else called."""
+    """``function(key, *args)`` replayed from its recordings while :func:`enabled`, else
+    called.
+
+    The ``key`` (Python values: :func:`scene_facts`' and the pass's) selects the frozen
+    function, one ``dr.freeze`` per key, kept least recently used first: which code is
+    traced is decided here, in Python, by equality of keys, not left to Dr.Jit's layout
+    comparison of Python values inside its inputs (which replayed a recording made under
+    another key: a multiply whose constant factor went from 0 to 0.5 under ``path``). Each
+    frozen function then records per layout of its Dr.Jit inputs.
+    """
 
     def __init__(self, function):
         self.function = function
-        # A new key records again by design (a structural edit), so no warning for it.
-        self.frozen = dr.freeze(function, limit=RECORDINGS, warn_after=10 ** 6)
+        self.frozen = {}                # key → dr.freeze(function)
+        self.recorded = 0               # recordings of frozen functions no longer kept
 
-    def __call__(self, *args):
+    def __call__(self, key, *args):
         if not enabled():
-            return self.function(*args)
+            return self.function(key, *args)
+        frozen = self.frozen.pop(key, None)
+        if frozen is None:
+            if len(self.frozen) >= RECORDINGS:
+                self.recorded += self.frozen.pop(next(iter(self.frozen))).n_recordings
+            # A key records once per layout of its inputs; no warning for a few of them.
+            frozen = dr.freeze(self.function, limit=4, warn_after=10 ** 6)
+        self.frozen[key] = frozen                     # the most recently used last
         # Python's cycle collector may free unreachable Mitsuba objects (a dropped scene's
         # plugins) at any allocation; during a recording that changes Dr.Jit's registry and
         # variables under the recorder (under --jit-debug: an abort). Not while it runs.
         collecting = gc.isenabled()
         gc.disable()
         try:
-            return self.frozen(*args)
+            return frozen(key, *args)
+        except RuntimeError as e:
+            raise _own_error(e) from None
         finally:
             if collecting:
                 gc.enable()
@@ -99,4 +142,4 @@ class Recorded:
     @property
     def recordings(self) -> int:
         """How many times it has recorded (a test's and the benchmark's check)."""
-        return self.frozen.n_recordings
+        return self.recorded + sum(f.n_recordings for f in self.frozen.values())

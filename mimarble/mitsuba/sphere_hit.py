@@ -68,32 +68,53 @@ def _sphere_geometry(shape):
 class SphereTable:
     """Centres and radii of a scene's spheres, looked up per lane by the hit shape.
 
-    A scene's table is built once and kept while its shapes' bounding boxes stay (a
-    ``mi.traverse`` per sphere builds it). Its columns are opaque Dr.Jit arrays that the
-    table holds (``DRJIT_STRUCT``), so that a recording of the kernels (mimarble/mitsuba/
-    replay.py) takes them as inputs; what decides the traced code, :attr:`structure`, is
-    part of the recording's key.
+    A table is built from the shapes' ``to_world`` (a ``mi.traverse`` per sphere). Its
+    columns are opaque Dr.Jit arrays that the table holds (``DRJIT_STRUCT``), so that a
+    recording of the kernels (mimarble/mitsuba/replay.py) takes them as inputs; what
+    decides the traced code, :attr:`structure`, is part of the recording's key. Where it
+    comes from (:meth:`for_trace`): a recorded pass uses the table its caller refreshed
+    (:meth:`of` with the shapes' ``to_world``: kept while they are the same Dr.Jit
+    variables, which the table holds copies of, so none can be freed and its index
+    reused); any other JIT trace builds its own; the scalar variant, which traces every
+    sample, keeps one while the shapes' bounding boxes stay.
     """
 
     DRJIT_STRUCT = {"columns": list}
-    #: Tables by scene, with the bounding boxes they were built for; a table holds its
-    #: scene's shapes (to tell a new scene that took a freed one's id), so few are kept.
+    #: Tables by scene, with what they were built for; a table holds its scene's shapes
+    #: (to tell a new scene that took a freed one's id), so few are kept.
     _tables: dict = {}
     KEPT = 4
 
     @classmethod
-    def of(cls, scene) -> "SphereTable":
+    def of(cls, scene, placements=None) -> "SphereTable":
         """The table of ``scene``: the one built before, unless a shape has moved or
-        changed size since."""
-        boxes = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
-        boxes_then, table = cls._tables.get(id(scene), (None, None))
+        changed size since — told by ``placements`` (the shapes' ``to_world``, as
+        ``mi.traverse`` holds them: the same variables as the table's copies), else by the
+        shapes' bounding boxes (the scalar variant)."""
+        if placements is not None:
+            held = [type(p)(p) for p in placements]       # copies: the same variables
+            facts = tuple(tuple(dr.detail.collect_indices(p)) for p in held)
+        else:
+            held = None
+            facts = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
+        facts_then, table, _ = cls._tables.get(id(scene), (None, None, None))
         # The very shapes too: a new scene may take a freed one's id.
-        if boxes_then != boxes or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
+        if facts_then != facts or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
             if len(cls._tables) >= cls.KEPT:
                 cls._tables.pop(next(iter(cls._tables)))
             table = cls(scene)
-            cls._tables[id(scene)] = (boxes, table)
+        cls._tables.pop(id(scene), None)
+        cls._tables[id(scene)] = (facts, table, held)       # the most recently used last
         return table
+
+    @classmethod
+    def for_trace(cls, scene) -> "SphereTable":
+        """The table a trace of ``scene`` reads (see the class docstring)."""
+        if not dr.is_jit_v(mi.Float):
+            return cls.of(scene)
+        if dr.flag(dr.JitFlag.FreezingScope) and id(scene) in cls._tables:
+            return cls._tables[id(scene)][1]
+        return cls(scene)
 
     @classmethod
     def forget(cls, scene) -> None:

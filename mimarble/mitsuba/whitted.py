@@ -96,16 +96,18 @@ class Whitted:
         if dr.is_jit_v(mi.Float):
             dr.make_opaque(self.ambient, self.background)
 
-    def recording_key(self, scene) -> tuple:
+    def recording_key(self, scene, placements) -> tuple:
         """What decides the code :meth:`sample` traces for ``scene`` besides Dr.Jit's
         variables and the materials' own keys (see ``Marble.recording_key``): the shadow
-        switch and the sphere table's structure."""
-        return ("whitted", self.shadows, sphere_hit.SphereTable.of(scene).structure)
+        switch and the sphere table's structure. ``placements``: the shapes' ``to_world``
+        (``mi.traverse``'s)."""
+        return ("whitted", self.shadows,
+                sphere_hit.SphereTable.of(scene, placements).structure)
 
-    def recording_inputs(self, scene) -> tuple:
+    def recording_inputs(self, scene, placements) -> tuple:
         """The Dr.Jit state :meth:`sample` reads for ``scene`` that the scene does not hold
-        (the sphere table it keeps for it): a recording's inputs."""
-        return (sphere_hit.SphereTable.of(scene),)
+        (the sphere table it keeps for it, made current): a recording's inputs."""
+        return (sphere_hit.SphereTable.of(scene, placements),)
 
     def to_string(self):
         return describe("Whitted", {"ambient": numbers(self.ambient).tolist(),
@@ -158,7 +160,7 @@ class Whitted:
         si = scene.ray_intersect(ray, active)
         hit = mi.Bool(active) & si.is_valid()
         # Mitsuba's hit, refined in float64 on the sphere it found (sphere_hit.py).
-        spheres = sphere_hit.SphereTable.of(scene)
+        spheres = sphere_hit.SphereTable.for_trace(scene)
         p, n, on_sphere = sphere_hit.refine(spheres, ray, si, hit)
         si.p = p
         if footprints:

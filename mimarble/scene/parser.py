@@ -231,12 +231,13 @@ def load(path: str | os.PathLike) -> Scene:
 
 
 def _image_files(scene) -> tuple:
-    """(size, modification time, inode) of each image map's file (None: unreadable)."""
+    """(size, modification and change times, inode) of each image map's file (None:
+    unreadable)."""
     facts = []
     for channel in scene.image_maps():
         try:
             found = os.stat(channel.location)
-            facts.append((found.st_size, found.st_mtime_ns, found.st_ino))
+            facts.append((found.st_size, found.st_mtime_ns, found.st_ctime_ns, found.st_ino))
         except OSError:
             facts.append(None)
     return tuple(facts)
