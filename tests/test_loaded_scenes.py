@@ -74,7 +74,9 @@ def test_a_scene_file_edited_on_disk_is_seen(llvm, tmp_path, monkeypatch):
     np.testing.assert_array_equal(after, fresh(SCENE.replace("PERIOD", "0.6"), monkeypatch))
 
 
-def test_an_image_map_rewritten_on_disk_is_seen(llvm, tmp_path):
+def veins_over_an_image(tmp_path):
+    """(scene file, its text, its image map) of future-work's veins-over-image at 16², in a
+    copy of the folder that a test may change."""
     folder = tmp_path / "scene"
     shutil.copytree("scenes/future-work", folder)
     path = folder / "veins-over-image.scene"
@@ -82,9 +84,14 @@ def test_an_image_map_rewritten_on_disk_is_seen(llvm, tmp_path):
     text = text[:text.index("image ")] + "image { width 16 height 16 samples 1 }\n" \
         + text[text.index("\n", text.index("image ")) + 1:]
     path.write_text(text)
+    return path, text, folder / "maps" / "flagstones.png"
+
+
+def test_an_image_map_rewritten_on_disk_is_seen(llvm, tmp_path):
+    path, text, image_map = veins_over_an_image(tmp_path)
     before = mimarble.render(str(path))
     grey = np.full((8, 8, 3), 128, dtype=np.uint8)
-    Image.fromarray(grey).save(folder / "maps" / "flagstones.png")
+    Image.fromarray(grey).save(image_map)
     after = mimarble.render(str(path))
     assert not np.array_equal(before, after)
     LOADED.clear()
@@ -108,14 +115,7 @@ def test_few_scenes_are_kept_and_their_sphere_tables_go_with_them(llvm):
 def test_an_image_map_copied_over_with_its_old_modification_time_is_seen(llvm, tmp_path):
     # What cp -p, rsync -t and tar x do: the same size and modification time, new bytes.
     import os
-    folder = tmp_path / "scene"
-    shutil.copytree("scenes/future-work", folder)
-    path = folder / "veins-over-image.scene"
-    text = path.read_text()
-    text = text[:text.index("image ")] + "image { width 16 height 16 samples 1 }\n" \
-        + text[text.index("\n", text.index("image ")) + 1:]
-    path.write_text(text)
-    image_map = folder / "maps" / "flagstones.png"
+    path, _, image_map = veins_over_an_image(tmp_path)
     Image.fromarray(np.full((8, 8, 3), 40, dtype=np.uint8)).save(image_map)
     before = mimarble.render(str(path))
     facts = os.stat(image_map)
