@@ -2,7 +2,7 @@
 
 Tracing a pass — the sensor's rays, the integrator, the Python plugins' ``eval`` —
 costs Python time on every render, as much again as the kernels themselves for a
-500² marble sphere at 1 spp (docs/benchmarks.md, "Whole call against kernels").
+500² marble sphere at 1 spp (docs/benchmarks.md, "Whole call against its kernels").
 ``dr.freeze`` records the kernels a function launches and replays them for inputs of
 the same *layout*, with the new inputs' values. Two things keep a replay from ever
 being stale:
@@ -14,11 +14,13 @@ being stale:
   plugin holds is opaque, so an edit through ``mi.traverse`` is a new input value,
   not a literal baked into the recording; a variable made before the recording that
   no input reaches makes the recording fail, loudly.
-* **Everything else that decides the traced code is the key** (:func:`scene_key`):
-  the Python facts of each plugin (``recording_key``: octaves evaluated, filter,
-  function, the expression's skipping decisions…), the sphere table's structure, the
-  film size, and the scene's identity. A new key records again; Dr.Jit adds its own
-  checks (types, widths, AD state, the registry of instances).
+* **Everything else that decides the traced code is the key** (:func:`scene_facts`):
+  the Python facts of every mimarble plugin in the scene (``recording_key``: octaves
+  evaluated, filter, function, the expression's skipping decisions…), every traversed
+  value that is not a Dr.Jit variable, the sphere table's structure, the film size,
+  and the scene's identity. Each key has its own frozen function (:class:`Recorded`),
+  so a new key records again; within it, Dr.Jit adds its own checks (types, widths, AD
+  state, the registry of instances).
 
 ``MIMARBLE_FREEZE=0`` turns replay off (read at every render); the scalar variant
 never records. What Dr.Jit 1.5 cannot record, and what is left, is in
