@@ -21,7 +21,7 @@ import os
 from .. import environment
 from ..marble_parameters import IN_PLACE
 from .sphere_hit import SphereTable
-from .translate import to_mitsuba
+from .translate import checked_samples, to_mitsuba
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -43,7 +43,16 @@ class LoadedScenes:
         """The loaded scene of a scene model, translated by ``to_mitsuba(scene,
         **options)``. The same model (an immutable value) with the same options is not
         translated again while its image files are unchanged: a warm render skips the
-        translation and the structure's JSON too."""
+        translation and the structure's JSON too.
+
+        In JIT variants the passes take the spp as their argument and never read the
+        sampler's count (whitted: the stratum centres; path: an ``independent`` sampler
+        seeded per pass), so the ``spp`` option is checked and the scene loaded at 1 spp:
+        renders of one scene at any spp share one loaded scene (the scalar variant renders
+        through ``mi.render``, which reads it)."""
+        if dr.is_jit_v(mi.Float):
+            checked_samples(scene, options.get("mode", "whitted"), options.get("spp"))
+            options = {**options, "spp": 1}
         try:
             memo = (mi.variant(), scene, tuple(sorted(options.items())))
             hash(memo)

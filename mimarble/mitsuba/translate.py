@@ -230,6 +230,18 @@ def _sensor(scene: model.Scene, sampler: dict) -> dict:
     }
 
 
+def checked_samples(scene: model.Scene, mode: str, spp: int | None) -> int:
+    """``spp`` (None: the scene's own) if the image may take it — within the sample limit,
+    and n² in whitted mode — else ValueError."""
+    spp = scene.image.samples if spp is None else spp
+    problem = spp_problem(spp, scene.image.width, scene.image.height)
+    if problem:
+        raise ValueError(problem)
+    if mode == "whitted":
+        model.samples_per_axis(spp)
+    return spp
+
+
 def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None,
                tolerance: float | None = None, filter: str | None = None) -> dict:
     """A Mitsuba scene dict for ``scene`` (``mi.load_dict`` it to render).
@@ -251,15 +263,10 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         raise ValueError(f"filter={filter!r:.40} must be one of {', '.join(model.MARBLE_FILTERS)}")
     if mode not in MODES:
         raise ValueError(f"mode={mode!r:.40} must be one of {', '.join(MODES)}")
-    spp = scene.image.samples if spp is None else spp
-    problem = spp_problem(spp, scene.image.width, scene.image.height)
-    if problem:
-        raise ValueError(problem)
+    spp = checked_samples(scene, mode, spp)
     check_image_maps(scene)        # the header check of maps the parser never saw
     for problem in float32_range_problems(scene):
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
-    if mode == "whitted":
-        model.samples_per_axis(spp)
 
     out: dict = {"type": "scene"}
     textures: dict = {}            # channel value -> texture id (dedupes equal channels)
