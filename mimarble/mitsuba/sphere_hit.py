@@ -92,18 +92,17 @@ class SphereTable:
         ``mi.traverse`` holds them: the same variables as the table's copies), else by the
         shapes' bounding boxes (the scalar variant)."""
         if placements is not None:
-            held = [type(p)(p) for p in placements]       # copies: the same variables
-            facts = tuple(tuple(dr.detail.collect_indices(p)) for p in held)
+            facts = tuple(tuple(dr.detail.collect_indices(p)) for p in placements)
         else:
-            held = None
             facts = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
-        facts_then, table, _ = cls._tables.get(id(scene), (None, None, None))
+        facts_then, table, held = cls._tables.pop(id(scene), (None, None, None))
         # The very shapes too: a new scene may take a freed one's id.
         if facts_then != facts or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
             if len(cls._tables) >= cls.KEPT:
                 cls._tables.pop(next(iter(cls._tables)))
             table = cls(scene)
-        cls._tables.pop(id(scene), None)
+            # Copies hold the very variables, so none is freed and its index reused.
+            held = None if placements is None else [type(p)(p) for p in placements]
         cls._tables[id(scene)] = (facts, table, held)       # the most recently used last
         return table
 
