@@ -281,15 +281,14 @@ def process_times(scene_path, repeats) -> dict:
 def against_povray(scene_path, repeats, ours_process_s) -> dict | None:
     """POV-Ray 3.7 and mimarble on the same kind of marble sphere (fig11a, 500², 1 sample):
     render against trace time, and whole process against whole process (warm caches)."""
-    from .povray import time_povray
+    from .bench_calls import povray_row
+    from .povray import available
     scene = resized(scene_language.load(scene_path), 500)
-    theirs = time_povray(scene, 500, repeats=3)
-    if theirs is None:
+    if not available():
         return None
-    ours_ms = time_render(scene, 1, repeats).run_ms
-    return {**theirs, "ours_ms": ours_ms, "ours_process_s": ours_process_s,
-            "trace_over_ours": theirs["trace_s"] * 1000 / ours_ms,
-            "process_over_ours": theirs["process_s"] / ours_process_s}
+    row = povray_row(scene, time_render(scene, 1, repeats).run_ms, repeats=3)
+    return {**row, "ours_process_s": ours_process_s,
+            "process_over_ours": row["process_s"] / ours_process_s}
 
 
 def measure_targets(scene_path, repeats, cache_dir, step, tolerance=None) -> dict:

@@ -123,12 +123,11 @@ def sweep_row(scene_path, frames: int = 64, size: int = 256, spp: int = 4) -> di
             "compile_s": compile_s, "ratio": seconds / budget_s}
 
 
-def povray_row(scene_path, ours_ms: float) -> dict | None:
-    """POV-Ray 3.7's own "Trace Time" of the scene's sphere with 8-octave marbles at 500²,
-    1 sample (mimarble/povray.py), against ``ours_ms``; None without ``povray``."""
+def povray_row(scene, ours_ms: float, repeats: int = 5) -> dict | None:
+    """POV-Ray 3.7's own "Trace Time" of ``scene`` (a model) at its size, 1 sample
+    (mimarble/povray.py), against ``ours_ms``; None without ``povray``."""
     from .povray import time_povray
-    sphere = with_marbles(resized(scene_language.load(scene_path), 500), octaves=8)
-    theirs = time_povray(sphere, 500, repeats=5)
+    theirs = time_povray(scene, scene.image.width, repeats=repeats)
     if theirs is None:
         return None
     return {**theirs, "ours_ms": ours_ms, "trace_over_ours": theirs["trace_s"] * 1000 / ours_ms}
@@ -141,7 +140,8 @@ def measure(scene_path, repeats: int = 15, sweep_frames: int = 64) -> dict:
     from .bench_adam import step_rows
     from .bench_peers import peer_rates
     renders = render_rows(scene_path, repeats)
+    sphere = with_marbles(resized(scene_language.load(scene_path), 500), octaves=8)
     return {"renders": renders, "sweep": sweep_row(scene_path, sweep_frames),
             "adam_step": step_rows(),
-            "povray": povray_row(scene_path, renders[0]["whole_ms"]),
+            "povray": povray_row(sphere, renders[0]["whole_ms"]),   # the first row's sphere
             "peers": peer_rates()}

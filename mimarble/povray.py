@@ -75,6 +75,11 @@ def scene_text(scene: model.Scene, size: int) -> str:
 _TRACE_TIME = re.compile(r"Trace Time:.*\(([\d.]+) seconds\)")
 
 
+def available() -> bool:
+    """Whether ``povray`` is installed (on the PATH)."""
+    return shutil.which("povray") is not None
+
+
 def time_povray(scene: model.Scene, size: int = 500, repeats: int = 3) -> dict | None:
     """POV-Ray's trace time and whole-process time on ``scene`` at size², 1 sample a pixel."""
     povray = shutil.which("povray")

@@ -61,17 +61,15 @@ class LoadedScenes:
         kept = self.translated.get(memo)
         if kept is None or _image_files(kept[0]) != kept[3]:
             scene_dict = to_mitsuba(scene, **options)
-            structure, values = _structure(scene_dict)
             if len(self.translated) >= 4 * self.size:
                 self.translated.pop(next(iter(self.translated)))
-            kept = self.translated[memo] = (scene_dict, structure, values,
-                                            _image_files(scene_dict))
+            kept = self.translated[memo] = (scene_dict, *_structure(scene_dict))
         return self._loaded(kept[0], kept[1], kept[2])
 
     def scene_for(self, scene_dict: dict):
         """The loaded scene of ``scene_dict`` (a ``to_mitsuba`` dict): a kept one of the
         same structure with its in-place values set, else a new one."""
-        structure, values = _structure(scene_dict)
+        structure, values, _ = _structure(scene_dict)
         return self._loaded(scene_dict, structure, values)
 
     def _loaded(self, scene_dict: dict, structure: str, values: dict):
@@ -118,9 +116,9 @@ def forget(mitsuba_scene) -> None:
     SphereTable.forget(mitsuba_scene)
 
 
-def _structure(scene_dict) -> tuple[str, dict]:
-    """(the dict with in-place marble values masked and image files' sizes and times
-    added, as JSON; those values by traverse key)."""
+def _structure(scene_dict) -> tuple[str, dict, list]:
+    """(the dict with in-place marble values masked and image files' facts added, as JSON;
+    those values by traverse key; the image files' facts, :func:`_image_files`)."""
     values, masked = {}, {}
     for name, item in scene_dict.items():
         if isinstance(item, dict) and item.get("type") == "marble":
@@ -129,7 +127,8 @@ def _structure(scene_dict) -> tuple[str, dict]:
                 if key in item:
                     values[f"{name}.{key}"] = item.pop(key)
         masked[name] = item
-    return json.dumps([masked, _image_files(scene_dict)], sort_keys=True, default=str), values
+    files = _image_files(scene_dict)
+    return json.dumps([masked, files], sort_keys=True, default=str), values, files
 
 
 def _image_files(item) -> list:
