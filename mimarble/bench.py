@@ -167,7 +167,8 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
     steps += sum(1 for name, _ in scenes if name in PAPER_SECONDS) if paper else 0
     steps += 9 if targets else 0           # measure_targets' 7 steps, the whole process, calls
     step = _stepper(report(progress, "bench", unit="step"), steps)
-    results = {"machine": machine_facts(), "size": size, "converged_spp": converged_spp,
+    results = {"machine": machine_facts(), "date": time.strftime("%Y-%m-%d", time.gmtime()),
+               "size": size, "converged_spp": converged_spp,
                "repeats": repeats, "tolerance": tolerance, "runs": [], "paper": [],
                "modes": [dataclasses.asdict(m) for m in modes], "targets": {}}
 

@@ -195,16 +195,48 @@ def test_translator_rejects_bad_modes_and_sample_counts():
         to_mitsuba(scene, spp=2)
 
 
-def test_whitted_refuses_other_bsdfs(llvm):
+def _with_bsdf(bsdf):
     d = to_mitsuba(tiny_scene())
-    d["sphere_0"]["bsdf"] = {"type": "diffuse"}
+    d["sphere_0"]["bsdf"] = bsdf
+    return mi.load_dict(d)
+
+
+def test_whitted_under_mi_render_names_the_shape_and_class_of_a_wrong_bsdf(llvm):
     with pytest.raises(Exception) as err:
-        mi.render(mi.load_dict(d))
+        mi.render(_with_bsdf({"type": "diffuse"}))
     messages, e = [], err.value
     while e is not None:
         messages.append(str(e))
         e = e.__cause__ or e.__context__
-    assert any("channel_material" in m for m in messages)
+    assert any("shape 'sphere_0' has a SmoothDiffuse BSDF" in m and "channel_material" in m
+               for m in messages), messages
+
+
+@pytest.mark.parametrize("variant_name", ["scalar_rgb", "llvm_ad_rgb"])
+def test_mimarble_render_refuses_a_wrong_bsdf_before_tracing(variant_name, monkeypatch):
+    import importlib
+    rendering = importlib.import_module("mimarble.mitsuba.render")
+    previous = mi.variant()
+    mi.set_variant(variant_name)
+    try:
+        scene = _with_bsdf({"type": "roughconductor"})
+        def traced(*args, **kwargs):
+            pytest.fail("rendered a scene it should refuse")
+        monkeypatch.setattr(rendering, "render_in_passes", traced)
+        monkeypatch.setattr(mi, "render", traced)
+        with pytest.raises(ValueError, match=r"^whitted: shape 'sphere_0' has a "
+                                             r"RoughConductor BSDF; .*'channel_material'") as err:
+            mimarble.render(scene)
+        assert err.value.__cause__ is None
+    finally:
+        mi.set_variant(previous)
+
+
+def test_mimarble_render_refuses_an_area_light_naming_its_class(llvm):
+    d = to_mitsuba(tiny_scene())
+    d["sky"] = {"type": "constant"}
+    with pytest.raises(ValueError, match=r"emitter 'sky' \(Constant\w*\) is not a point light"):
+        mimarble.render(mi.load_dict(d))
 
 
 def test_specular_work_is_skipped_without_specular_channels(llvm, monkeypatch):

@@ -66,6 +66,13 @@ def _no_channels(si):
     return zero, zero, zero, mi.Float(1.0)
 
 
+def _class_of(plugin) -> str:
+    """The plugin's class as Mitsuba's ``to_string`` names it ('diffuse' is
+    ``SmoothDiffuse``), or a Python plugin's class."""
+    name = plugin.class_name()
+    return type(plugin).__name__ if name in ("BSDF", "Emitter") else name
+
+
 def _material_channels(material, si, active):
     if isinstance(material, ChannelMaterial):
         return material.channels(si, active)
@@ -115,12 +122,25 @@ class Whitted:
                                     "shadows": self.shadows})
 
     @staticmethod
+    def check_scene(scene) -> None:
+        """Every shape's BSDF a ``channel_material`` and every emitter point-like, else a
+        ``ValueError`` naming the shape or emitter and its Mitsuba class.
+
+        Mitsuba gives an integrator no look at the scene it is loaded into, so this runs
+        where mimarble first holds the scene (``mimarble.render`` of a loaded ``mi.Scene``,
+        before anything is traced) and again when :meth:`sample` is traced (under
+        ``mi.render`` the sentence is the cause of Dr.Jit's ``drjit.custom`` error)."""
+        Whitted._materials(scene)
+        Whitted._lights(scene)
+
+    @staticmethod
     def _materials(scene):
         materials = [shape.bsdf() for shape in scene.shapes()]
         for shape, material in zip(scene.shapes(), materials):
             if not isinstance(material, ChannelMaterial):
-                raise ValueError(f"whitted: shape {shape.id()!r} has BSDF {type(material).__name__}; "
-                                 f"the whitted integrator needs 'channel_material'")
+                raise ValueError(f"whitted: shape {shape.id()!r} has a {_class_of(material)} "
+                                 f"BSDF; the whitted integrator needs 'channel_material' "
+                                 f"(or render with Mitsuba's 'path')")
         return materials
 
     @staticmethod
@@ -128,8 +148,9 @@ class Whitted:
         lights = list(scene.emitters())
         for light in lights:
             if not mi.has_flag(light.flags(), mi.EmitterFlags.DeltaPosition):
-                raise ValueError(f"whitted: emitter {light.id()!r} is not a point light; "
-                                 f"the whitted integrator shades with point lights only")
+                raise ValueError(f"whitted: emitter {light.id()!r} ({_class_of(light)}) is not "
+                                 f"a point light; the whitted integrator shades with point "
+                                 f"lights only ('point', 'spot')")
         return lights
 
     @staticmethod
