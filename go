@@ -7,6 +7,7 @@
 #   ./go COMMAND [ARGS]         run `mimarble COMMAND`, e.g. ./go render scenes/fig11a.scene -o m.png
 #   ./go python [ARGS]          the environment's Python
 # Paths in COMMAND's and python's arguments are relative to where you stand, as usual.
+# ./go, ./go -h and ./go --help print this usage, then mimarble's own --help.
 set -euo pipefail
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 venv="$here/.venv"
@@ -38,13 +39,28 @@ if [ ! -x "$venv/bin/python" ] || ! cmp -s "$here/pyproject.toml" "$stamp"; then
     echo "go: setting up $venv" >&2
     [ -x "$venv/bin/python" ] || "$python" -m venv "$venv"
     "$venv/bin/python" -m pip install -q --upgrade pip >&2
-    "$venv/bin/python" -m pip install -q -e "$here[test]" >&2
+    # setuptools' editable install warns, in a banner, that a folder named like the package
+    # may shadow it; pip shows backend warnings even with -q. Only that warning is
+    # silenced (by its message): errors and every other warning still show.
+    PYTHONWARNINGS="ignore:Editable installation" \
+        "$venv/bin/python" -m pip install -q -e "$here[test]" >&2
     cp "$here/pyproject.toml" "$stamp"
 fi
+
+usage() {
+    cat <<'USAGE'
+usage: ./go test [PYTEST ARGS]   run the test suite (pytest) in the checkout;
+                                 --jit-debug: with Dr.Jit's bounds checks
+       ./go python [ARGS]        the environment's Python (.venv)
+       ./go COMMAND [ARGS]       run `mimarble COMMAND`, e.g. ./go render fig11a -o m.png
+The first run sets up .venv (and libLLVM when run as root). mimarble's own help follows.
+
+USAGE
+}
 
 case "${1:-}" in
     test) shift; cd "$here"; exec "$venv/bin/python" -m pytest -q "$@" ;;
     python) shift; exec "$venv/bin/python" "$@" ;;
-    "") exec "$venv/bin/python" -m mimarble --help ;;
+    ""|-h|--help) usage; exec "$venv/bin/python" -m mimarble --help ;;
     *) exec "$venv/bin/python" -m mimarble "$@" ;;
 esac

@@ -11,6 +11,14 @@ needs to render: help, usage errors and scene errors then answer before Dr.Jit
 and Mitsuba load (about 0.6 s saved; docs/design-decisions.md, "Start-up").
 Touching any of the names below that need them (``mimarble.render``,
 ``mimarble.mi``, …) starts the package too.
+
+The API: ``mimarble.render(scene_or_path, spp=…, width=…, height=…, mode=…, …)`` (a
+scene file, model or loaded ``mi.Scene`` → linear float32 (H, W, 3); ``width`` and
+``height`` as the command line's ``--width``/``--height``), ``mimarble.use_variant(name)``
+(a variant checked before it is set: one sentence naming what can render when it cannot,
+as ``--variant`` says it), ``mimarble.sweep``, ``mimarble.to_mitsuba``,
+``mimarble.write_image``, ``mimarble.scene`` (the scene language) and
+``mimarble.packaged_scenes`` (the paper's scenes shipped with the package).
 """
 
 import importlib
@@ -66,8 +74,8 @@ def __getattr__(name):
         start()
         if name in globals():
             return globals()[name]
-    elif name == "scene":                # the scene language imports neither Dr.Jit nor Mitsuba
-        return importlib.import_module(f"{__name__}.scene")
+    elif name in ("scene", "packaged_scenes"):   # neither imports Dr.Jit nor Mitsuba
+        return importlib.import_module(f"{__name__}.{name}")
     elif name == "sweep":                # mimarble.sweeps.sweep: its frames start the package
         return importlib.import_module(f"{__name__}.sweeps").sweep
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

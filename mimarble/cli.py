@@ -2,13 +2,16 @@
 
 Exit status: 0 success, 1 the environment cannot render (``doctor``), 2 a user
 error (bad scene, bad argument, unusable variant). User errors print one
-message and no traceback.
+message and no traceback: ``mimarble: …`` (``mimarble: FILE: …`` for a scene file that
+cannot be read), or ``FILE:LINE:COL: …`` for an error at a place in a scene file, as
+compilers write it.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -20,11 +23,15 @@ def _start(args) -> None:
     """Load Dr.Jit and Mitsuba and set the variant, now that the command needs them.
 
     Everything before this (arguments, output names, the scene file) is checked
-    without them, so mistakes answer at once (mimarble/__init__.py).
+    without them, so mistakes answer at once (mimarble/__init__.py). Mitsuba's
+    differentiable integrators (``prb``, …) are built only for a command that renders
+    with them (the benchmark's targets time an Adam step through ``prb``): they cost a
+    fifth of a short command.
     """
     import mimarble
     from . import environment
-    environment.skip_mitsuba_ad_integrators()
+    if not (args.command == "bench" and not args.no_targets):
+        environment.skip_mitsuba_ad_integrators()
     mimarble.use_variant(args.variant)    # before start(), so the variant is set only once
     mimarble.start()
 
@@ -57,11 +64,28 @@ def _doctor(args) -> int:
 
 
 def _scene_list(given) -> list[str]:
-    """The scenes named, else ./scenes/*.scene."""
-    scenes = given or sorted(str(p) for p in Path("scenes").glob("*.scene"))
+    """The scenes named (each by the SCENE rule: :func:`_scene_path`), else
+    ./scenes/*.scene, else the packaged paper figures."""
+    from . import packaged_scenes
+    if given:
+        return [_scene_path(name) for name in given]
+    scenes = (sorted(str(p) for p in Path("scenes").glob("*.scene"))
+              or [str(p) for p in packaged_scenes.figures()])
     if not scenes:
-        raise UsageError("no scenes given and none in ./scenes")
+        raise UsageError("no scenes given, none in ./scenes and none packaged "
+                         f"(looked in {packaged_scenes.FOLDER})")
     return scenes
+
+
+def _scene_path(argument) -> str:
+    """A SCENE argument as the file to read: a path that exists always wins, then a
+    packaged scene's name (``fig11a``), else the path itself, whose reading says what is
+    wrong (mimarble/packaged_scenes.py)."""
+    from . import packaged_scenes
+    if packaged_scenes.is_unknown_name(argument):
+        raise UsageError(f"{argument}: no such file (looked for {os.path.abspath(argument)}), "
+                         f"nor a packaged scene of that name (`mimarble scenes` lists them)")
+    return packaged_scenes.resolve(argument)
 
 
 class UsageError(Exception):
@@ -113,7 +137,7 @@ def _load_scene(args):
     from . import scene as scene_language
     from .scene import LIMITS
     from .scene_edits import with_image_size
-    scene = scene_language.load(args.scene)
+    scene = scene_language.load(_scene_path(args.scene))
     lo, hi = LIMITS["image_size"]
     size = {}
     for option in ("width", "height"):
@@ -216,7 +240,7 @@ def _compare(args) -> int:
     _start(args)
     import mimarble
     from . import reference
-    from .compare import error_map, image_metrics
+    from .compare import error_map_scale, error_map_with_legend, image_metrics
     from .scene import walk
     filters = {args.filter} if args.filter else {
         getattr(inner, "filter", "none") for material in scene.materials.values()
@@ -236,12 +260,14 @@ def _compare(args) -> int:
     metrics.update(scene=str(args.scene), spp=spp, variant=mimarble.mi.variant(),
                    mitsuba_seconds=mitsuba_seconds, reference_seconds=reference_seconds)
     if args.diff:
-        _write(Path(args.diff), error_map(ours, ref), eight_bit=True)
+        _write(Path(args.diff), error_map_with_legend(ours, ref), eight_bit=True)
     print(f"{args.scene}: {scene.image.width}x{scene.image.height}, {spp} spp, whitted "
           f"({mimarble.mi.variant()}) vs reference (float64)")
     print(f"  RMSE {metrics['rmse']:.3g}   PSNR {metrics['psnr']:.2f} dB   max |error| "
           f"{metrics['max_abs']:.3g}   pixels off by > 1/255: {100 * metrics['frac_over_1_255']:.3f} %")
     print(f"  time: Mitsuba {mitsuba_seconds:.2f} s, reference {reference_seconds:.2f} s")
+    if args.diff:
+        print(f"  error map {args.diff} (legend under it): {error_map_scale()}")
     if args.json:
         print(json.dumps(metrics))
     return 0
@@ -263,6 +289,8 @@ def _bench(args) -> int:
         _check_folder(args.json)
     if args.plot:
         _check_folder(_check_suffix(Path(args.plot), (".png", ".pdf", ".svg"), "plot"))
+    if args.page:
+        _check_folder(_check_suffix(Path(args.page), (".md",), "page"))
     for path in scenes:
         mimarble_scene.load(path)   # every scene error before minutes of measuring
     _start(args)
@@ -278,6 +306,7 @@ def _bench(args) -> int:
                               modes=bench.modes(args.filter, args.edge_spp))
     from .bench_report import format_report
     from .files import write_json
+    results["command"] = "mimarble " + " ".join(shlex.quote(a) for a in args.argv)
     print(format_report(results))
     try:
         if args.json:
@@ -285,6 +314,10 @@ def _bench(args) -> int:
         if args.plot:
             from .bench_plot import plot_error_against_time
             plot_error_against_time(results, args.plot)
+        if args.page:
+            from .bench_page import plot_relative_to, write_section
+            slug = write_section(args.page, results, plot_relative_to(args.page, args.plot))
+            print(f"wrote the section of this machine ({slug}) into {args.page}")
     except OSError as e:
         raise UsageError(f"could not write the results: {e}") from None
     return 0
@@ -308,22 +341,68 @@ def _stress(args) -> int:
     return 0
 
 
+def _new_folder(path) -> Path:
+    """``path`` as a folder to write into: one that exists, or a new one in a folder that
+    exists (made by the caller; a missing parent is refused, as ``render -o`` refuses it)."""
+    folder = Path(path)
+    try:
+        if folder.exists() and not folder.is_dir():
+            raise UsageError(f"{folder}: exists and is not a folder")
+        if not folder.exists() and not folder.parent.is_dir():
+            raise UsageError(f"{folder}: folder {folder.parent} does not exist")
+    except OSError as e:          # a name longer than the file system takes, a loop of links
+        raise UsageError(f"{folder}: {e.strerror or e}") from None
+    return folder
+
+
 def _gallery(args) -> int:
     from .scene import LIMITS
     scenes = _scene_list(args.scenes)
     lo, hi = LIMITS["image_size"]
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
-    folder = Path(args.output)
-    if folder.exists() and not folder.is_dir():
-        raise UsageError(f"{folder}: exists and is not a folder")
+    from . import scene as mimarble_scene
+    for path in scenes:
+        mimarble_scene.load(path)   # every scene error before a folder is made
+    folder = _new_folder(args.output)
     _start(args)
     from .gallery import make_gallery
+    written = 0
     try:
         for out, seconds in make_gallery(scenes, folder, args.size, args.mode):
+            written += 1
             print(f"{out} ({seconds:.2f} s)")
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{folder}: could not write the gallery: {e}") from None
+    print(f"wrote {written} image{'s' * (written != 1)} to {folder}{os.sep}")
+    return 0
+
+
+def _scenes(args) -> int:
+    """``mimarble scenes``: the packaged scenes by name; ``--copy DIR``: copied out."""
+    from . import packaged_scenes
+    if not packaged_scenes.paths():
+        raise UsageError(f"no packaged scenes found (looked in {packaged_scenes.FOLDER})")
+    if args.copy is None:
+        names = packaged_scenes.names()
+        width = max(len(name) for name in names)
+        print(f"packaged scenes, in {packaged_scenes.FOLDER}:")
+        for name, path in names.items():
+            print(f"  {name:<{width}}  {packaged_scenes.summary(path)}".rstrip())
+        print("render one by name (`mimarble render fig11a`, when no file of that name is "
+              "here); copy them out with `mimarble scenes --copy DIR`")
+        return 0
+    folder = _new_folder(args.copy)
+    try:
+        written = packaged_scenes.copy_to(folder)
+    except packaged_scenes.CopyRefused as e:
+        raise UsageError(str(e)) from None
+    except OSError as e:
+        raise UsageError(f"{folder}: could not copy the scenes: {e.strerror or e}") from None
+    scenes = sum(1 for p in written if p.suffix == packaged_scenes.SUFFIX)
+    others = len(written) - scenes
+    print(f"copied {scenes} scenes and {others} other file{'s' * (others != 1)} (image maps, "
+          f"README) to {folder}{os.sep}")
     return 0
 
 
@@ -344,13 +423,13 @@ def _sweep(args) -> int:
         if args.workers is not None:
             check_workers(args.workers)             # at most a few per core
         settings = settings_from(args.set)
-        count = len(frames(scene, settings))        # their number, then every key and value
+        frames(scene, settings)                     # their number, then every key and value
     except SweepError as e:
         raise UsageError(str(e)) from None
     if args.spp is not None:
         _check_spp(args.spp)
     _start(args)
-    from .sweeps import sweep
+    from .sweeps import summary_sentence, sweep
     start = time.perf_counter()
     try:
         index = sweep(scene, settings, out, spp=args.spp, workers=args.workers,
@@ -358,8 +437,9 @@ def _sweep(args) -> int:
     except SweepError as e:
         raise UsageError(str(e)) from None
     failed = [f for f in index["frames"] if f["status"] != "done"]
-    print(f"{out}: {count} frames ({count - len(failed)} done, {len(failed)} failed), "
-          f"{time.perf_counter() - start:.1f} s; index {out / 'sweep.json'}"
+    # "16 frames: 14 already done, 2 rendered now, 0 failed": what this run did.
+    print(f"{out}: {summary_sentence(index)} ({time.perf_counter() - start:.1f} s); "
+          f"index {out / 'sweep.json'}"
           + ("" if failed else f", contact sheet {out / 'contact.png'}"))
     for f in failed:
         print(f"  frame {f['index']} {f['values']}: {f['error']}", file=sys.stderr)
@@ -400,7 +480,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
 
     p = sub.add_parser("render", help="render a scene file through Mitsuba")
-    p.add_argument("scene", help="scene file (see docs/scene-language.md)")
+    p.add_argument("scene", help="scene file (see docs/scene-language.md), or a packaged "
+                                 "scene's name when no such file exists (`mimarble scenes`)")
     p.add_argument("-o", "--output", help="OUT.png (8-bit sRGB) or OUT.exr (linear float); "
                                           "default: the scene's name with .png, here")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
@@ -427,7 +508,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scene", help="scene file")
     p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON on the last line")
-    p.add_argument("--diff", metavar="OUT.png", help="write a false-colour error map")
+    p.add_argument("--diff", metavar="OUT.png",
+                   help="write a false-colour error map: each pixel's largest channel "
+                        "|Mitsuba - reference| on a log scale, black <= 1e-6, blue, magenta, "
+                        "yellow, white >= 0.1 (and NaN), with a legend strip under it (the "
+                        "colour bar, its decades labelled)")
     add_size(p)
     add_tolerance(p)
     add_filter(p, "default: the marbles' own (the reference renders plain supersampling)")
@@ -438,6 +523,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")
     p.add_argument("--json", metavar="OUT", help="write all measurements as JSON")
     p.add_argument("--plot", metavar="OUT.png", help="write the error-against-time plot")
+    p.add_argument("--page", metavar="PAGE.md",
+                   help="write this machine's section into a benchmarks page (e.g. "
+                        "docs/benchmarks.md), keeping the other machines' sections")
     p.add_argument("--size", type=int, default=256, help="image size of the measured renders (default 256)")
     p.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16], help="the spp values measured")
     p.add_argument("--repeats", type=int, default=5, help="warm runs per timing (median)")
@@ -454,7 +542,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=_bench)
 
     p = sub.add_parser("sweep", help="render every combination of parameter values, with an "
-                                     "index and a contact sheet (one process or Dask)")
+                                     "index and a contact sheet (one process or Dask)",
+                       epilog="Run the same command again to resume: it renders only what is "
+                              "missing and says so (\"16 frames: 14 already done, 2 rendered "
+                              "now, 0 failed\"). Ctrl-C stops the sweep, its workers too: "
+                              "\"mimarble: interrupted\", exit status 130.")
     p.add_argument("scene", help="scene file")
     p.add_argument("--set", action="append", metavar="KEY=VALUES",
                    help="a parameter and its values: v1,v2,… or start:stop:count; KEY is "
@@ -466,8 +558,13 @@ def build_parser() -> argparse.ArgumentParser:
                                                          "this sweep)")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     group = p.add_mutually_exclusive_group()
-    group.add_argument("--workers", type=int, help="render on a Dask LocalCluster of N processes "
-                                                   "(a few per core at most)")
+    group.add_argument("--workers", type=int,
+                       help="render on a Dask LocalCluster of N processes (a few per core at "
+                            "most). It costs about 1.3 s to start and one process already "
+                            "uses every core: on 2 cores (AMD EPYC) it was slower at every "
+                            "size and frame count measured (32²–512², 4–256 frames; a 4×4 "
+                            "sweep at 128²: 2.0 s against 0.65 s; docs/benchmarks.md), so "
+                            "leave it out there")
     group.add_argument("--scheduler", metavar="ADDRESS",
                        help="render on a running Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--compare", action="store_true",
@@ -483,13 +580,22 @@ def build_parser() -> argparse.ArgumentParser:
     add_variant(p)
     p.set_defaults(run=_stress)
 
-    p = sub.add_parser("gallery", help="render scenes small for the README gallery")
-    p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")
-    p.add_argument("-o", "--output", default="docs/gallery", help="folder (default: docs/gallery)")
+    p = sub.add_parser("gallery", help="render scenes small, one PNG each (the README's gallery)")
+    p.add_argument("scenes", nargs="*", help="scene files or packaged scenes' names (default: "
+                                             "./scenes/*.scene, else the packaged paper figures)")
+    p.add_argument("-o", "--output", default="gallery",
+                   help="folder, made if missing (default: ./gallery; the README's images: "
+                        "-o docs/gallery)")
     p.add_argument("--size", type=int, default=160, help="image width and height (default: 160)")
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted")
     add_variant(p)
     p.set_defaults(run=_gallery)
+
+    p = sub.add_parser("scenes", help="list the paper's scenes shipped with mimarble; --copy: "
+                                      "copy them (with their image maps) into a folder")
+    p.add_argument("--copy", metavar="DIR", help="copy every packaged scene into DIR, made if "
+                                                 "missing (files there are never overwritten)")
+    p.set_defaults(run=_scenes)
 
     p = sub.add_parser("doctor", help="show the libLLVM, variant, versions and kernel cache "
                                       "in use; --warm: compile the scenes' kernels now")
@@ -542,6 +648,7 @@ def main(argv=None) -> int:
     warnings.showwarning = _show_warning
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = list(sys.argv[1:] if argv is None else argv)   # as typed, for provenance
     from .environment import EnvironmentProblem
     from .scene.errors import SceneError
     try:
@@ -550,7 +657,9 @@ def main(argv=None) -> int:
         print(f"mimarble: {e}", file=sys.stderr)
         return 2
     except SceneError as e:
-        print(e, file=sys.stderr)
+        # FILE:LINE:COL: message, as compilers write it (editors jump to it); an error with
+        # no position (a scene file that cannot be read) is the program's: "mimarble: FILE: …".
+        print(e if e.line is not None else f"mimarble: {e}", file=sys.stderr)
         return e.exit_status
     except KeyboardInterrupt:
         print("mimarble: interrupted", file=sys.stderr)

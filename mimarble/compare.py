@@ -3,9 +3,12 @@
 * :func:`image_metrics` — RMSE, PSNR, max abs error and the fraction of pixels
   off by more than 1/255, all on linear RGB as given (no clamping, no tone map).
 * :func:`error_map` — a false-colour picture of the per-pixel error.
+* :func:`error_map_with_legend` — that picture over its legend (``compare --diff``): a
+  colour bar with the log scale's decades labelled, drawn into the image.
 
 This module imports NumPy and the standard library only (no Mitsuba), so the
-metrics can be used on any pair of arrays.
+metrics can be used on any pair of arrays; the legend's labels are drawn with
+matplotlib, imported when a legend is asked for.
 """
 
 from __future__ import annotations
@@ -15,7 +18,8 @@ import math
 import numpy as np
 
 __all__ = ["image_metrics", "error_map", "ERROR_MAP_RANGE", "ERROR_MAP_COLORS", "colormap",
-           "ROWS_PER_CHUNK"]
+           "ROWS_PER_CHUNK", "error_map_legend", "error_map_with_legend", "error_map_scale",
+           "LEGEND_HEIGHT", "LEGEND_MIN_WIDTH", "LEGEND_BAR_ROWS", "legend_bar_columns"]
 
 #: Default error range of :func:`error_map` (log scale): 1e-6 … 1e-1.
 ERROR_MAP_RANGE = (1e-6, 1e-1)
@@ -127,4 +131,102 @@ def error_map(test, reference, vmax=None, vmin=None) -> np.ndarray:
             x = (np.log10(np.maximum(err, lo)) - math.log10(lo)) / (math.log10(hi) - math.log10(lo))
         x = np.where(np.isnan(err), 1.0, x)
         out[y0:y0 + err.shape[0]] = np.round(colormap(x) * 255.0)
+    return out
+
+
+# ---------------------------------------------------------------------------
+# The legend: a strip under the map, its colour bar and the scale's decades
+
+#: Rows of the legend strip under the map.
+LEGEND_HEIGHT = 48
+#: The least width of the legend (a narrower map is padded on the right with the
+#: legend's grey, a colour the map never takes).
+LEGEND_MIN_WIDTH = 320
+#: The rows of the strip that hold the colour bar (the rest: ticks, labels, caption).
+LEGEND_BAR_ROWS = (4, 18)
+_MARGIN = 20                        # columns left and right of the bar, for the end labels
+_BACKGROUND = (128, 128, 128)       # mid grey: on no point of the map's ramp
+_INK = (0, 0, 0)
+
+
+def _range(vmin, vmax):
+    lo = ERROR_MAP_RANGE[0] if vmin is None else float(vmin)
+    hi = ERROR_MAP_RANGE[1] if vmax is None else float(vmax)
+    if not (0.0 < lo < hi and math.isfinite(hi)):
+        raise ValueError(f"need 0 < vmin < vmax, got vmin={lo}, vmax={hi}")
+    return lo, hi
+
+
+def legend_bar_columns(width: int) -> tuple[int, int]:
+    """The columns [x0, x1) of the colour bar in a legend ``width`` wide: column x shows
+    the colour of the error at fraction (x − x0 + ½)/(x1 − x0) of the log scale."""
+    return _MARGIN, max(width, LEGEND_MIN_WIDTH) - _MARGIN
+
+
+def _label(value: float) -> str:
+    exponent = math.log10(value)
+    if abs(exponent - round(exponent)) < 1e-9:
+        return f"1e{round(exponent)}"
+    return f"{value:.2g}"
+
+
+def error_map_scale(vmin=None, vmax=None) -> str:
+    """The error map's scale in words (``compare --diff`` prints it)."""
+    lo, hi = _range(vmin, vmax)
+    return (f"per-pixel max channel |render - reference| on a log scale: black <= {_label(lo)}, "
+            f"blue, magenta, yellow, white >= {_label(hi)} (and NaN)")
+
+
+def error_map_legend(width: int, vmin=None, vmax=None) -> np.ndarray:
+    """The legend strip of an error map ``width`` columns wide (at least
+    :data:`LEGEND_MIN_WIDTH`) -> uint8 (:data:`LEGEND_HEIGHT`, width', 3): the colour bar
+    (rows :data:`LEGEND_BAR_ROWS`, columns :func:`legend_bar_columns`, the exact colours of
+    :func:`error_map`), a tick under it at each power of ten in [vmin, vmax] and at both
+    ends, labelled (``1e-6``), and a caption: "max channel |error| per pixel, log scale; NaN is
+    white"."""
+    lo, hi = _range(vmin, vmax)
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    width = max(int(width), LEGEND_MIN_WIDTH)
+    dpi = 72                                        # a point is a pixel
+    figure = Figure(figsize=(width / dpi, LEGEND_HEIGHT / dpi), dpi=dpi,
+                    facecolor=tuple(c / 255 for c in _BACKGROUND))
+    canvas = FigureCanvasAgg(figure)
+    x0, x1 = legend_bar_columns(width)
+    top, bottom = LEGEND_BAR_ROWS
+    span = math.log10(hi) - math.log10(lo)
+    ticks = [lo] + [10.0 ** k for k in range(math.ceil(math.log10(lo)), math.floor(math.log10(hi)) + 1)
+                    if lo < 10.0 ** k < hi] + [hi]
+    ink = tuple(c / 255 for c in _INK)
+    columns = []
+    for value in ticks:
+        x = min(x0 + round((math.log10(value) - math.log10(lo)) / span * (x1 - x0)), x1 - 1)
+        columns.append(x)
+        # Text in pixels from the bottom left (matplotlib's display coordinates).
+        figure.text(x + 0.5, LEGEND_HEIGHT - bottom - 16, _label(value), transform=None,
+                    ha="center", va="baseline", fontsize=9, color=ink)
+    figure.text(width / 2, 4, "max channel |error| per pixel, log scale; NaN is white",
+                transform=None, ha="center", va="baseline", fontsize=9, color=ink)
+    canvas.draw()
+    strip = np.array(canvas.buffer_rgba(), dtype=np.uint8)[..., :3]
+    strip = strip[:LEGEND_HEIGHT, :width].copy()
+    fractions = (np.arange(x0, x1) - x0 + 0.5) / (x1 - x0)
+    strip[top:bottom, x0:x1] = np.round(colormap(fractions) * 255.0)
+    for x in columns:
+        strip[bottom:bottom + 4, x] = _INK
+    return strip
+
+
+def error_map_with_legend(test, reference, vmax=None, vmin=None) -> np.ndarray:
+    """:func:`error_map` with :func:`error_map_legend` under it -> uint8
+    (H + LEGEND_HEIGHT, max(W, LEGEND_MIN_WIDTH), 3); the map is the top-left H×W,
+    unchanged."""
+    picture = error_map(test, reference, vmax=vmax, vmin=vmin)
+    height, width = picture.shape[:2]
+    legend = error_map_legend(width, vmin=vmin, vmax=vmax)
+    out = np.empty((height + LEGEND_HEIGHT, legend.shape[1], 3), dtype=np.uint8)
+    out[:height] = _BACKGROUND
+    out[:height, :width] = picture
+    out[height:] = legend
     return out

@@ -348,8 +348,25 @@ def variant_problem(variant: str) -> str | None:
                        f"{INSTALL_HINT}, or point DRJIT_LIBLLVM_PATH at a working libLLVM.")
         return problem
     if variant.startswith("cuda_") and not cuda_usable():
-        return f"Variant {variant} needs a CUDA GPU and driver, and none is usable here."
+        return f"Variant {variant} needs a usable CUDA GPU and driver, and there is none."
     return None
+
+
+def usable_variants() -> list[str]:
+    """The RGB variants of this Mitsuba that can render here, best first."""
+    _, mi = import_drjit_and_mitsuba()
+    rgb = [v for v in mi.variants() if v.endswith("_rgb")]
+    ordered = [v for v in AUTO_VARIANTS if v in rgb] + [v for v in rgb if v not in AUTO_VARIANTS]
+    return [v for v in ordered if variant_problem(v) is None]
+
+
+def with_alternatives(problem: str, requested: str) -> str:
+    """``problem`` (one sentence) ending with the variants that can render here instead."""
+    others = [v for v in usable_variants() if v != requested]
+    if not others:
+        return problem
+    listed = others[0] if len(others) == 1 else f"{', '.join(others[:-1])} and {others[-1]}"
+    return f"{problem.rstrip().rstrip('.')}; {listed} can render here."
 
 
 def choose_variant(requested: str | None = None) -> str:
@@ -363,7 +380,7 @@ def choose_variant(requested: str | None = None) -> str:
     if requested:
         problem = variant_problem(requested)
         if problem:
-            raise EnvironmentProblem(problem)
+            raise EnvironmentProblem(with_alternatives(problem, requested))
         return requested
     for variant in AUTO_VARIANTS:
         if variant_problem(variant) is None:
@@ -381,11 +398,20 @@ def require_rgb_variant() -> None:
     variant = mi.variant()
     problem = variant_problem(variant) if variant and not variant.endswith("_rgb") else None
     if problem:
-        raise EnvironmentProblem(problem)
+        raise EnvironmentProblem(with_alternatives(problem, variant))
 
 
 def use_variant(requested: str | None = None) -> str:
-    """Set the Mitsuba variant, keeping one the user already set unless another is requested."""
+    """Set the Mitsuba variant mimarble renders in, and return its name:
+    ``mimarble.use_variant()`` and the command line's ``--variant`` both come here.
+
+    ``requested`` None: a variant already set (``mi.set_variant``) is kept, else
+    ``$MIMARBLE_VARIANT``, else the best usable one (:func:`choose_variant`). A variant
+    named (``use_variant("cuda_ad_rgb")``) is checked before Mitsuba switches to it:
+    one that cannot render here — no GPU, no usable libLLVM, not RGB, unknown — raises
+    :class:`EnvironmentProblem`, one sentence saying why and which variants can
+    (instead of Dr.Jit's "CUDA backend hasn't been initialized" from ``mi.set_variant``).
+    """
     _, mi = import_drjit_and_mitsuba()
     current = mi.variant()
     if requested is None and not os.environ.get(VARIANT_ENV) and current is not None:

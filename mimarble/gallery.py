@@ -1,4 +1,4 @@
-"""The README gallery: every paper scene rendered small, one command to remake it."""
+"""A gallery: scenes rendered small, one PNG each (``./go gallery -o docs/gallery`` remakes the README's)."""
 
 from __future__ import annotations
 
@@ -11,9 +11,13 @@ from .scene_edits import resized
 
 
 def make_gallery(scene_paths, out_dir, size: int = 160, mode: str = "whitted"):
-    """Render each scene at ``size``² and write ``out_dir/<scene name>.png``; yields (path, seconds)."""
+    """Render each scene at ``size``² and write ``out_dir/<scene name>.png``; yields (path, seconds).
+
+    ``out_dir`` is made if it is missing, but not its parent: ``mimarble gallery`` writes
+    into ``./gallery`` unless told otherwise (``-o docs/gallery`` remakes the README's
+    images), and a mistyped parent is an error, as for ``render -o``."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir.mkdir(exist_ok=True)
     for path in scene_paths:
         scene = resized(scene_language.load(path), size)
         start = time.perf_counter()

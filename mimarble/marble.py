@@ -15,6 +15,8 @@ not given, a constant when the ramp has one colour.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from . import environment, error_budget, pixel_filter
@@ -25,7 +27,7 @@ from .noise import fractal_sum, lattice_tables
 from .plugins import Kept, RGBTexture, describe, first_number, plugin, transform_matrix
 from .ramp import Ramp, ramp_storage
 from .stripes import STRIPES
-from .texture_mapping import TextureMapping
+from .texture_mapping import NoFootprintWarning, TextureMapping, without_footprint
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -57,6 +59,7 @@ class Marble(RGBTexture):
         if dr.is_jit_v(mi.Float):        # the noise's tables, held (see lattice_tables)
             self.lattice = lattice_tables(mi.UInt32)
         self.pixel_filter = None
+        self._said_no_footprint = Kept(False)   # the warning of eval, once per texture
         self.parameters_changed()
 
     # -- Mitsuba object protocol -------------------------------------------
@@ -168,11 +171,25 @@ class Marble(RGBTexture):
         gives (every lookup is in bounds by construction, so none needs the mask)."""
         if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
             return dr.select(active, self.ramp.constant(dr.width(si.p)), 0.0)
+        if self.pixel_filter.needs_footprint and not self._said_no_footprint.value \
+                and without_footprint(si):
+            self._said_no_footprint.value = True
+            warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=2)
         point = self.mapping.map(si, self.pixel_filter.needs_footprint)
         # A NaN or infinite point gets a NaN colour, decided here once rather than left to
         # how each backend's min/max and float→int conversions treat NaN (they differ).
         colour = dr.select(point.finite, self.pixel_filter.colour(self, point), dr.nan)
         return dr.select(active, colour, 0.0)
+
+    def _no_footprint_message(self) -> str:
+        name = f" {self.id()!r}" if self.id() else ""
+        return (f"marble{name}: filter={self.filter!r} has no pixel footprint to filter "
+                f"over: the integrator computed no ray differentials (si.duv_dx, si.duv_dy "
+                f"are 0), so the marble is its colour at the point, as filter='none'. "
+                f"mimarble's 'whitted' provides them; Mitsuba's own integrators ('path', "
+                f"'prb', 'direct', ...) do not (docs/mitsuba-scene.md). Said once per "
+                f"texture; a symbolic call traces every live instance, so this may be a "
+                f"marble of another scene still loaded.")
 
     def eval_1_grad(self, si, active=True):
         """∂(luminance)/∂(u, v), exact, by the chain rule (what Mitsuba's ``bumpmap`` reads):

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 import struct
 from typing import Any
 
@@ -31,7 +32,7 @@ from .properties import numbered_properties
 __all__ = ["Parameter", "ParameterError", "MarbleParameters", "PARAMETERS", "BY_NAME",
            "SWEEPABLE", "IN_PLACE", "RENAMED", "FUNCTIONS", "AXES", "FILTERS", "FIG5_RAMP",
            "MAX_OCTAVES", "MAX_RAMP_COLOURS", "parse_ramp", "ramp_text", "parameter_table",
-           "single_precision"]
+           "single_precision", "HEX_FORM", "hex_colour", "hex_colour_problem", "srgb_to_linear"]
 
 #: The stripe functions (mimarble/stripes.py), in the order of the documentation.
 FUNCTIONS: tuple[str, ...] = ("abs_sine", "sine", "cosine")
@@ -199,9 +200,13 @@ PARAMETERS: tuple[Parameter, ...] = (
     Parameter("ramp", COLOURS, FIG5_RAMP, bounds=(1, MAX_RAMP_COLOURS), role=DIFFERENTIABLE,
               doc="Colours at evenly spaced keys k/(K−1), interpolated linearly (one "
                   "colour: a constant). In a texture dict ``\"r g b, r g b, …\"`` "
-                  "(``#rrggbb`` too; ``mimarble.marble_parameters.ramp_text`` writes it "
-                  "from triples: Mitsuba's properties hold no lists), one ``rgb``, or "
-                  "``ramp_0``, ``ramp_1``, … (also in XML, which cannot repeat a name)."),
+                  "(``mimarble.marble_parameters.ramp_text`` writes it from triples: "
+                  "Mitsuba's properties hold no lists), one ``rgb``, or ``ramp_0``, "
+                  "``ramp_1``, … (also in XML, which cannot repeat a name). ``r g b`` is "
+                  "linear RGB, as Mitsuba's ``rgb``; an item ``#rrggbb`` is sRGB-encoded, "
+                  "as on the web and in paint programs, and decoded with the exact sRGB "
+                  "curve (IEC 61966-2-1): ``#808080`` is 0.2158 (``hex_colour``), as in "
+                  "the scene language."),
 )
 
 BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS}
@@ -217,7 +222,9 @@ class _Values:
     """The methods of :class:`MarbleParameters` (its fields come from the table)."""
 
     def __post_init__(self) -> None:
-        if not isinstance(self.ramp, tuple):   # lists from Python: stored immutably
+        if isinstance(self.ramp, str):         # "r g b, #rrggbb, …": its colours, as the plugin reads it
+            object.__setattr__(self, "ramp", parse_ramp(self.ramp))
+        elif not isinstance(self.ramp, tuple):   # lists from Python: stored immutably
             object.__setattr__(self, "ramp", tuple(tuple(c) for c in self.ramp))
 
     @classmethod
@@ -270,11 +277,51 @@ def checked(parameter: Parameter, value, context: str = "marble", text: bool = F
 
 
 # ---------------------------------------------------------------------------
+# Colours written #rrggbb: sRGB-encoded, decoded to linear (the plugin and the language)
+
+#: How a hexadecimal colour is written, in messages.
+HEX_FORM = "#rrggbb (six hexadecimal digits, sRGB-encoded, e.g. #ff8000)"
+_HEX = re.compile(r"#[0-9A-Fa-f]{6}")
+
+
+def srgb_to_linear(code: float) -> float:
+    """The exact sRGB decoding curve of IEC 61966-2-1 on an encoded value in [0, 1]:
+    c/12.92 up to 0.04045, else ((c + 0.055)/1.055)^2.4 (Mitsuba's ``bitmap`` decodes
+    8-bit sRGB textures with the same curve; so does the reference tracer's image map)."""
+    return code / 12.92 if code <= 0.04045 else ((code + 0.055) / 1.055) ** 2.4
+
+
+def hex_colour_problem(text: str, linear: str = "'r g b'") -> str | None:
+    """What is wrong with ``text`` as a colour ``#rrggbb``, in a sentence, or None.
+    ``linear``: how the linear alternative is written where it was read (the scene
+    language: ``< r g b >``)."""
+    if _HEX.fullmatch(text):
+        return None
+    if text == "#":
+        return f"'#' is not a colour: write {HEX_FORM} or {linear} (linear)"
+    shown = text if len(text) <= 20 else text[:17] + "..."
+    return f"colour '{shown}' is not {HEX_FORM}; or write {linear} (linear)"
+
+
+def hex_colour(text: str) -> tuple[float, float, float]:
+    """The linear RGB of ``#rrggbb``: each byte b decoded as sRGB, ``srgb_to_linear(b/255)``
+    (``#808080`` -> 0.2158…, ``#ffffff`` -> 1 exactly); ParameterError if it is not
+    written so. Mitsuba 3.9 itself accepts no ``#rrggbb`` (its ``rgb`` values are linear
+    numbers: ``could not parse RGB value "#808080"``); sRGB is what every web and paint
+    program means by it, and what Mitsuba 0.6's ``<srgb value="#rrggbb"/>`` meant."""
+    problem = hex_colour_problem(text)
+    if problem:
+        raise ParameterError(problem)
+    return tuple(srgb_to_linear(int(text[i:i + 2], 16) / 255.0) for i in (1, 3, 5))
+
+
+# ---------------------------------------------------------------------------
 # Ramps as text and as Mitsuba properties
 
 def parse_ramp(value, name: str = "ramp") -> tuple[tuple[float, float, float], ...]:
-    """Colours from ``"r g b, r g b, …"``, ``"#rrggbb, …"``, one RGB triple or a
-    sequence of triples; ParameterError unless each is three finite numbers."""
+    """Colours from ``"r g b, r g b, …"`` (linear) and ``#rrggbb`` items (sRGB-encoded:
+    :func:`hex_colour`), one RGB triple or a sequence of triples; ParameterError unless
+    each is three finite numbers."""
     if isinstance(value, str):
         colours = [_colour_text(item.strip(), value, name) for item in value.split(",")]
     elif _is_colour(value):             # <rgb name="ramp" …/>: one colour, a constant
@@ -294,18 +341,18 @@ def parse_ramp(value, name: str = "ramp") -> tuple[tuple[float, float, float], .
 
 
 def _colour_text(item: str, whole: str, name: str) -> tuple[float, float, float]:
-    if item.startswith("#") and len(item) == 7:
-        try:
-            return tuple(int(item[i:i + 2], 16) / 255.0 for i in (1, 3, 5))
-        except ValueError:
-            pass
+    if item.startswith("#"):
+        problem = hex_colour_problem(item)
+        if problem:
+            raise ParameterError(f"{name} colour in {whole!r}: {problem}")
+        return hex_colour(item)
     try:
         numbers = tuple(float(x) for x in item.split())
     except ValueError:
         numbers = ()
     if len(numbers) != 3:
         raise ParameterError(f"{name} colour {item!r} in {whole!r} is not three numbers "
-                             f"'r g b' (colours are separated by commas)")
+                             f"'r g b' nor {HEX_FORM} (colours are separated by commas)")
     return numbers
 
 

@@ -357,7 +357,15 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
 
     loop = (dr.zeros(uint_type, width), dr.full(float_type, 1.0, width),
             dr.full(float_type, 1.0, width), state)
-    return _result(dr.while_loop(loop, lambda i, *rest: i < count, body)[3])
+    # Nested in another symbolic operation (an integrator's symbolic `if`, loop or call)
+    # the loop can only be symbolic, and is said to be so: left to choose by
+    # JitFlag.SymbolicLoops, which Mitsuba turns off to differentiate a render
+    # (Integrator::render_backward), Dr.Jit makes it symbolic anyway with a warning per
+    # trace (`ad_loop("unnamed"): forcing conditional statement to symbolic mode`).
+    # Nothing differentiable enters it (a differentiated p is unrolled above). Outside
+    # one, the flag decides, as before.
+    mode = "symbolic" if dr.flag(dr.JitFlag.SymbolicScope) else None
+    return _result(dr.while_loop(loop, lambda i, *rest: i < count, body, mode=mode)[3])
 
 
 def _result(state) -> FractalSum:

@@ -28,13 +28,18 @@ images are written whole or not at all, and a frame is done once its image is wr
 and indexed. Run the same sweep again (same scene, sizes, settings, spp, variant) and
 only what is missing is done (failed frames are tried again); a frame that fails —
 rendering, writing, or its Dask worker lost — is recorded with its error and the sweep
-goes on.
+goes on. The index's ``summary`` says what this run did (:func:`summary`: frames already
+done, rendered now, failed, left), as the command's last line does.
 
 **Several processes, several machines** on Dask distributed: ``workers=N`` starts a
-``LocalCluster`` of N single-threaded worker processes, ``scheduler=ADDRESS`` joins a
-running one. Each worker imports mimarble once and keeps its loaded scenes and
-compiled kernels between frames (:func:`render_frame`); images come back to this
-process, which writes them, so no shared file system is needed.
+``LocalCluster`` of N single-threaded worker processes (:func:`local_cluster`),
+``scheduler=ADDRESS`` joins a running one. Each worker imports mimarble once, as it
+starts, and keeps its loaded scenes and compiled kernels between frames
+(:func:`render_frame`); images come back to this process, which writes them, so no
+shared file system is needed. Starting a LocalCluster costs about 1.3 s on 2 cores and
+one process already uses every core: on such a machine ``workers`` is slower at every
+size measured (docs/benchmarks.md). Ctrl-C stops the workers with the sweep: they never
+see it themselves, and it is raised here only between Dask's calls (:class:`_Interrupts`).
 
 **A sweep folder is data, not instructions.** A frame's image is always named by
 :func:`file_name` from its index and values inside the output folder; the ``file`` field
@@ -54,6 +59,7 @@ of ``contact_sheet.CONTACT_SHEET_PIXELS``.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import itertools
 import json
@@ -335,6 +341,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
         todo = todo[:stop_after]
     done = report(progress, "sweep", unit="frame")
     done(finished, len(all_frames))
+    rendered = set()                     # the frames this run rendered (for the summary)
 
     def one_more():
         nonlocal finished
@@ -346,7 +353,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                                  if workers and not scheduler else None)
     options = {"spp": spp, "compare": compare, "variant": variant, "threads": threads,
                "encode": bool(workers or scheduler)}
-    _render(todo, options, index, out_dir, names, workers, scheduler, one_more)
+    _render(todo, options, index, out_dir, names, workers, scheduler, one_more, rendered)
     # An image that passed its header check but does not decode is found by the contact
     # sheet: it is rendered again once, and the sheet drawn again.
     for attempt in range(2):
@@ -362,14 +369,14 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
         undecodable = [k for k in was_done if index["frames"][k]["status"] != "done"]
         if not undecodable:
             break
-        _write_index(out_dir, index)
+        _write_index(out_dir, index, rendered)
         if attempt == 0:
             warnings.warn(f"{out_dir}: {_count(len(undecodable), 'frame image')} did not "
                           f"decode ({names[undecodable[0]]}"
                           f"{', …' if len(undecodable) > 1 else ''}); rendering "
                           f"{_them(len(undecodable))} again", stacklevel=2)
             _render([all_frames[k] for k in undecodable], options, index, out_dir, names,
-                    workers, scheduler, lambda: None)
+                    workers, scheduler, lambda: None, rendered)
     return index
 
 
@@ -449,8 +456,10 @@ def check_scheduler(address) -> None:
                          f"there); give a running scheduler's address, e.g. tcp://host:8786")
 
 
-def _render(todo, options, index, out_dir: Path, names, workers, scheduler, one_more) -> None:
-    """Render the frames ``todo`` and write their images, recording each in ``index``."""
+def _render(todo, options, index, out_dir: Path, names, workers, scheduler, one_more,
+            rendered: set) -> None:
+    """Render the frames ``todo`` and write their images, recording each in ``index``
+    (and in ``rendered``, the indices of the frames done by this run)."""
     jobs = [dict(options, index=f["index"], scene=f["scene"]) for f in todo]
     # Images are written by one background thread while the next frames render (PNG
     # encoding takes a sixth of a 256² frame's time); the index, rewritten whole, at most
@@ -459,9 +468,10 @@ def _render(todo, options, index, out_dir: Path, names, workers, scheduler, one_
     from concurrent.futures import ThreadPoolExecutor
     last_index = time.perf_counter()
     pending = []
-    with ThreadPoolExecutor(max_workers=1) as writer:
+    with ThreadPoolExecutor(max_workers=1) as writer, \
+            contextlib.closing(_results(jobs, workers, scheduler)) as results:
         try:
-            for result in _results(jobs, workers, scheduler):
+            for result in results:
                 entry = index["frames"][result["index"]]
                 if result["error"] is None:
                     pending.append((entry, result, writer.submit(
@@ -470,13 +480,13 @@ def _render(todo, options, index, out_dir: Path, names, workers, scheduler, one_
                     entry.update(status="failed", error=result["error"],
                                  render_s=result["render_s"])
                 one_more()
-                pending = _record_written(pending)
+                pending = _record_written(pending, rendered)
                 if time.perf_counter() - last_index >= INDEX_INTERVAL_S:
-                    _write_index(out_dir, index)
+                    _write_index(out_dir, index, rendered)
                     last_index = time.perf_counter()
         finally:
-            _record_written(pending, wait=True)
-            _write_index(out_dir, index)
+            _record_written(pending, rendered, wait=True)
+            _write_index(out_dir, index, rendered)
 
 
 def _write_frame(path, image) -> None:
@@ -486,9 +496,9 @@ def _write_frame(path, image) -> None:
     (write_rgb8 if image.dtype == np.uint8 else write_image)(path, image)
 
 
-def _record_written(pending, wait: bool = False) -> list:
-    """Mark the frames whose image is written as done (or failed, if the write failed);
-    the rest stay pending."""
+def _record_written(pending, rendered: set, wait: bool = False) -> list:
+    """Mark the frames whose image is written as done (and add them to ``rendered``) or
+    failed, if the write failed; the rest stay pending."""
     still = []
     for entry, result, future in pending:
         if not (wait or future.done()):
@@ -502,43 +512,209 @@ def _record_written(pending, wait: bool = False) -> list:
             continue
         entry.update(status="done", error=None, render_s=result["render_s"],
                      **{k: result[k] for k in ("rmse", "psnr") if k in result})
+        rendered.add(result["index"])
     return still
 
 
 def _results(jobs, workers, scheduler):
     """Each job's result as it completes: here, or on Dask (a task that fails there —
-    a worker lost, say — is that frame's error, not the sweep's)."""
+    a worker lost, say — is that frame's error, not the sweep's). No jobs: nothing is
+    started (a resumed sweep with nothing left starts no cluster)."""
+    if not jobs:
+        return
     if not workers and not scheduler:
         for job in jobs:
             yield render_frame(job)
         return
-    from dask.distributed import Client, LocalCluster, as_completed
+    from dask.distributed import Client, as_completed
     cluster = client = None
-    try:
+    # Ctrl-C (SIGINT) on Dask is held and raised only while waiting for the next frame
+    # and after each: raised inside Dask's own calls (starting the cluster, fetching a
+    # result), it leaves a cluster half-made or a callback that logs a traceback. A
+    # terminal sends it to the whole process group: the workers never see it (below);
+    # they are this process's to stop.
+    with _Interrupts() as interrupts:
         try:
             if scheduler is None:
-                cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1,
-                                       processes=True, dashboard_address=None)
-            client = Client(cluster if cluster is not None else scheduler,
-                            timeout=f"{SCHEDULER_TIMEOUT_S}s")
-        except (OSError, ValueError, TimeoutError) as e:
-            where = f"the scheduler at {scheduler}" if scheduler else "a LocalCluster"
-            raise SweepError(f"cannot start or reach {where}: {e}") from None
-        futures = {client.submit(render_frame, job, pure=False): job["index"] for job in jobs}
-        for future in as_completed(futures):
-            index = futures.pop(future)
+                # Multiprocessing's resource tracker is started first, here: the thread
+                # that starts it has SIGINT unblocked afterwards (resource_tracker.py).
+                from multiprocessing import resource_tracker
+                resource_tracker.ensure_running()
             try:
-                result = dict(future.result(), index=index)   # the frame asked for, by this side
-            except Exception as e:
-                result = {"index": index, "image": None, "render_s": None,
-                          "error": f"on Dask: {error_text(e)}"}
-            future.release()                 # the worker can drop the image now
-            yield result
-    finally:
+                with interrupts.blocked_in_new_threads():   # and in the workers they spawn
+                    if scheduler is None:
+                        cluster = local_cluster(int(workers), jobs[0].get("variant"))
+                    client = Client(cluster if cluster is not None else scheduler,
+                                    timeout=f"{SCHEDULER_TIMEOUT_S}s")
+            except (OSError, ValueError, TimeoutError, RuntimeError) as e:
+                # RuntimeError: Dask's "Nanny failed to start." (a worker that could not)
+                where = f"the scheduler at {scheduler}" if scheduler else "a LocalCluster"
+                raise SweepError(f"cannot start or reach {where}: {e}") from None
+            futures = {client.submit(render_frame, job, pure=False): job["index"]
+                       for job in jobs}
+            completed = as_completed(futures)
+            while True:
+                with interrupts.raised():
+                    future = next(completed, None)
+                if future is None:
+                    break
+                index = futures.pop(future)
+                try:
+                    result = dict(future.result(), index=index)   # the frame asked for, by this side
+                except Exception as e:
+                    result = {"index": index, "image": None, "render_s": None,
+                              "error": f"on Dask: {error_text(e)}"}
+                future.release()                 # the worker can drop the image now
+                interrupts.check()
+                yield result
+                interrupts.check()
+        finally:
+            _stop_dask(client, cluster)          # a second Ctrl-C is held till it is done
+
+
+#: LocalCluster workers log at this level and above (Dask's default, WARNING, prints
+#: "Event loop was unresponsive" while a frame holds the interpreter, and the like):
+#: a frame's failure is in the index, the sweep's in its own error.
+WORKER_LOG_LEVEL = "ERROR"
+
+
+def local_cluster(workers: int, variant: str | None = None):
+    """A Dask ``LocalCluster`` of ``workers`` single-threaded worker processes (Dr.Jit runs
+    its own threads), no dashboard. Each worker preloads this module (Dask's preload):
+    mimarble and Mitsuba start in ``variant`` as the worker starts, not at its first
+    frame, SIGINT is ignored there (:func:`dask_setup`), and a worker asked to close
+    skips Dr.Jit's and Mitsuba's teardown (:func:`dask_teardown`)."""
+    import logging
+    from dask.distributed import LocalCluster
+    from .environment import VARIANT_ENV
+    env = {VARIANT_ENV: variant} if variant else {}
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                        dashboard_address=None, silence_logs=getattr(logging, WORKER_LOG_LEVEL),
+                        preload=[__name__], env=env)
+
+
+def dask_setup(worker=None) -> None:
+    """Run in each :func:`local_cluster` worker as it starts (Dask calls a preloaded
+    module's ``dask_setup``): SIGINT ignored (the sweep's process stops its workers), and
+    mimarble started in the client's variant (``$MIMARBLE_VARIANT``, set by the cluster;
+    importing this module started it already, unless that failed). A worker where
+    mimarble cannot start still starts: its frames say why."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        import mimarble
+        mimarble.start()
+    except Exception:        # render_frame starts it again, and records the error
+        pass
+
+
+def dask_teardown(worker=None) -> None:
+    """Run in each :func:`local_cluster` worker as it is closed: once Python's exit
+    begins, the process ends at once, its output flushed. Dr.Jit's and Mitsuba's own
+    teardown frees nothing a process that ends needs freed, and writes nothing (compiled
+    kernels are cached as they are compiled); it made the cluster's stop 0.3 s instead
+    of 0.04 s (2 cores, AMD EPYC)."""
+    import atexit
+    atexit.register(_exit_now)
+
+
+def _exit_now() -> None:
+    import sys
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+    os._exit(0)
+
+
+def _stop_dask(client, cluster) -> None:
+    """Close the client, then the cluster (its workers stopped, or killed if a frame keeps
+    one past Dask's few seconds): quietly — what Dask logs of its own stop is not the
+    user's."""
+    import logging
+    # Dask's logging configuration gives some of them levels and handlers of their own
+    # (distributed.client, tornado.application): each is silenced, not only the roots.
+    names = {"distributed", "tornado", "asyncio"}
+    names.update(name for name in list(logging.root.manager.loggerDict)
+                 if name.split(".")[0] in ("distributed", "tornado", "asyncio"))
+    loggers = [logging.getLogger(name) for name in sorted(names)]
+    levels = [logger.level for logger in loggers]
+    for logger in loggers:
+        logger.setLevel(logging.CRITICAL + 1)
+    try:
         if client is not None:
             client.close()
         if cluster is not None:
             cluster.close()
+    finally:
+        for logger, level in zip(loggers, levels):
+            logger.setLevel(level)
+
+
+class _Interrupts:
+    """Within, SIGINT (Ctrl-C) is held: raised as KeyboardInterrupt only at
+    :meth:`check`, inside :meth:`raised`, and when the block is left — never inside
+    code that must not be cut short. :meth:`blocked_in_new_threads`: SIGINT is blocked
+    in the threads started within too, and so in the processes they start (a
+    LocalCluster's workers inherit the mask). Only in the main thread (where Python runs
+    signal handlers) and where SIGINT raises KeyboardInterrupt or calls a Python
+    handler; elsewhere it does nothing."""
+
+    def __init__(self):
+        self.previous = None
+        self.held = self.raising = False
+
+    def __enter__(self):
+        import signal
+        import threading
+        if threading.current_thread() is threading.main_thread() and \
+                callable(signal.getsignal(signal.SIGINT)):
+            self.previous = signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame):
+        self.held = True
+        if self.raising:
+            self.check()
+
+    def check(self) -> None:
+        """Raise the interrupt held, if one is (as the previous handler would have)."""
+        if self.held and self.previous is not None:
+            import signal
+            self.held = False
+            self.previous(signal.SIGINT, None)
+
+    @contextlib.contextmanager
+    def raised(self):
+        """Within, SIGINT is raised at once (a wait that can be cut short)."""
+        self.check()
+        self.raising = True
+        try:
+            yield
+        finally:
+            self.raising = False
+
+    @contextlib.contextmanager
+    def blocked_in_new_threads(self):
+        import signal
+        mask = None
+        if self.previous is not None and hasattr(signal, "pthread_sigmask"):
+            mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            yield
+        finally:
+            if mask is not None:
+                signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+    def __exit__(self, kind, value, traceback):
+        import signal
+        if self.previous is None:
+            return False
+        signal.signal(signal.SIGINT, self.previous)
+        if kind is None:
+            self.check()
+        return False
 
 
 # ---------------------------------------------------------------------------
@@ -724,12 +900,34 @@ def _unreadable(error: OSError) -> str:
     return f"cannot be read ({error.strerror or error})"
 
 
-def _write_index(out_dir: Path, index: dict) -> None:
+def _write_index(out_dir: Path, index: dict, rendered=()) -> None:
+    """``sweep.json``, whole, with this run's :func:`summary` so far (``rendered``: the
+    frames this run has rendered)."""
+    index["summary"] = summary(index, rendered)
     try:
         files.write_json(index, out_dir / INDEX)
     except OSError as e:                 # disk full, no permission: the sweep cannot keep count
         raise SweepError(f"{out_dir / INDEX}: cannot write the sweep's index "
                          f"({e.strerror or e})") from None
+
+
+def summary(index: dict, rendered=()) -> dict:
+    """What a run of the sweep did: {"frames", "already_done" (done before it, kept),
+    "rendered_now" (done by it), "failed" (their last try failed), "left" (not tried)}.
+    ``rendered``: the indices of the frames this run rendered."""
+    statuses = [entry["status"] for entry in index["frames"]]
+    now = sum(1 for k in set(rendered) if statuses[k] == "done")
+    return {"frames": len(statuses), "already_done": statuses.count("done") - now,
+            "rendered_now": now, "failed": statuses.count("failed"),
+            "left": statuses.count("todo")}
+
+
+def summary_sentence(index: dict) -> str:
+    """``16 frames: 14 already done, 2 rendered now, 0 failed`` (``, 3 left`` if any)."""
+    s = index.get("summary") or summary(index)
+    return (f"{_count(s['frames'], 'frame')}: {s['already_done']} already done, "
+            f"{s['rendered_now']} rendered now, {s['failed']} failed"
+            + (f", {s['left']} left" if s["left"] else ""))
 
 
 def _size(scene) -> tuple[int, int]:

@@ -5,8 +5,12 @@
 p is the world-space point Mitsuba hands the texture; ``to_world`` places the texture
 in the world (the identity when not given; always in ``mi.traverse``, as bitmap's
 ``to_uv`` is; no transform is traced while it is the identity). The footprint comes
-from the ray differentials the integrator stored in ``si.duv_dx``, ``si.duv_dy``
-(``whitted`` does; without them they are 0, and every filter keeps every octave).
+from the ray differentials the integrator stored in ``si.duv_dx``, ``si.duv_dy`` by
+``compute_uv_partials`` (``whitted`` does; Mitsuba 3.9's own integrators never do, and
+then they are literal zeros, :func:`without_footprint`, and every filter is ``none``).
+Mitsuba's perspective camera starts the differential rays at the near clip plane, not
+at the eye; :func:`differentials_from_the_eye` moves them back, for the integrator to
+apply before ``compute_uv_partials`` (docs/design-decisions.md, "Filtering the pixel").
 """
 
 from __future__ import annotations
@@ -101,6 +105,93 @@ class TextureMapping:
             return gradient
         m = self.to_texture.matrix
         return mi.Vector3f(*(sum(m[i][j] * gradient[i] for i in range(3)) for j in range(3)))
+
+
+class NoFootprintWarning(UserWarning):
+    """A filtered marble was evaluated without ray differentials: its filter did nothing."""
+
+
+class _Omitted:
+    """Set while an integrator traces materials without footprints on purpose (whitted,
+    when none of its scene's materials filters, still traces every live material in its
+    symbolic call, other scenes' filtered marbles too): they are not warned about."""
+    depth = 0
+
+    def __enter__(self):
+        _Omitted.depth += 1
+
+    def __exit__(self, *exc):
+        _Omitted.depth -= 1
+
+
+def footprints_omitted_on_purpose() -> _Omitted:
+    """``with footprints_omitted_on_purpose(): …``: :func:`without_footprint` is False."""
+    return _Omitted()
+
+
+def without_footprint(si) -> bool:
+    """Whether ``si`` carries no pixel footprint at all: every component of ``si.duv_dx``
+    and ``si.duv_dy`` is a literal 0, the value Mitsuba gives every surface interaction
+    (``finalize_surface_interaction``) and only ``compute_uv_partials`` replaces.
+
+    Decided at trace time, from what the variables *are* (a literal's value is held in
+    the variable, read without a kernel, also inside a symbolic call or loop and while
+    ``dr.freeze`` records), never from values in memory: computed partials are not
+    literals, whatever their values. False in the scalar variant (it filters nothing)."""
+    if not dr.is_jit_v(mi.Float) or _Omitted.depth:
+        return False
+    for value in (si.duv_dx.x, si.duv_dx.y, si.duv_dy.x, si.duv_dy.y):
+        if value.state != dr.VarState.Literal or value[0] != 0.0:
+            return False
+    return True
+
+
+#: The Mitsuba camera whose differential rays start at the main ray's near-plane point:
+#: ``perspective.cpp`` moves ``ray.o`` to the near clip plane, then sets
+#: ``ray.o_x = ray.o_y = ray.o``. (``thinlens`` and ``orthographic`` are right: the first
+#: takes the base ``Sensor``'s neighbouring rays, the second offsets o_x, o_y itself.)
+NEAR_PLANE_CAMERA = "PerspectiveCamera"
+
+
+def differentials_from_the_eye(ray, scene):
+    """``ray`` with its differential rays starting at the eye where Mitsuba's
+    perspective camera started them at the main ray's near-plane point o.
+
+    ``compute_uv_partials`` intersects the differential rays o_x + s·d_x with the tangent
+    plane at the hit, and the step they make on it is linear in the distance of their
+    common origin from the plane: from o every footprint comes out (t − near_t)/t of its
+    size (t from the eye, near_t = near_clip/cos θ), exactly, not to first order. This is
+    for an integrator to apply before ``compute_uv_partials`` (a texture sees neither the
+    ray nor the camera: docs/design-decisions.md). Lanes whose o_x and o_y both
+    equal o get the eye of the scene's perspective sensor whose near plane holds o (the
+    one nearest to it, where there are several: ``mi.render(scene, sensor=i)`` does not
+    say which it traces); every other lane keeps its own (an orthographic or thin-lens
+    sensor, rays that start at the eye already, as ``render_in_passes``' do). A ray
+    without differentials, or a scene without a perspective sensor, comes back as it
+    is. A new ray: ``ray`` itself is left alone."""
+    cameras = [s for s in scene.sensors() if s.class_name() == NEAR_PLANE_CAMERA]
+    if not ray.has_differentials or not cameras:
+        return ray
+    eye = off = None
+    for camera in cameras:
+        to_world = camera.world_transform()
+        here = mi.Point3f(to_world.translation())
+        if len(cameras) == 1:
+            eye = here
+        else:   # o, in the frame of the camera that made the ray, is on z = near_clip
+            distance = dr.abs((to_world.inverse() @ ray.o).z - camera.near_clip())
+            if eye is None:
+                eye, off = here, distance
+            else:
+                nearer = distance < off
+                eye, off = dr.select(nearer, here, eye), dr.minimum(distance, off)
+    near_plane = dr.all(ray.o_x == ray.o) & dr.all(ray.o_y == ray.o)
+    fixed = type(ray)(ray)          # a copy of the ray; its differentials are set below
+    fixed.o_x = dr.select(near_plane, eye, ray.o_x)
+    fixed.o_y = dr.select(near_plane, eye, ray.o_y)
+    fixed.d_x, fixed.d_y = ray.d_x, ray.d_y
+    fixed.has_differentials = True
+    return fixed
 
 
 def check_invertible(matrix: np.ndarray) -> None:

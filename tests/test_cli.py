@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+from commands import mimarble_cli  # noqa: E402
 
 import mimarble
 
@@ -18,13 +19,6 @@ sphere { center < 0 0 0 > radius 1 material "m" }
 """
 
 
-def mimarble_cli(*args, cwd=ROOT):
-    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb",
-               PYTHONPATH=os.pathsep.join(filter(None, [ROOT, os.environ.get("PYTHONPATH")])))
-    result = subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=cwd, env=env,
-                            capture_output=True, text=True, timeout=300)
-    sys.stderr.write(result.stderr)   # where the conftest check sees Dr.Jit's bounds reports
-    return result
 
 
 @pytest.fixture
@@ -91,6 +85,24 @@ def test_missing_scene_file_is_a_clear_error(tmp_path):
     result = mimarble_cli("render", tmp_path / "nowhere.scene")
     assert result.returncode == 2 and "nowhere.scene" in result.stderr
     assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("command", [
+    ["render", "./nosuch.scene", "-o", "x.png"],
+    ["render", "nosuch.scene", "-o", "x.png"],           # a bare name: a packaged scene's?
+    ["reference", "./nosuch.scene", "-o", "x.png"],
+    ["compare", "./nosuch.scene", "--diff", "d.png"],
+    ["bench", "./nosuch.scene", "--no-targets"],
+    ["sweep", "./nosuch.scene", "--set", "marble.period=1,2", "-o", "sw"],
+    ["gallery", "./nosuch.scene"],
+    ["doctor", "--warm", "./nosuch.scene"],
+], ids=lambda command: "-".join(command[:2]))
+def test_every_command_prefixes_a_missing_scene_file_error(tmp_path, command):
+    result = mimarble_cli(*command, cwd=tmp_path)
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 2 and len(lines) == 1, result.stderr
+    assert lines[0].startswith(f"mimarble: {command[-1] if command[0] == 'doctor' else command[1]}: ")
+    assert list(tmp_path.rglob("*")) == []          # no file, no folder made
 
 
 def test_path_mode_renders(tmp_path, small_scene):

@@ -10,7 +10,7 @@ import pytest
 
 import mimarble
 from mimarble import reference
-from mimarble.compare import image_metrics
+from mimarble.compare import LEGEND_HEIGHT, image_metrics
 from mimarble.scene_edits import resized
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -29,7 +29,7 @@ def test_whitted_matches_reference_on_paper_scene(llvm, path):
     assert metrics["frac_over_1_255"] <= MAX_FRACTION_OFF, metrics
 
 
-def test_compare_command_prints_json_on_its_last_line(tmp_path):
+def test_compare_command_prints_json_last_and_writes_the_map_with_its_legend(tmp_path):
     scene = os.path.join(ROOT, "scenes", "fig10a.scene")
     diff = tmp_path / "diff.png"
     env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb",
@@ -42,4 +42,6 @@ def test_compare_command_prints_json_on_its_last_line(tmp_path):
     metrics = json.loads(result.stdout.strip().splitlines()[-1])
     assert {"rmse", "psnr", "max_abs", "frac_over_1_255"} <= metrics.keys()
     assert metrics["psnr"] >= MIN_PSNR_DB
-    assert mimarble.mi.Bitmap(str(diff)).width() == 500
+    picture = mimarble.mi.Bitmap(str(diff))
+    assert (picture.width(), picture.height()) == (500, 500 + LEGEND_HEIGHT)   # legend under it
+    assert "black <= 1e-6" in result.stdout and "legend" in result.stdout

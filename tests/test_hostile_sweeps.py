@@ -6,14 +6,13 @@ import json
 import os
 import random
 import socket
-import subprocess
-import sys
 import threading
 import tracemalloc
 from pathlib import Path
 
 import numpy as np
 import pytest
+from commands import mimarble_cli as cli  # noqa: E402
 
 from mimarble import scene as S
 from mimarble import contact_sheet, sweeps
@@ -28,13 +27,6 @@ def tiny():
     return resized(S.load(ROOT / "scenes" / "fig11a.scene"), 8)
 
 
-def cli(*args, cwd=ROOT):
-    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb",
-               PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
-    result = subprocess.run([sys.executable, "-m", "mimarble", *map(str, args)], cwd=cwd,
-                            env=env, capture_output=True, text=True, timeout=300)
-    sys.stderr.write(result.stderr)   # where the conftest check sees Dr.Jit's bounds reports
-    return result
 
 
 def one_sentence(result):

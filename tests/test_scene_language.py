@@ -181,6 +181,41 @@ def test_missing_closing_brace_at_eof_names_the_opening():
     assert "missing closing '}' for 'diffuse' block opened at 2:3" in e.message
 
 
+def test_statement_inside_an_unclosed_block_names_where_it_opened():
+    e = assert_error_at('material "m" {\n  diffuse { color < 1 0 0 > }\nsphere { material "m" }\n',
+                        3, 1, "keyword 'sphere' is not allowed in material \"m\"")
+    assert e.message.endswith("(is the '}' of material \"m\", opened at 1:1, missing?)")
+
+
+def test_key_of_the_enclosing_block_names_the_unclosed_channel_block():
+    e = assert_error_at('material "m" { diffuse { add { color < 1 0 0 > color < 0 1 0 >\n'
+                        'specular { color < 1 1 1 > } }\n', 2, 1, "unexpected keyword 'specular'")
+    assert "(is the '}' of the 'add' block, opened at 1:26, missing?)" in e.message
+    e = assert_error_at('material "m" {\n  diffuse { marble { }\n  specular { color < 1 1 1 > }\n}',
+                        3, 3, "expected '}' to close 'diffuse' block opened at 2:3")
+    assert "exactly one channel" not in e.message
+
+
+def test_keyword_that_no_enclosing_block_takes_gets_no_unclosed_note():
+    e = error("light { position <1 1 1> radius 2 }")
+    assert "missing?" not in e.message
+
+
+@pytest.mark.parametrize("text, column, hint", [
+    ('material "m" { diffuse { color (1, 0, 0) } }', 32, "color < 1 0 0 > or color #ff0000"),
+    ("image { background [0 0 0] }", 20, "background < 1 0 0 > or background #ff0000"),
+    ("camera { eye (0 0 5) }", 14, "a vector as < x y z >, e.g. eye < 0 0 1 >"),
+])
+def test_brackets_say_how_colours_and_vectors_are_written(text, column, hint):
+    e = assert_error_at(text, 1, column, hint)
+    assert "the language has no" in e.message
+
+
+def test_word_where_a_colour_goes_says_how_to_write_one():
+    assert_error_at('material "m" { diffuse { color rgb(1, 0, 0) } }', 1, 32,
+                    "expected a colour '< r g b >' or '#rrggbb' after 'color', found 'rgb'")
+
+
 def test_unexpected_closing_brace_after_a_block():
     assert_error_at("image { width 10 }\n  }\n", 2, 3, "unexpected '}': no block is open here")
 

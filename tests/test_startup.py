@@ -133,6 +133,32 @@ print("prb back")
     assert result.stdout.split("\n")[:2] == ["prb absent", "prb back"]
 
 
+@pytest.mark.parametrize("argv, prb", [(["bench"], True), (["bench", "--no-targets"], False),
+                                       (["render", "x.scene"], False)])
+def test_only_the_benchmarks_targets_build_mitsubas_ad_integrators(argv, prb):
+    """The targets time an Adam step of notebook 02 through ``prb``: the bench command's
+    process has it, other commands' processes skip it (fresh processes)."""
+    code = f"""
+import sys
+sys.path.insert(0, {ROOT!r})
+sys.orig_argv = [sys.executable, "-m", "mimarble"]    # as in the command's process
+from mimarble import cli
+args = cli.build_parser().parse_args({argv!r})
+args.variant = "llvm_ad_rgb"
+cli._start(args)
+import mitsuba as mi
+try:
+    mi.load_dict({{"type": "prb"}})
+    print("prb present")
+except Exception:
+    print("prb absent")
+"""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == ("prb present" if prb else "prb absent")
+
+
 def test_skipping_is_refused_once_a_variant_is_set():
     assert mimarble.mi.variant() is not None
     assert environment.skip_mitsuba_ad_integrators() is False

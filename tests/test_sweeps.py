@@ -96,6 +96,60 @@ def test_an_interrupted_sweep_resumes_with_only_what_is_missing(llvm, tmp_path):
     assert (tmp_path / "contact.png").exists()
 
 
+def test_a_resumed_command_says_what_was_already_done_and_what_it_rendered(tmp_path):
+    env = dict(os.environ, MIMARBLE_VARIANT="llvm_ad_rgb")
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "mimarble", "sweep", "scenes/fig11a.scene", "--set",
+            "marble.period=1,2", "--set", "marble.distortion=1,3", "--width", "8",
+            "--height", "8", "--spp", "1", "-o", str(out)]
+
+    def run():
+        result = subprocess.run(args, cwd=ROOT, env=env, capture_output=True, text=True,
+                                timeout=300)
+        sys.stderr.write(result.stderr)   # where the conftest check sees Dr.Jit's reports
+        assert result.returncode == 0, result.stderr
+        return result.stdout, json.loads((out / "sweep.json").read_text())["summary"]
+
+    stdout, summary = run()
+    assert "4 frames: 0 already done, 4 rendered now, 0 failed (" in stdout
+    index = json.loads((out / "sweep.json").read_text())
+    for frame in index["frames"][1:3]:           # two images gone: the resume sees them missing
+        (out / frame["file"]).unlink()
+    stdout, summary = run()
+    assert "4 frames: 2 already done, 2 rendered now, 0 failed (" in stdout
+    assert summary == {"frames": 4, "already_done": 2, "rendered_now": 2, "failed": 0, "left": 0}
+    stdout, summary = run()
+    assert "4 frames: 4 already done, 0 rendered now, 0 failed (" in stdout
+
+
+def test_the_summary_counts_failed_frames_and_their_retry(llvm, tmp_path, monkeypatch):
+    original = sweeps.render_frame
+    monkeypatch.setattr(sweeps, "render_frame", lambda job: dict(original(job), error="boom")
+                        if job["index"] == 1 else original(job))
+    setting = {"marble.period": [1.0, 2.0, 3.0]}
+    first = sweeps.sweep(small(8), setting, tmp_path, spp=1, stop_after=2)
+    assert first["summary"] == {"frames": 3, "already_done": 0, "rendered_now": 1,
+                                "failed": 1, "left": 1}
+    assert sweeps.summary_sentence(first) == \
+        "3 frames: 0 already done, 1 rendered now, 1 failed, 1 left"
+    monkeypatch.setattr(sweeps, "render_frame", original)
+    second = sweeps.sweep(small(8), setting, tmp_path, spp=1)
+    assert second["summary"] == {"frames": 3, "already_done": 1, "rendered_now": 2,
+                                 "failed": 0, "left": 0}
+    assert json.loads((tmp_path / "sweep.json").read_text())["summary"] == second["summary"]
+
+
+def test_a_resumed_sweep_with_nothing_left_starts_no_cluster(llvm, tmp_path, monkeypatch):
+    setting = {"marble.period": [1.0, 2.0]}
+    sweeps.sweep(small(8), setting, tmp_path, spp=1)
+
+    def no_cluster(*args, **kwargs):
+        raise AssertionError("a LocalCluster was started for no frame")
+    monkeypatch.setattr(sweeps, "local_cluster", no_cluster)
+    index = sweeps.sweep(small(8), setting, tmp_path, spp=1, workers=2)
+    assert index["summary"]["already_done"] == 2
+
+
 def test_a_failing_frame_is_recorded_and_the_sweep_goes_on(llvm, tmp_path, monkeypatch):
     # The sweep refuses octaves 70 up front (the parameter table's range), so the second
     # frame's scene gets it behind the check, unchecked: the plugin refuses it then.

@@ -20,6 +20,7 @@ from .. import scene as scene_language
 from ..progress import report
 from ..scene.model import samples_per_axis
 from ..scene.rules import seed_problem, spp_problem
+from ..scene_edits import with_image_size
 from .passes import Target, trace_in_passes
 from .silhouettes import edge_sample_passes
 from .loaded_scenes import LOADED
@@ -29,7 +30,8 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
            progress=False, tolerance: float | None = None, filter: str | None = None,
-           edge_spp: int | None = None, seed: int = 0) -> np.ndarray:
+           edge_spp: int | None = None, seed: int = 0, width: int | None = None,
+           height: int | None = None) -> np.ndarray:
     """Render a scene (model, path of a scene file, or a loaded ``mi.Scene``) → linear
     float32 (H, W, 3).
 
@@ -40,7 +42,11 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     ``whitted`` integrator in a JIT variant through the pass renderer below (the same
     image, in bounded memory, one kernel for every spp); ``tolerance`` and ``filter``,
     which the translator applies, are refused for it in one sentence. ``seed``: the
-    sampler seed of path mode, 0..2³²−1 (whitted mode is deterministic).
+    sampler seed of path mode, 0..2³²−1 (whitted mode is deterministic). ``width``,
+    ``height``: the image's size in pixels, 1..16384 each, in place of the scene's (as the
+    command line's ``--width``/``--height``: the fov is the full vertical angle, so a new
+    height shows the same view at another resolution and a new width crops or extends it
+    sideways); a loaded ``mi.Scene`` renders at its film's size, so they are refused for it.
 
     A scene model or file is loaded once and kept by its structure
     (mimarble/mitsuba/loaded_scenes.py): another render of it, or of a scene that
@@ -62,6 +68,9 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     """
     environment.require_rgb_variant()
     if isinstance(scene_or_path, mi.Scene):
+        if width is not None or height is not None:
+            raise ValueError("render: width and height apply to a scene model or file; a "
+                             "loaded mi.Scene renders at its film's size")
         return _render_loaded(scene_or_path, spp, mode, progress, tolerance, filter,
                               edge_spp, seed)
     mode = "whitted" if mode is None else mode
@@ -75,6 +84,7 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     elif not isinstance(scene_or_path, scene_language.Scene):
         raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
+    scene = _sized(scene, width, height)
     try:
         mitsuba_scene = LOADED.scene_of(scene, mode=mode, spp=spp, tolerance=tolerance,
                                         filter=filter)
@@ -95,6 +105,15 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed)
 
 
+def _sized(scene, width, height):
+    """The scene at ``width`` × ``height`` (None: its own), checked by the scene model's
+    own rules (1..16384 each, within the sample limit), as ``--width``/``--height`` are."""
+    try:
+        return with_image_size(scene, width=width, height=height)
+    except (TypeError, ValueError) as e:
+        raise type(e)(f"render: {e}") from None
+
+
 def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_spp, seed):
     """:func:`render` of a loaded ``mi.Scene``."""
     from .whitted import Whitted
@@ -108,6 +127,8 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
     if not mitsuba_scene.sensors():
         raise ValueError("render: the mi.Scene has no sensor to render from")
     whitted = isinstance(mitsuba_scene.integrator(), Whitted)
+    if whitted:
+        Whitted.check_scene(mitsuba_scene)   # the wrong BSDF or light said before any trace
     if mode is not None and mode != ("whitted" if whitted else "path"):
         raise ValueError(f"render: mode={mode!r:.40} does not fit the scene's integrator "
                          f"({type(mitsuba_scene.integrator()).__name__}); leave mode out")

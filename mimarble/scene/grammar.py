@@ -28,7 +28,7 @@ VALUE_SYNTAX: dict[str, str] = {
     marble_parameters.INTEGER: "NUMBER",
     marble_parameters.CHOICE: "WORD",
     marble_parameters.BOOLEAN: "WORD",
-    marble_parameters.COLOURS: '"{" vector* "}"',
+    marble_parameters.COLOURS: '"{" _colour* "}"',     # < r g b > or #rrggbb each
 }
 
 

@@ -35,12 +35,13 @@ import functools
 import hashlib
 import math
 import os
+import re
 
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
 from ..marble_parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter,
-                                 ParameterError)
+                                 ParameterError, hex_colour, hex_colour_problem)
 from . import rules
 from .errors import SceneError
 from .grammar import grammar_text
@@ -74,6 +75,9 @@ __all__ = ["parse", "load", "LIMITS"]
 #: The refusal of a scene larger than the limit.
 _TOO_LARGE = (f"the scene is larger than 4 MiB ({MAX_SCENE_BYTES} bytes), the most a scene "
               f"file holds (docs/scene-language.md, Limits)")
+
+#: How the language writes a linear colour, in the sentences about ``#rrggbb``.
+_LINEAR_COLOUR = "< r g b >"
 
 # Rule names whose keyword differs from the rule name.
 _RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image"}
@@ -141,7 +145,8 @@ def _tree(text: str, filename: str) -> Tree:
     """Lark's tree of ``text``, fed token by token, refusing at its keyword, before the
     rest is parsed, a statement past its count limit and a channel nested past the depth
     limit (its depth: the expression blocks open around it, plus one; the builder checks
-    the same on its way down). Lark's errors become SceneErrors."""
+    the same on its way down), and a colour ``#…`` that is not ``#rrggbb``. Lark's errors
+    become SceneErrors."""
     counted, expressions, channels = _watched_terminals()
     counts = dict.fromkeys(counted.values(), 0)
     braces: list[bool] = []          # each open '{': whether an expression opened it
@@ -162,6 +167,10 @@ def _tree(text: str, filename: str) -> Tree:
                 open_expressions += braces[-1]
             elif kind == "RBRACE" and braces:
                 open_expressions -= braces.pop()
+            elif kind == "HEX_COLOUR":
+                problem = hex_colour_problem(last, linear=_LINEAR_COLOUR)
+                if problem and not re.match(r"#[0-9A-Fa-f]", last):     # '# note', '#include'
+                    problem += "; comments are // … or /* … */"
             if problem:
                 raise SceneError.at(text, filename, last.line, last.column, problem)
             previous = last
@@ -322,7 +331,12 @@ class _Builder:
     def point(self, tree: Tree, what: str) -> tuple[float, float, float]:
         return self.vector(tree, what)[0]
 
-    def color(self, tree: Tree, what: str) -> tuple[float, float, float]:
+    def color(self, tree: Tree | Token, what: str) -> tuple[float, float, float]:
+        """A colour: ``< r g b >`` (linear, each ≥ 0) or a ``#rrggbb`` token (sRGB-encoded,
+        decoded as the marble plugin decodes its ramp's: ``hex_colour``; its form was
+        checked as the tokens were read)."""
+        if isinstance(tree, Token):
+            return hex_colour(str(tree))
         value, toks = self.vector(tree, f"{what} (a colour < r g b >)")
         for v, t in zip(value, toks):
             self.refuse(t, rules.colour_problem(v, what))
@@ -559,7 +573,7 @@ class _Builder:
             (tok,) = key.children
             is_word = p.kind in (CHOICE, BOOLEAN)
             return (str(tok) if is_word else self.number(tok)), tok
-        vecs = [c for c in key.children if isinstance(c, Tree)]
+        vecs = [c for c in key.children if isinstance(c, Tree) or c.type == "HEX_COLOUR"]
         most = p.bounds[1]
         where = vecs[most] if len(vecs) > most else key
         return tuple(self.color(v, f"{p.name} colour") for v in vecs), where

@@ -14,7 +14,7 @@ import re
 from lark import Token
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED
+from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
 from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, STATEMENTS
 from .rules import shortened
@@ -31,6 +31,7 @@ _PUNCT = {
     "NUMBER": "a number",
     "STRING": 'a quoted name ("...")',
     "WORD": "a name",
+    "HEX_COLOUR": "a colour '#rrggbb'",
     "$END": "end of file",
 }
 
@@ -67,6 +68,8 @@ def _describe(tok: Token, keywords: dict[str, str]) -> str:
         return f"number {shortened(tok)}"
     if tok.type == "STRING":
         return f"string {shortened(tok)}"
+    if tok.type == "HEX_COLOUR":
+        return f"colour '{shortened(tok)}'"
     if tok.type in keywords:
         return f"keyword '{tok}'"
     return f"'{shortened(tok)}'"
@@ -106,6 +109,51 @@ def _open_blocks(state) -> list[tuple[Token, str]]:
             elif isinstance(opener, Token):
                 blocks.append((opener, f"'{opener}' block"))
     return blocks
+
+
+def _block_rule(blocks, k: int) -> str:
+    """The rule name (a key of BLOCK_KEYS) of the k-th open block: its keyword, but
+    ``image`` inside a channel block is an image map."""
+    word = str(blocks[k][0])
+    if word == "image" and k > 0 and str(blocks[k - 1][0]) in CHANNEL_BLOCKS:
+        return "image_map"
+    return word
+
+
+def _unclosed_note(tok: Token, blocks) -> str:
+    """When ``tok``, refused in the innermost open block, is a keyword that a block around
+    it (or the top level) takes, the likely mistake is that block's missing '}': a
+    note naming it and where it opened (else nothing)."""
+    word = str(tok)
+    outer = [STATEMENTS] + [BLOCK_KEYS.get(_block_rule(blocks, k), ()) for k in range(len(blocks) - 1)]
+    if not any(word in keys for keys in outer):
+        return ""
+    opener, name = blocks[-1]
+    the = "the " if name.endswith("block") else ""
+    return f" (is the '}}' of {the}{name}, opened at {opener.line}:{opener.column}, missing?)"
+
+
+#: What is said at a bracket that is no part of the language, where a vector goes.
+_BRACKETS = {"(": ")", "[": "]"}
+#: Keywords followed by a colour, and by a point or direction.
+_COLOUR_KEYS = ("color", "background", "ambient")
+_VECTOR_KEYS = ("eye", "lookat", "up", "position", "center")
+
+
+def _bracket_sentence(text: str, pos: int, ch: str) -> str:
+    """The sentence for ``(`` or ``[``: how a colour or a vector is written, chosen by the
+    word before it."""
+    before = re.search(r"([A-Za-z_]\w*)\s*$", text[max(0, pos - 200):pos])
+    word = before.group(1) if before else ""
+    colour = "a colour as < r g b > (linear) or #rrggbb (sRGB)"
+    vector = "a vector as < x y z >"
+    if word in _COLOUR_KEYS:
+        how = f"write {colour}, e.g. {word} < 1 0 0 > or {word} #ff0000"
+    elif word in _VECTOR_KEYS:
+        how = f"write {vector}, e.g. {word} < 0 0 1 >"
+    else:
+        how = f"write a number bare (2), {vector} and {colour}"
+    return f"unexpected '{ch}': {how}; the language has no '{ch} {_BRACKETS[ch]}'"
 
 
 def _eof_position(text: str) -> tuple[int, int]:
@@ -149,6 +197,8 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
             m = re.match(r"[\w.+-]+", text[start:])
             word = m.group(0) if m else rest[:1]
             col = e.column - (pos - start)
+            if start > 0 and text[start - 1] == "#":        # #ff0000.5: a colour, glued
+                return at(e.line, col - 1, hex_colour_problem("#" + word, linear="< r g b >"))
             return at(
                 e.line,
                 col,
@@ -156,6 +206,8 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
                 "separated by spaces or commas (there is no arithmetic)",
             )
         ch = rest[:1]
+        if ch in _BRACKETS:
+            return at(e.line, e.column, _bracket_sentence(text, pos, ch))
         shown = repr(ch) if ch.isprintable() else f"U+{ord(ch):04X}"
         return at(e.line, e.column, f"unexpected character {shown}")
 
@@ -214,18 +266,20 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
                 return at(line, col, "'weight' belongs in a mix block: mix { A B weight W }")
             if tok.type == "WORD":
                 return at(line, col, f"unknown channel '{shortened(tok)}' in {name}; expected {what}")
-            return at(line, col, f"unexpected {found} in {name}; expected {what}")
+            return at(line, col, f"unexpected {found} in {name}; expected "
+                                 f"{what}{_unclosed_note(tok, blocks)}")
         if tok.type == "WORD":
             return at(line, col, f"unknown keyword '{shortened(tok)}' in {name}{_renamed_note(str(tok))}; "
                                  f"allowed: {allowed}")
         if tok.type in keywords:
-            return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: {allowed}")
+            return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: "
+                                 f"{allowed}{_unclosed_note(tok, blocks)}")
         return at(line, col, f"unexpected {found} in {name}; expected a keyword ({allowed}) or '}}'")
 
     if expected == {"RBRACE"} and blocks:
         opener, name = blocks[-1]
         msg = f"expected '}}' to close {name} opened at {opener.line}:{opener.column}, found {found}"
-        if opener in ("ambient", "diffuse", "specular"):
+        if opener in ("ambient", "diffuse", "specular") and not _unclosed_note(tok, blocks):
             msg += " (a component takes exactly one channel)"
         return at(line, col, msg)
 
@@ -235,9 +289,13 @@ def syntax_error(e: UnexpectedInput, text: str, filename: str,
     if {"NUMBER", "MORETHAN"} <= expected:
         return at(line, col, f"expected a number or '>' in vector, found {found}")
     if expected == {"LESSTHAN"}:
-        return at(line, col, f"expected a vector '< x y z >'{after}, found {found}")
-    if expected == {"LESSTHAN", "RBRACE"}:
-        return at(line, col, f"expected a colour '< r g b >' or '}}' in ramp, found {found}")
+        only = " (#rrggbb writes colours, not points)" if tok.type == "HEX_COLOUR" else ""
+        return at(line, col, f"expected a vector '< x y z >'{after}, found {found}{only}")
+    if expected == {"LESSTHAN", "HEX_COLOUR"}:
+        return at(line, col, f"expected a colour '< r g b >' or '#rrggbb'{after}, found {found}")
+    if expected == {"LESSTHAN", "HEX_COLOUR", "RBRACE"}:
+        return at(line, col, f"expected a colour '< r g b >' or '#rrggbb', or '}}', in ramp, "
+                             f"found {found}")
     if expected == {"STRING"}:
         return at(line, col, f'expected a quoted material name like "marble"{after}, found {found}')
     if expected == {"LBRACE"}:
