@@ -163,28 +163,27 @@ def section(results: dict, plot: str | None = None) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _sections(text: str) -> dict[str, str]:
-    """The machine sections of a page, by slug, in their order."""
-    found = re.finditer(r"<!-- machine (\S+) -->\n.*?<!-- /machine \1 -->\n", text, re.S)
-    return {m.group(1): m.group(0) for m in found}
-
-
 def write_section(page, results: dict, plot: str | None = None) -> str:
-    """Put the results' machine section into ``page`` (replacing that machine's, keeping
-    the others in their order, a new machine last), written atomically. A page without
-    the section markers gets them at its end. Returns the machine's slug."""
+    """Put the results' machine section into ``page``: in place of that machine's earlier
+    section, else last among the sections; everything else on the page, other machines'
+    sections and any text between them, is kept as it is. A page without the section
+    markers gets them at its end. Written atomically. Returns the machine's slug."""
     page = Path(page)
     text = page.read_text() if page.exists() else "# Benchmarks\n"
     if SECTIONS_START not in text:
         text = text.rstrip("\n") + f"\n\n{SECTIONS_START}\n{SECTIONS_END}\n"
+    slug = machine_slug(results["machine"])
+    new = section(results, plot)
     head, rest = text.split(SECTIONS_START, 1)
     body, tail = rest.split(SECTIONS_END, 1)
-    sections = _sections(body)
-    slug = machine_slug(results["machine"])
-    sections[slug] = section(results, plot)
-    new = head + SECTIONS_START + "\n\n" + "\n".join(sections.values()) + "\n" + SECTIONS_END + tail
-
-    write_atomically(page, lambda tmp: Path(tmp).write_text(new))
+    earlier = re.search(rf"<!-- machine {re.escape(slug)} -->\n.*?<!-- /machine "
+                        rf"{re.escape(slug)} -->\n", body, re.S)
+    if earlier:
+        body = body[:earlier.start()] + new + body[earlier.end():]
+    else:
+        body = body.rstrip("\n") + "\n\n" + new + "\n"
+    text = head + SECTIONS_START + body + SECTIONS_END + tail
+    write_atomically(page, lambda tmp: Path(tmp).write_text(text))
     return slug
 
 

@@ -16,6 +16,8 @@ import sys
 import time
 from pathlib import Path
 
+from .crop import CONVENTION
+from .image_formats import JPEG_QUALITIES, JPEG_QUALITY
 from .marble_parameters import FILTERS, SWEEPABLE
 
 
@@ -111,10 +113,38 @@ def _check_folder(path) -> Path:
 
 
 def _check_suffix(path: Path, suffixes, what: str) -> Path:
+    from .image_formats import formats_sentence
     if path.suffix.lower() not in suffixes:
         raise UsageError(f"{path}: unsupported {what} format {path.suffix or '(none)'!r}; "
-                         f"use {' or '.join(suffixes)}")
+                         f"use {formats_sentence(suffixes)}")
     return path
+
+
+def _quality(args, out: Path) -> int | None:
+    """``--quality``: an integer in 1..100, for a .jpg or .jpeg output only."""
+    from .image_formats import JPEG_FORMATS, formats_sentence, quality_problem
+    quality = getattr(args, "quality", None)
+    if quality is None:
+        return None
+    problem = quality_problem(quality)
+    if problem:
+        raise UsageError(f"--quality {quality}: {problem.removeprefix('quality ')}")
+    if out.suffix.lower() not in JPEG_FORMATS:
+        raise UsageError(f"--quality {quality}: applies to {formats_sentence(JPEG_FORMATS)} "
+                         f"output, not {out.suffix.lower() or 'a name without a suffix'} ({out})")
+    return quality
+
+
+def _crop(args, scene):
+    """``--crop X0 Y0 X1 Y1``, checked against the image's size (after --width/--height)."""
+    from .crop import crop_problem, crop_words
+    crop = getattr(args, "crop", None)
+    if crop is None:
+        return None
+    problem = crop_problem(crop, scene.image.width, scene.image.height)
+    if problem:
+        raise UsageError(f"--crop {crop_words(crop)}: {problem}")
+    return tuple(crop)
 
 
 def _output_path(args, default_suffix=".png") -> Path:
@@ -188,11 +218,15 @@ def _spp(args, scene) -> int:
     return spp
 
 
-def _write(out: Path, image, eight_bit: bool = False) -> None:
+def _write(out: Path, image, eight_bit: bool = False, quality: int | None = None,
+           origin=(0, 0)) -> None:
     from .mitsuba.image_output import write_image, write_rgb8
     _check_folder(out)
     try:
-        (write_rgb8 if eight_bit else write_image)(out, image)
+        if eight_bit:
+            write_rgb8(out, image)
+        else:
+            write_image(out, image, quality=quality, origin=origin)
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{out}: could not write the image: {e}") from None
 
@@ -203,24 +237,31 @@ def _render_to_file(args, renderer, description) -> int:
     ``description()`` names the renderer once it has started.
     """
     out = _output_path(args)
+    quality = _quality(args, out)
     scene = _load_scene(args)
     spp = _spp(args, scene)
+    crop = _crop(args, scene)
     _start(args)
     start = time.perf_counter()
     image = renderer(scene, spp)
     seconds = time.perf_counter() - start
-    _write(out, image)
-    print(f"{out}: {scene.image.width}x{scene.image.height}, {spp} spp, {description()}, "
-          f"{seconds:.2f} s")
+    # A window's PNG is dithered where its pixels lie in the whole image: the full PNG's.
+    _write(out, image, quality=quality, origin=(0, 0) if crop is None else crop[:2])
+    size = f"{scene.image.width}x{scene.image.height}"
+    if crop is not None:
+        from .crop import crop_words
+        size = f"{image.shape[1]}x{image.shape[0]} (--crop {crop_words(crop)} of {size})"
+    print(f"{out}: {size}, {spp} spp, {description()}, {seconds:.2f} s")
     return 0
 
 
 def _render(args) -> int:
     import mimarble
-    _check_edge_spp(args)
+    _check_whitted_options(args)
     return _render_to_file(args, lambda scene, spp: mimarble.render(
         scene, spp=spp, mode=args.mode, progress=True, tolerance=args.tolerance,
-        filter=args.filter, edge_spp=args.edge_spp),
+        filter=args.filter, edge_spp=args.edge_spp,
+        crop=None if args.crop is None else tuple(args.crop)),
         lambda: f"{args.mode} mode, {mimarble.mi.variant()}")
 
 
@@ -446,6 +487,10 @@ def _sweep(args) -> int:
     return 1 if failed else 0
 
 
+#: How a SCENE argument may also be given (mimarble/packaged_scenes.py's rule).
+PACKAGED_NAME = "or a packaged scene's name when no such file exists (`mimarble scenes`)"
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="mimarble",
@@ -479,11 +524,25 @@ def build_parser() -> argparse.ArgumentParser:
     def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
 
+    def add_quality(p):
+        p.add_argument("--quality", type=int, metavar="Q",
+                       help=f"JPEG quality, {JPEG_QUALITIES[0]}..{JPEG_QUALITIES[1]}, for a "
+                            f".jpg or .jpeg output (default {JPEG_QUALITY}; full-resolution "
+                            f"colour, 4:4:4)")
+
     p = sub.add_parser("render", help="render a scene file through Mitsuba")
-    p.add_argument("scene", help="scene file (see docs/scene-language.md), or a packaged "
-                                 "scene's name when no such file exists (`mimarble scenes`)")
-    p.add_argument("-o", "--output", help="OUT.png (8-bit sRGB) or OUT.exr (linear float); "
-                                          "default: the scene's name with .png, here")
+    p.add_argument("scene", help=f"scene file (see docs/scene-language.md), {PACKAGED_NAME}")
+    p.add_argument("-o", "--output", help="OUT.png (8-bit sRGB), OUT.jpg or OUT.jpeg (the "
+                                          "same 8-bit sRGB, compressed: --quality) or OUT.exr "
+                                          "(linear float); default: the scene's name with "
+                                          ".png, here")
+    p.add_argument("--crop", type=int, nargs=4, metavar=("X0", "Y0", "X1", "Y1"),
+                   help="render only a window of the image (POV-Ray's +SC/+EC/+SR/+ER): "
+                        f"{CONVENTION} — the full image's [Y0:Y1, X0:X1], so POV-Ray's "
+                        "+SCa +ECb +SRc +ERd is --crop a-1 c-1 b d; after --width/--height. "
+                        "Whitted mode gives the full render's pixels there, bit for bit (edge "
+                        "samples too); path mode draws the window's own samples, so its noise "
+                        "differs from the full render's (the same expected image)")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
                    help="whitted: the paper's shading (default); path: physically based — "
@@ -491,21 +550,24 @@ def build_parser() -> argparse.ArgumentParser:
                         "Phong highlight), black background, noisy at few samples (use --spp 256); "
                         "see docs/rendering-model.md")
     add_size(p)
+    add_quality(p)
     add_tolerance(p)
     add_filter(p, "default: the marbles' own")
     add_variant(p)
     p.set_defaults(run=_render)
 
     p = sub.add_parser("reference", help="render a scene with the float64 reference tracer")
-    p.add_argument("scene", help="scene file")
-    p.add_argument("-o", "--output", help="OUT.png or OUT.exr (default: the scene's name with .png)")
+    p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
+    p.add_argument("-o", "--output", help="OUT.png, OUT.jpg, OUT.jpeg or OUT.exr (default: the "
+                                          "scene's name with .png)")
     p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
     add_size(p)
+    add_quality(p)
     add_variant(p)
     p.set_defaults(run=_reference, mode="whitted")
 
     p = sub.add_parser("compare", help="Mitsuba (whitted) against the reference tracer")
-    p.add_argument("scene", help="scene file")
+    p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
     p.add_argument("--spp", type=int, help="samples per pixel, a perfect square (default: the scene's)")
     p.add_argument("--json", action="store_true", help="print the metrics as JSON on the last line")
     p.add_argument("--diff", metavar="OUT.png",
@@ -520,7 +582,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(run=_compare, mode="whitted")
 
     p = sub.add_parser("bench", help="run time against error against the converged reference")
-    p.add_argument("scenes", nargs="*", help="scene files (default: scenes/*.scene)")
+    p.add_argument("scenes", nargs="*", help="scene files or packaged scenes' names (default: "
+                                             "./scenes/*.scene, else the packaged paper figures)")
     p.add_argument("--json", metavar="OUT", help="write all measurements as JSON")
     p.add_argument("--plot", metavar="OUT.png", help="write the error-against-time plot")
     p.add_argument("--page", metavar="PAGE.md",
@@ -547,7 +610,7 @@ def build_parser() -> argparse.ArgumentParser:
                               "missing and says so (\"16 frames: 14 already done, 2 rendered "
                               "now, 0 failed\"). Ctrl-C stops the sweep, its workers too: "
                               "\"mimarble: interrupted\", exit status 130.")
-    p.add_argument("scene", help="scene file")
+    p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
     p.add_argument("--set", action="append", metavar="KEY=VALUES",
                    help="a parameter and its values: v1,v2,… or start:stop:count; KEY is "
                         "marble.K, MATERIAL.K or MATERIAL.CHANNEL.K "
@@ -560,11 +623,10 @@ def build_parser() -> argparse.ArgumentParser:
     group = p.add_mutually_exclusive_group()
     group.add_argument("--workers", type=int,
                        help="render on a Dask LocalCluster of N processes (a few per core at "
-                            "most). It costs about 1.3 s to start and one process already "
-                            "uses every core: on 2 cores (AMD EPYC) it was slower at every "
-                            "size and frame count measured (32²–512², 4–256 frames; a 4×4 "
-                            "sweep at 128²: 2.0 s against 0.65 s; docs/benchmarks.md), so "
-                            "leave it out there")
+                            "most). Its start-up costs seconds and one process already uses "
+                            "every core: on 2 cores it was slower at every size and frame "
+                            "count measured (docs/benchmarks.md, \"Sweeps\"), so leave it "
+                            "out there")
     group.add_argument("--scheduler", metavar="ADDRESS",
                        help="render on a running Dask scheduler, e.g. tcp://host:8786")
     p.add_argument("--compare", action="store_true",
@@ -586,7 +648,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="gallery",
                    help="folder, made if missing (default: ./gallery; the README's images: "
                         "-o docs/gallery)")
-    p.add_argument("--size", type=int, default=160, help="image width and height (default: 160)")
+    p.add_argument("--size", type=int, default=160,
+                   help="the longer side of each image in pixels; the shorter keeps the "
+                        "scene's aspect, rounded to the nearest pixel (a 320x240 scene at "
+                        "--size 160 is 160x120; default: 160)")
     p.add_argument("--mode", choices=("whitted", "path"), default="whitted")
     add_variant(p)
     p.set_defaults(run=_gallery)
@@ -600,7 +665,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("doctor", help="show the libLLVM, variant, versions and kernel cache "
                                       "in use; --warm: compile the scenes' kernels now")
     p.add_argument("--warm", nargs="*", metavar="SCENE",
-                   help="render these scenes (default: scenes/*.scene) once at 1 spp, so that "
+                   help="render these scenes (files or packaged names; default: ./scenes/*.scene, "
+                        "else the packaged paper figures) once at 1 spp, so that "
                         "their kernels are compiled and cached before the first real render")
     add_variant(p)
     p.set_defaults(run=_doctor)
@@ -622,9 +688,13 @@ def _edge_spp(text: str) -> int:
     return value
 
 
-def _check_edge_spp(args) -> None:
+def _check_whitted_options(args) -> None:
+    """``--edge-spp`` and a ``--filter`` other than none need whitted mode."""
     if args.edge_spp and args.mode != "whitted":
         raise UsageError(f"--edge-spp needs whitted mode (its stratum centres), not --mode {args.mode}")
+    if args.filter not in (None, "none") and args.mode != "whitted":
+        raise UsageError(f"--filter {args.filter} needs whitted mode (its ray differentials); "
+                         f"Mitsuba's path integrator gives the marble none")
 
 
 def _tolerance(text: str) -> float:

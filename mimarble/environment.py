@@ -405,8 +405,9 @@ def use_variant(requested: str | None = None) -> str:
     """Set the Mitsuba variant mimarble renders in, and return its name:
     ``mimarble.use_variant()`` and the command line's ``--variant`` both come here.
 
-    ``requested`` None: a variant already set (``mi.set_variant``) is kept, else
-    ``$MIMARBLE_VARIANT``, else the best usable one (:func:`choose_variant`). A variant
+    ``requested`` None: ``$MIMARBLE_VARIANT`` when set (it wins over a variant already
+    set, as it does for the command line), else a variant already set (``mi.set_variant``)
+    is kept, else the best usable one (:func:`choose_variant`). A variant
     named (``use_variant("cuda_ad_rgb")``) is checked before Mitsuba switches to it:
     one that cannot render here — no GPU, no usable libLLVM, not RGB, unknown — raises
     :class:`EnvironmentProblem`, one sentence saying why and which variants can

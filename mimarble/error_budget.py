@@ -12,6 +12,15 @@ colour component by at most
 
     E(k) = S · R · |distortion| · T(k),        S = π (abs_sine) or ½ (sine, cosine).
 
+The same with the knobs POV-Ray has (issue 30): at gain ω the octaves weigh ω^i, so
+T(k) = B·Σ_{i=k}^{K'−1} ω^i, K' = min(octaves, ``noise.max_octaves_evaluated(ω)``); the
+lacunarity λ moves no bound (|N(λ^i v)| ≤ B whatever the frequency). At positions
+p_0 ≤ … ≤ p_{K−1} the ramp's slope is R = max_k |c_{k+1} − c_k|/(p_{k+1} − p_k), infinite
+at a hard step (two equal positions, two colours): no octave can be left out then.
+The triangle wave has S = 2; the sawtooth S = 1 and a jump from t = 1 to 0 once a
+period, by ramp(1) − ramp(0): unless the ramp's ends are equal, no finite bound, and
+every octave is kept.
+
 Given a tolerance τ (colour units), the texture evaluates the first k octaves,
 k the smallest with E(k) ≤ τ: its colour is then within τ of the one with every
 octave, at every point, whatever the noise does there (a bound, not an estimate;
@@ -32,7 +41,7 @@ from __future__ import annotations
 
 import math
 
-from .noise import MAX_OCTAVES_EVALUATED, NOISE_BOUND
+from .noise import MAX_OCTAVES_EVALUATED, NOISE_BOUND, max_octaves_evaluated
 from .stripes import STRIPES
 
 #: A linear change that moves an 8-bit sRGB value, before quantisation, by at most half a code.
@@ -41,48 +50,82 @@ HALF_CODE_VALUE = 0.5 / (255 * 12.92)
 #: The ``marble`` plugin's default tolerance (lighting Λ = 1).
 DEFAULT_TOLERANCE = HALF_CODE_VALUE
 
-def ramp_lipschitz(colours) -> float:
-    """R: the largest change of a colour component per unit of t (0 for one colour)."""
+def ramp_lipschitz(colours, positions=None) -> float:
+    """R: the largest change of a colour component per unit of t (0 for one colour):
+    (K−1)·max |c_{k+1} − c_k| at even keys, max |c_{k+1} − c_k|/(p_{k+1} − p_k) at
+    ``positions`` (inf at a step: equal positions, different colours)."""
     colours = [tuple(float(x) for x in c) for c in colours]
     if len(colours) < 2:
         return 0.0
-    steps = max(abs(b[j] - a[j]) for a, b in zip(colours, colours[1:]) for j in range(3))
-    return (len(colours) - 1) * steps
+    if positions is None:
+        steps = max(abs(b[j] - a[j]) for a, b in zip(colours, colours[1:]) for j in range(3))
+        return (len(colours) - 1) * steps
+    slope = 0.0
+    for k in range(len(colours) - 1):
+        step = max(abs(colours[k + 1][j] - colours[k][j]) for j in range(3))
+        width = float(positions[k + 1]) - float(positions[k])
+        if step > 0.0:
+            slope = max(slope, step / width if width > 0.0 else math.inf)
+    return slope
 
 
-def tail_bound(first: int, last: int) -> float:
-    """T: how far octaves first…last−1 can move F (B·Σ 2^−i)."""
-    return NOISE_BOUND * sum(2.0 ** -i for i in range(first, last))
+def tail_bound(first: int, last: int, gain: float = 0.5) -> float:
+    """T: how far octaves first…last−1 can move F (B·Σ ω^i; the paper's ω = ½: 2^−i)."""
+    return NOISE_BOUND * sum(gain ** i for i in range(first, last))
 
 
-def colour_change_bound(first: int, last: int, distortion: float, colours, function: str) -> float:
+def phase_lipschitz(colours, function: str, positions=None) -> float:
+    """S·R: how far a colour component can move per unit of phase; inf where the stripe
+    jumps (the sawtooth) between different end colours of the ramp."""
+    stripe = STRIPES[function]
+    colours = [tuple(float(x) for x in c) for c in colours]
+    if stripe.jumps and len(colours) > 1 and colours[0] != colours[-1]:
+        return math.inf
+    return stripe.slope_bound * ramp_lipschitz(colours, positions)
+
+
+def _factor(distortion, colours, function, positions) -> float:
+    """S·R·|distortion|, 0 where either is 0 (no octave can move the colour)."""
+    slope, distortion = phase_lipschitz(colours, function, positions), abs(float(distortion))
+    return 0.0 if slope == 0.0 or distortion == 0.0 else slope * distortion
+
+
+def colour_change_bound(first: int, last: int, distortion: float, colours, function: str,
+                        gain: float = 0.5, positions=None) -> float:
     """How far octaves first…last−1 can move any colour component: S·R·|distortion|·T."""
     if first >= last:
         return 0.0
-    return (STRIPES[function].slope_bound * ramp_lipschitz(colours) * abs(float(distortion))
-            * tail_bound(first, last))
+    factor = _factor(distortion, colours, function, positions)
+    return factor * tail_bound(first, last, gain) if factor else 0.0
 
 
-def colour_bound(first: int, octaves: int, distortion: float, colours, function: str) -> float:
+def evaluated(octaves: int, gain: float = 0.5) -> int:
+    """K': the octaves float32 evaluates of ``octaves`` at ``gain`` (25 at the paper's)."""
+    return min(int(octaves), MAX_OCTAVES_EVALUATED if gain == 0.5
+               else max_octaves_evaluated(gain))
+
+
+def colour_bound(first: int, octaves: int, distortion: float, colours, function: str,
+                 gain: float = 0.5, positions=None) -> float:
     """E(first): how far the colour can move when only the first ``first`` of the
-    octaves float32 evaluates (min(octaves, 25)) are summed."""
-    return colour_change_bound(first, min(int(octaves), MAX_OCTAVES_EVALUATED), distortion,
-                               colours, function)
+    octaves float32 evaluates (K', 25 at the paper's gain) are summed."""
+    return colour_change_bound(first, evaluated(octaves, gain), distortion, colours, function,
+                               gain, positions)
 
 
 def octaves_needed(tolerance: float, octaves: int, distortion: float, colours,
-                   function: str) -> int:
+                   function: str, gain: float = 0.5, positions=None) -> int:
     """The fewest leading octaves whose colour is within ``tolerance`` of all of them.
 
-    At most min(octaves, 25); ``tolerance`` 0 keeps them all.
+    At most K' (min(octaves, 25) at the paper's gain); ``tolerance`` 0 keeps them all.
     """
-    last = min(int(octaves), MAX_OCTAVES_EVALUATED)
+    last = evaluated(octaves, gain)
     if tolerance <= 0:
         return last
     # colour_bound(k, …) for each k, its factors S·R·|distortion| computed once.
-    gain = STRIPES[function].slope_bound * ramp_lipschitz(colours) * abs(float(distortion))
+    factor = _factor(distortion, colours, function, positions)
     for k in range(last + 1):
-        if (gain * tail_bound(k, last) if k < last else 0.0) <= tolerance:
+        if (factor * tail_bound(k, last, gain) if k < last and factor else 0.0) <= tolerance:
             return k
     return last
 

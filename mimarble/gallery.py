@@ -7,11 +7,23 @@ from pathlib import Path
 
 from . import scene as scene_language
 from .mitsuba import render, write_image
-from .scene_edits import resized
+from .scene_edits import with_image_size
+
+
+def fitted(scene, size: int):
+    """The scene with its longer side ``size`` pixels and its aspect kept: the shorter side
+    is ``size`` × short / long rounded to the nearest pixel (halves up), at least 1. The fov
+    is the full vertical angle, so the view is the scene's own (up to that rounding, a
+    fraction of a pixel at the sides); a square scene comes out ``size``²."""
+    width, height = scene.image.width, scene.image.height
+    long = max(width, height)
+    short = max(1, (2 * size * min(width, height) + long) // (2 * long))
+    return with_image_size(scene, *((size, short) if width >= height else (short, size)))
 
 
 def make_gallery(scene_paths, out_dir, size: int = 160, mode: str = "whitted"):
-    """Render each scene at ``size``² and write ``out_dir/<scene name>.png``; yields (path, seconds).
+    """Render each scene with its longer side ``size`` pixels, its aspect kept
+    (:func:`fitted`), and write ``out_dir/<scene name>.png``; yields (path, seconds).
 
     ``out_dir`` is made if it is missing, but not its parent: ``mimarble gallery`` writes
     into ``./gallery`` unless told otherwise (``-o docs/gallery`` remakes the README's
@@ -19,7 +31,7 @@ def make_gallery(scene_paths, out_dir, size: int = 160, mode: str = "whitted"):
     out_dir = Path(out_dir)
     out_dir.mkdir(exist_ok=True)
     for path in scene_paths:
-        scene = resized(scene_language.load(path), size)
+        scene = fitted(scene_language.load(path), size)
         start = time.perf_counter()
         image = render(scene, mode=mode)
         out = out_dir / (Path(path).stem + ".png")

@@ -1,9 +1,9 @@
 """The ``marble`` texture: the paper's ChannelMarble as a Mitsuba 3 texture.
 
     v = scale · to_world⁻¹ · p                          (mimarble/texture_mapping.py)
-    F(v) = Σ_{i<K} N(2^i v) / 2^i                       (mimarble/noise.py)
+    F(v) = Σ_{i<K} ω^i N(λ^i v)   (the paper: ω = ½, λ = 2)   (mimarble/noise.py)
     φ = period·v_a + distortion·F(v),   t = t(φ)         (mimarble/stripes.py)
-    colour = ramp(t)                                     (mimarble/ramp.py)
+    colour = ramp(t)   (evenly spaced, or at positions)  (mimarble/ramp.py)
 
 filtered over the pixel's footprint as ``filter`` says (mimarble/pixel_filter.py), with
 the octaves the error budget keeps (mimarble/error_budget.py). The parameters — names,
@@ -21,13 +21,15 @@ import numpy as np
 
 from . import environment, error_budget, pixel_filter
 from .finite_arithmetic import finite_product
-from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS,
-                                MarbleParameters, ParameterError, checked, parameter_table)
-from .noise import fractal_sum, lattice_tables
+from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS, POSITIONS,
+                                MarbleParameters, ParameterError, checked, parameter_table,
+                                ramp_count_problem)
+from .noise import Spectrum, fractal_sum, lattice_tables
 from .plugins import Kept, RGBTexture, describe, first_number, plugin, transform_matrix
-from .ramp import Ramp, ramp_storage
+from .ramp import Ramp, positions_storage, ramp_storage
 from .stripes import STRIPES
-from .texture_mapping import NoFootprintWarning, TextureMapping, without_footprint
+from .texture_mapping import (NoFootprintWarning, TextureMapping, footprints_omitted,
+                              without_footprint)
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -51,15 +53,20 @@ class Marble(RGBTexture):
             else params.tolerance
         self.stripe, self.axis_index = STRIPES[self.function], AXES.index(self.axis)
         # What mi.traverse edits in place: the table's traversed rows and to_world.
+        # (ramp_positions only when given: having them is structural.)
         self.editable = {p.name: _editable(p, getattr(params, p.name))
-                         for p in PARAMETERS if p.is_traversed}
-        self.ramp = Ramp(self.editable["ramp"])
+                         for p in PARAMETERS if p.is_traversed
+                         and getattr(params, p.name) is not None}
+        self.ramp = Ramp(self.editable["ramp"], self.editable.get("ramp_positions"))
         self.mapping = TextureMapping.from_properties(props)
         self.editable["to_world"] = self.mapping.to_world
         if dr.is_jit_v(mi.Float):        # the noise's tables, held (see lattice_tables)
             self.lattice = lattice_tables(mi.UInt32)
         self.pixel_filter = None
-        self._said_no_footprint = Kept(False)   # the warning of eval, once per texture
+        # The warning of eval, once per texture, and never for one that has been traced
+        # with footprints (a whitted scene's marble, traced again by another scene's
+        # symbolic call over every live material, is not that scene's concern).
+        self._quiet_about_footprints = Kept(False)
         self.parameters_changed()
 
     # -- Mitsuba object protocol -------------------------------------------
@@ -82,6 +89,9 @@ class Marble(RGBTexture):
         try:
             values = {name: checked(BY_NAME[name], self._read_back(BY_NAME[name]))
                       for name in self.editable if name in BY_NAME}
+            problem = ramp_count_problem(values["ramp"], values.get("ramp_positions"))
+            if problem:
+                raise ParameterError(f"marble: {problem}")
             to_world = transform_matrix(self.mapping.to_world)
             self.mapping.check(to_world)
         except ParameterError:
@@ -103,12 +113,23 @@ class Marble(RGBTexture):
         # size, 2^i·2^−i): a parameter being differentiated keeps every octave.
         self.octaves = values["octaves"]
         differentiated = any(dr.grad_enabled(self.editable[p.name]) for p in PARAMETERS
-                             if p.in_place)
+                             if p.in_place and p.name in self.editable)
         self.octaves_evaluated = error_budget.octaves_needed(
             0.0 if differentiated else self.tolerance, self.octaves, values["distortion"],
-            values["ramp"], self.function)
-        self.needs_noise = self.octaves_evaluated > 0 and (values["distortion"] != 0.0
-                                                           or dr.grad_enabled(self.distortion))
+            values["ramp"], self.function, gain=values["gain"],
+            positions=values.get("ramp_positions"))
+        # The octaves' gain and lacunarity: the traversed values themselves in JIT variants
+        # (opaque, differentiable), Python floats in the scalar one (mimarble/noise.py).
+        jit = dr.is_jit_v(mi.Float)
+        self.spectrum = Spectrum(values["gain"], values["lacunarity"],
+                                 self.editable["gain"] if jit else None,
+                                 self.editable["lacunarity"] if jit else None,
+                                 opaque=jit, octaves=self.octaves_evaluated)
+        # Distortion 0 needs no noise, unless distortion, gain or lacunarity is being
+        # differentiated (their derivatives reach the colour through F: F, and 0·∂F).
+        self.needs_noise = self.octaves_evaluated > 0 and (
+            values["distortion"] != 0.0 or dr.grad_enabled(self.distortion)
+            or self.spectrum.differentiated())
         if self.pixel_filter is not None and self._ramp_size == self.ramp.size:
             self.pixel_filter.changed()
         else:                       # a filter's tables are made for a number of colours
@@ -122,6 +143,8 @@ class Marble(RGBTexture):
         value = self.editable[parameter.name]
         if parameter.kind == COLOURS:
             return self.ramp.numpy()
+        if parameter.kind == POSITIONS:
+            return tuple(self.ramp.positions_numpy().tolist())
         number = first_number(value)
         return int(number) if parameter.kind == INTEGER and number.is_integer() else number
 
@@ -131,7 +154,7 @@ class Marble(RGBTexture):
         same key; the values themselves are the recording's inputs."""
         return ("marble", self.function, self.axis, self.turbulence,
                 type(self.pixel_filter).__name__, self.octaves_evaluated, self.needs_noise,
-                self.ramp.size, self.mapping.to_texture is None)
+                self.ramp.size, self.ramp.positioned, self.mapping.to_texture is None)
 
     def to_string(self):
         return describe("Marble", {
@@ -140,8 +163,10 @@ class Marble(RGBTexture):
             "distortion": first_number(self.distortion),
             "octaves": f"{self.octaves} ({self.octaves_evaluated} within tolerance "
                        f"{self.tolerance:g})",
+            "gain": self.spectrum.gain_value, "lacunarity": self.spectrum.lacunarity_value,
             "turbulence": self.turbulence, "filter": self.filter,
-            "ramp": f"{self.ramp.size} colours",
+            "ramp": f"{self.ramp.size} colours"
+                    + (" at positions" if self.ramp.positioned else ""),
             "to_world": "identity" if self.mapping.to_texture is None else "given"})
 
     def is_spatially_varying(self):
@@ -171,10 +196,11 @@ class Marble(RGBTexture):
         gives (every lookup is in bounds by construction, so none needs the mask)."""
         if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
             return dr.select(active, self.ramp.constant(dr.width(si.p)), 0.0)
-        if self.pixel_filter.needs_footprint and not self._said_no_footprint.value \
-                and without_footprint(si):
-            self._said_no_footprint.value = True
-            warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=2)
+        if self.pixel_filter.needs_footprint and not self._quiet_about_footprints.value \
+                and not footprints_omitted():
+            self._quiet_about_footprints.value = True
+            if without_footprint(si):
+                warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=2)
         point = self.mapping.map(si, self.pixel_filter.needs_footprint)
         # A NaN or infinite point gets a NaN colour, decided here once rather than left to
         # how each backend's min/max and float→int conversions treat NaN (they differ).
@@ -204,7 +230,8 @@ class Marble(RGBTexture):
             return dr.zeros(mi.Vector2f, dr.width(si.p))
         v = self.mapping.point(si.p)
         if self.needs_noise:
-            F = fractal_sum(v, self.octaves_evaluated, self.turbulence, gradient=True)
+            F = fractal_sum(v, self.octaves_evaluated, self.turbulence, gradient=True,
+                            spectrum=self.spectrum)
             phase, grad_phase = self.phase(v, F.value), self.phase_gradient(F.gradient
                                                                             * self.distortion)
         else:
@@ -222,5 +249,7 @@ def _editable(parameter, value):
     held as a float too, so that an edit to 2.5 is seen and refused, not truncated."""
     if parameter.kind == COLOURS:
         return ramp_storage(value)
+    if parameter.kind == POSITIONS:
+        return positions_storage(value)
     return mi.Float(value) if dr.is_jit_v(mi.Float) else dr.scalar.ArrayXf([value])
 

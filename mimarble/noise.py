@@ -10,6 +10,8 @@ type of the input point decides. Inside a Mitsuba kernel they are traced once.
     fractal3(p, K, True)     Σ_{i<K} |N(2^i p)| / 2^i   Perlin's turbulence
     fractal_sum(p, K, …)     the one octave sum behind fractal3: band-limited to a
                              pixel's footprint, with ∇F, with |N| folded in the pixel
+    Spectrum(ω, λ)       another gain ω and lacunarity λ (POV-Ray's omega and lambda):
+                         F = Σ_{i<K} ω^i N(λ^i p); the paper's are ω = ½, λ = 2
 
 The gradient: N is a trilinear interpolation, with weights u = fade(x), v = fade(y),
 w = fade(z), of the eight corner values d_c = G_c · (p − corner_c), G_c the corner's
@@ -40,6 +42,13 @@ Numerical safety, for every finite input:
   most 1.0364·2^(1−K), so octaves from ``MAX_OCTAVES_EVALUATED`` = 25 on change
   F by at most ``SKIPPED_OCTAVES_BOUND`` = 1.0364·2^−24 ≈ 6.2e-8, below the float32
   rounding error of the octaves that are summed. 32 or 64 octaves cost what 25 do.
+  At gain ω the tail is 1.0364·ω^K/(1−ω): octaves from the first K where it is at most
+  the same 1.0364·2^−24 are left out (:func:`max_octaves_evaluated`; 25 at ½, all 64
+  from ω ≈ 0.755 on).
+* At lacunarity λ ≤ 3 (the parameter's range) the finest octave's point λ^63·|q| stays
+  below 2^124 for |q| < 2^24: no overflow. A coordinate of 2^24 or more is wrapped
+  mod 256 once as at λ = 2 (where that is exact); at another λ the point is beyond
+  float32's resolution there anyway, and the result finite and deterministic.
 
 Non-finite input (NaN, ±Inf) gives NaN out, never an error or an abort: the
 lattice index of such lanes is replaced by 0 before the integer conversion and
@@ -49,12 +58,13 @@ the NaN then propagates through the arithmetic.
 from __future__ import annotations
 
 import functools
+import math
 from typing import NamedTuple
 
 import numpy as np
 
 from . import environment
-from .marble_parameters import MAX_OCTAVES
+from .marble_parameters import BY_NAME, MAX_OCTAVES
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -246,16 +256,91 @@ def wrap_large_point(p):
     return type(p)(_wrap_large(p.x), _wrap_large(p.y), _wrap_large(p.z))
 
 
-def octaves_evaluated(octaves: int) -> int:
+def max_octaves_evaluated(gain: float = 0.5) -> int:
+    """The octaves float32 can add at gain ω: the first k whose tail, at most
+    NOISE_BOUND·ω^k/(1−ω), is at most SKIPPED_OCTAVES_BOUND = NOISE_BOUND·2^−24 (25 at
+    the paper's ½, where the tail is 2^(1−k)), and at most MAX_OCTAVES."""
+    gain = float(gain)
+    for k in range(MAX_OCTAVES + 1):
+        if gain ** k / (1.0 - gain) <= 2.0 ** -24:
+            return k
+    return MAX_OCTAVES
+
+
+def octaves_evaluated(octaves: int, gain: float = 0.5) -> int:
     """How many octaves a K-octave sum actually evaluates (see SKIPPED_OCTAVES_BOUND)."""
     if not 0 <= octaves <= MAX_OCTAVES:
         raise ValueError(f"octaves must be an integer in 0..{MAX_OCTAVES}, got {octaves}")
-    return min(octaves, MAX_OCTAVES_EVALUATED)
+    return min(octaves, MAX_OCTAVES_EVALUATED if gain == 0.5 else max_octaves_evaluated(gain))
 
 
-def fractal3(p, octaves: int, turbulence: bool = False):
-    """F(p) = Σ_{i<K} N(2^i p)/2^i (paper Fig. 6); with ``turbulence``, |N| in the sum."""
-    return fractal_sum(p, octaves, turbulence).value
+class Spectrum:
+    """The octaves' gain ω and lacunarity λ: octave i has amplitude ω^i and frequency λ^i.
+
+    ``gain`` and ``lacunarity`` are what the kernel reads: Python floats (literals, as the
+    paper's ½ and 2 by default) or opaque Dr.Jit values (the texture's, so that a new
+    value reuses the compiled kernel and carries derivatives). ``gain_value`` is the
+    number that decides how many octaves float32 can add (structural). The constants the
+    filters derive from them (1/log₂λ, log₂ω, ω², 1/(1−ω), 1/(1−ω²), and ω^K', ω^2K' for
+    the ``octaves`` K' a texture evaluates) are computed here in double precision and held
+    like the two (``opaque``: as opaque Dr.Jit values); the filters' cut-offs and estimates
+    carry no derivative to ω or λ, the sum does. ``DRJIT_STRUCT``: Dr.Jit's traversal
+    (``dr.freeze``) sees them through the texture."""
+
+    DRJIT_STRUCT = {"gain": object, "lacunarity": object, "inverse_log_lacunarity": object,
+                    "log_gain": object, "gain_squared": object, "inverse_tail": object,
+                    "inverse_tail_squared": object, "gain_power": object,
+                    "gain_power_squared": object}
+
+    def __init__(self, gain_value: float = 0.5, lacunarity_value: float = 2.0, gain=None,
+                 lacunarity=None, opaque: bool = False, octaves: int | None = None):
+        # The table's ranges (a ParameterError, a ValueError, outside them).
+        self.gain_value = BY_NAME["gain"].check(float(gain_value))
+        self.lacunarity_value = BY_NAME["lacunarity"].check(float(lacunarity_value))
+        self.gain = self.gain_value if gain is None else gain
+        self.lacunarity = self.lacunarity_value if lacunarity is None else lacunarity
+        self.octaves = octaves
+        power = self.gain_value ** (octaves or 0)
+        derived = {"inverse_log_lacunarity": 1.0 / math.log2(self.lacunarity_value),
+                   "log_gain": math.log2(self.gain_value),
+                   "gain_squared": self.gain_value * self.gain_value,
+                   "inverse_tail": 1.0 / (1.0 - self.gain_value),
+                   "inverse_tail_squared": 1.0 / (1.0 - self.gain_value * self.gain_value),
+                   "gain_power": power, "gain_power_squared": self.gain_value ** (
+                       2 * (octaves or 0))}
+        for name, value in derived.items():
+            if opaque:
+                value = mi.Float(value)
+                dr.make_opaque(value)
+            setattr(self, name, value)
+
+    @property
+    def paper(self) -> bool:
+        """The paper's ω = ½ and λ = 2."""
+        return self.gain_value == 0.5 and self.lacunarity_value == 2.0
+
+    def differentiated(self) -> bool:
+        return dr.grad_enabled(self.gain) or dr.grad_enabled(self.lacunarity)
+
+    def most(self, octaves: int) -> int:
+        """The octaves of a K-octave sum evaluated at this gain."""
+        return octaves_evaluated(octaves, self.gain_value)
+
+    def power(self, k: int, squared: bool = False):
+        """ω^k (ω^2k): the held value for the spectrum's own ``octaves``, else a literal."""
+        if k == self.octaves:
+            return self.gain_power_squared if squared else self.gain_power
+        return self.gain_value ** (2 * k if squared else k)
+
+
+#: The paper's octaves: ω = ½, λ = 2, as literals.
+PAPER_SPECTRUM = Spectrum()
+
+
+def fractal3(p, octaves: int, turbulence: bool = False, spectrum: Spectrum = PAPER_SPECTRUM):
+    """F(p) = Σ_{i<K} N(2^i p)/2^i (paper Fig. 6); with ``turbulence``, |N| in the sum;
+    with a ``spectrum``, Σ ω^i N(λ^i p)."""
+    return fractal_sum(p, octaves, turbulence, spectrum=spectrum).value
 
 
 class FractalSum(NamedTuple):
@@ -268,8 +353,9 @@ class FractalSum(NamedTuple):
 
 
 def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradient: bool = False,
-                differentials=None) -> FractalSum:
-    """The one octave sum: F(p) = Σ_{i<K'} w_i · N(2^i p)/2^i, K' = min(K, 25).
+                differentials=None, spectrum: Spectrum = PAPER_SPECTRUM) -> FractalSum:
+    """The one octave sum: F(p) = Σ_{i<K'} w_i · ω^i N(λ^i p), K' = min(K, 25) at the
+    paper's ω = ½, λ = 2 (``spectrum``: another ω and λ; K' from ω, :func:`octaves_evaluated`).
 
     ``octaves`` is structural (a Python int). Options:
 
@@ -277,8 +363,9 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
     * ``band``: (whole, last) from :func:`band_limit`: octaves i < whole have weight 1,
       octave ``whole`` weight ``last``, the rest are left out; each lane stops after its
       own last octave (fewer noise evaluations where the footprint is large).
-    * ``gradient``: also ∇F = Σ w_i ∇N(2^i p) (the 2^i of the chain rule cancels the
-      amplitude); turbulence's |N| contributes sign(N)·∇N (0 where N = 0).
+    * ``gradient``: also ∇F = Σ w_i (ωλ)^i ∇N(λ^i p) (at the paper's ω, λ the 2^i of the
+      chain rule cancels the amplitude: (ωλ)^i = 1 exactly); turbulence's |N|
+      contributes sign(N)·∇N (0 where N = 0).
     * ``differentials`` (∂p/∂x, ∂p/∂y), with ``turbulence``: |N| folds where N crosses 0
       inside the pixel. Where N runs linearly over [n − W/2, n + W/2] across it (W from
       ∇N and the differentials, |n| < W/2), the mean of |N| is n²/W + W/4, not |n|, and
@@ -289,12 +376,12 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
     evaluation's code, however many octaves. Unrolled, a kernel holds every octave's
     code, and LLVM compiles a long straight-line kernel in more than linear time (a
     product of many marbles; docs/benchmarks.md, "Compile time"), while the loop
-    renders as fast. The loop is unrolled where it must be: in the scalar variant, and when ``p`` carries
-    derivatives (reverse mode cannot go through a symbolic loop). The frequencies and
-    amplitudes 2^i and 2^−i are exact either way, so each term is N at an exactly scaled
-    point, exactly weighted, and both forms give the same bits.
+    renders as fast. The loop is unrolled where it must be: in the scalar variant, and when ``p``,
+    ω or λ carries derivatives (reverse mode cannot go through a symbolic loop). The
+    frequencies and amplitudes λ^i and ω^i are products of i factors either way (2^i and
+    2^−i: exact), so both forms give the same bits.
     """
-    most = octaves_evaluated(octaves)
+    most = spectrum.most(octaves)
     float_type = type(p.x)
     jit = dr.is_jit_v(float_type)
     width = dr.width(p)
@@ -310,6 +397,7 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
     q = wrap_large_point(p)
 
     def octave(i, frequency, amplitude, state):
+        """One octave's terms; its frequency λ^i and amplitude ω^i as the loop made them."""
         if with_gradient:
             n, g = noise3_gradient(q * frequency)
         else:
@@ -337,12 +425,17 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
             state["spread"] = state["spread"] + dr.maximum(variance, 0.0) * dr.square(weighted)
         state["total"] = state["total"] + n * weighted
         if g is not None:
-            state["gradient"] = state["gradient"] + (g if weight is None else g * weight)
+            chain = amplitude * frequency     # (ωλ)^i: 1, exactly, at the paper's ω and λ
+            state["gradient"] = state["gradient"] + (g * chain if weight is None
+                                                     else g * (chain * weight))
         return state
 
-    if not jit or dr.grad_enabled(p):
+    gain, lacunarity = spectrum.gain, spectrum.lacunarity
+    if not jit or dr.grad_enabled(p) or spectrum.differentiated():
+        frequency, amplitude = 1.0, 1.0
         for i in range(most):
-            state = octave(i, float(2.0 ** i), float(2.0 ** -i), state)
+            state = octave(i, frequency, amplitude, state)
+            frequency, amplitude = frequency * lacunarity, amplitude * gain
         return _result(state)
 
     uint_type = dr.uint32_array_t(float_type)
@@ -353,7 +446,8 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
         count = uint_type(whole) + dr.select(last > 0.0, 1, 0)
 
     def body(i, frequency, amplitude, state):
-        return i + 1, frequency * 2.0, amplitude * 0.5, octave(i, frequency, amplitude, state)
+        return (i + 1, frequency * lacunarity, amplitude * gain,
+                octave(i, frequency, amplitude, state))
 
     loop = (dr.zeros(uint_type, width), dr.full(float_type, 1.0, width),
             dr.full(float_type, 1.0, width), state)
@@ -387,16 +481,24 @@ def _smoothstep(a, b, x):
 BAND_LIMIT_MARGIN = 2
 
 
-def band_limit(footprint, octaves: int, margin: float = BAND_LIMIT_MARGIN):
+def band_limit(footprint, octaves: int, margin: float = BAND_LIMIT_MARGIN,
+               spectrum: Spectrum = PAPER_SPECTRUM):
     """(whole octaves, weight of the next one) for a footprint in noise-space units.
 
     pbrt-v4's FBm clamp, n = clamp(−1 − log2(footprint), 0, K), moved up by
     ``margin`` octaves (:data:`BAND_LIMIT_MARGIN` unless given); the octave ⌊n⌋ fades
     in with smoothstep(0.3, 0.7) of the fraction, so the count changes without seams.
+    At lacunarity λ octave i's frequency is λ^i, below the footprint's Nyquist rate while
+    λ^i·footprint < ½: n = margin + (−1 − log2 footprint)/log2 λ, written
+    (margin − 1/log2 λ) − log2(footprint)/log2 λ so that λ = 2 gives the bits it did.
     A zero footprint (no ray differentials) keeps every octave, and so does a NaN one.
     """
-    most = float(octaves_evaluated(octaves))
-    n = margin - 1.0 - dr.log2(footprint)
+    most = float(spectrum.most(octaves))
+    if spectrum.paper and isinstance(spectrum.lacunarity, float):
+        n = margin - 1.0 - dr.log2(footprint)
+    else:
+        scale = spectrum.inverse_log_lacunarity
+        n = (margin - scale) - dr.log2(footprint) * scale
     # NaN (a lane without a valid footprint) and +inf both fail `n < most`: all octaves.
     # The loop count must never come from a NaN: its integer conversion is unbounded.
     n = dr.maximum(dr.select(n < most, n, most), 0.0)
@@ -415,21 +517,35 @@ ABS_NOISE_VARIANCE = 0.0245
 ABS_NOISE_MEAN = 0.2204
 
 
-def left_out(band, octaves: int, turbulence: bool = False):
+def left_out(band, octaves: int, turbulence: bool = False,
+             spectrum: Spectrum = PAPER_SPECTRUM):
     """(mean, variance) that the octaves a ``band`` leaves out would add to F: (1 − last)
-    of octave ``whole`` and all of whole+1 … K'−1. Their variance is V·Σ w²4^−i; their
-    mean is 0, or E|N|·Σ w 2^−i for turbulence (|N| averages E|N| over a pixel)."""
+    of octave ``whole`` and all of whole+1 … K'−1. Their variance is V·Σ w²ω^2i; their
+    mean is 0, or E|N|·Σ w ω^i for turbulence (|N| averages E|N| over a pixel). At the
+    paper's ω = ½: V·Σ w²4^−i and E|N|·Σ w 2^−i, written as before (the same bits)."""
     whole, last = band
-    most = octaves_evaluated(octaves)
+    most = spectrum.most(octaves)
     outside = whole < float(most)
     variance = ABS_NOISE_VARIANCE if turbulence else NOISE_VARIANCE
-    power = dr.exp2(-2.0 * whole)                      # 4^−whole
-    dropped = dr.square(1.0 - last) * power + (power * 0.25 - 4.0 ** -most) * (4.0 / 3.0)
+    if spectrum.paper and isinstance(spectrum.gain, float):
+        power = dr.exp2(-2.0 * whole)                      # 4^−whole
+        dropped = dr.square(1.0 - last) * power + (power * 0.25 - 4.0 ** -most) * (4.0 / 3.0)
+    else:                                                  # ω^2·whole, Σ_{whole<i<K'} ω^2i
+        g = spectrum
+        power = dr.exp2((2.0 * g.log_gain) * whole)
+        dropped = dr.square(1.0 - last) * power + (power * g.gain_squared - g.power(
+            most, squared=True)) * g.inverse_tail_squared
     dropped = dr.select(outside, variance * dr.maximum(dropped, 0.0), 0.0)
     mean = 0.0
     if turbulence:
-        half = dr.exp2(-whole)                         # 2^−whole
-        weights = (1.0 - last) * half + dr.maximum(half - 2.0 ** (1 - most), 0.0)
+        if spectrum.paper and isinstance(spectrum.gain, float):
+            half = dr.exp2(-whole)                         # 2^−whole
+            weights = (1.0 - last) * half + dr.maximum(half - 2.0 ** (1 - most), 0.0)
+        else:                                              # ω^whole, Σ_{whole<i<K'} ω^i
+            g = spectrum
+            half = dr.exp2(g.log_gain * whole)
+            weights = (1.0 - last) * half + dr.maximum(
+                half * g.gain - g.power(most), 0.0) * g.inverse_tail
         mean = dr.select(outside, ABS_NOISE_MEAN * weights, 0.0)
     return mean, dropped
 
@@ -467,7 +583,10 @@ def perlin(points) -> np.ndarray:
     return _evaluate(points, noise3)
 
 
-def fractal(points, octaves: int, turbulence: bool = False) -> np.ndarray:
-    """F at NumPy points (N, 3) → float32 (N,); ``turbulence`` sums |N| instead."""
+def fractal(points, octaves: int, turbulence: bool = False, gain: float = 0.5,
+            lacunarity: float = 2.0) -> np.ndarray:
+    """F at NumPy points (N, 3) → float32 (N,); ``turbulence`` sums |N| instead; ``gain``
+    ω and ``lacunarity`` λ: Σ ω^i N(λ^i p)."""
     octaves_evaluated(octaves)   # validate before any work
-    return _evaluate(points, lambda p: fractal3(p, octaves, turbulence))
+    spectrum = Spectrum(gain, lacunarity)
+    return _evaluate(points, lambda p: fractal3(p, octaves, turbulence, spectrum))

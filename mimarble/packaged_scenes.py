@@ -18,9 +18,12 @@ Standard library only: the command line resolves names before Dr.Jit loads.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 from pathlib import Path
+
+from .files import write_atomically
 
 #: Where the packaged scenes are (the checkout's ``scenes/`` through the link).
 FOLDER = (Path(__file__).resolve().parent / "scenes").resolve()
@@ -134,10 +137,23 @@ def copy_to(folder) -> list[Path]:
         if os.path.lexists(target):
             raise CopyRefused(f"{target}: exists; scenes --copy writes only new files, so "
                               f"name a new or empty folder")
-    folder.mkdir(exist_ok=True)
+    made = [] if folder.exists() else [folder]
     written = []
-    for source, target in plan:
-        target.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(source, target)
-        written.append(target)
+    try:
+        folder.mkdir(exist_ok=True)
+        for source, target in plan:
+            for parent in reversed(target.relative_to(folder).parents[:-1]):
+                if not (folder / parent).exists():
+                    (folder / parent).mkdir()
+                    made.append(folder / parent)
+            # Whole or not at all: a failure (a full disk) leaves no truncated scene.
+            write_atomically(target, lambda tmp, source=source: shutil.copyfile(source, tmp))
+            written.append(target)
+    except BaseException:
+        for path in reversed(written):
+            path.unlink(missing_ok=True)
+        for path in reversed(made):
+            with contextlib.suppress(OSError):
+                path.rmdir()
+        raise
     return written

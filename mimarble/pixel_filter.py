@@ -5,7 +5,8 @@ marble's phase, stripe and ramp — at the point, or over the pixel's footprint:
 
     none:       ramp(t(φ(v)))                     F with every octave the budget keeps
     bandlimit:  ramp(t(φ(v)))                     F without the octaves finer than the
-                                                  pixel (pbrt-v4's FBm clamp), the last faded
+                                                  pixel (pbrt-v4's FBm clamp at octave
+                                                  frequencies λ^i), the last faded
     prefilter:  mean of ramp∘t over the pixel's   F and ∇F without the octaves finer than
                 interval of phase                 the pixel; their spread widens the interval
 
@@ -57,7 +58,7 @@ class PointSample(PixelFilter):
     """``none``: the colour at the point."""
 
     def noise(self, m, point):
-        return fractal3(point.v, m.octaves_evaluated, m.turbulence)
+        return fractal3(point.v, m.octaves_evaluated, m.turbulence, m.spectrum)
 
     def colour(self, m, point):
         phase = m.phase(point.v, self.noise(m, point) if m.needs_noise else None)
@@ -70,8 +71,9 @@ class BandLimit(PointSample):
     needs_footprint = True
 
     def noise(self, m, point):
-        band = band_limit(point.footprint, m.octaves_evaluated)
-        return fractal_sum(point.v, m.octaves_evaluated, m.turbulence, band=band).value
+        band = band_limit(point.footprint, m.octaves_evaluated, spectrum=m.spectrum)
+        return fractal_sum(point.v, m.octaves_evaluated, m.turbulence, band=band,
+                           spectrum=m.spectrum).value
 
 
 class Prefilter(PixelFilter):
@@ -100,10 +102,10 @@ class Prefilter(PixelFilter):
         v = point.v
         if m.needs_noise:
             octaves = m.octaves_evaluated
-            band = band_limit(point.footprint, octaves, PREFILTER_MARGIN)
+            band = band_limit(point.footprint, octaves, PREFILTER_MARGIN, m.spectrum)
             F = fractal_sum(v, octaves, m.turbulence, band=band, gradient=True,
-                            differentials=(point.dv_dx, point.dv_dy))
-            mean, variance = left_out(band, octaves, m.turbulence)
+                            differentials=(point.dv_dx, point.dv_dy), spectrum=m.spectrum)
+            mean, variance = left_out(band, octaves, m.turbulence, m.spectrum)
             value = (F.value + mean) if m.turbulence else F.value
             phase = m.phase(v, value)
             grad_phase = m.phase_gradient(F.gradient * m.distortion)

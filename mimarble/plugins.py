@@ -88,6 +88,7 @@ _KINDS = {
     "texture": ("Texture", "register_texture"),
     "bsdf": ("BSDF", "register_bsdf"),
     "integrator": ("SamplingIntegrator", "register_integrator"),
+    "emitter": ("Emitter", "register_emitter"),
 }
 _plugins: list[tuple[str, str, type]] = []
 _bound: dict[tuple[str, str], type] = {}

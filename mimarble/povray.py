@@ -5,7 +5,8 @@ camera, point lights and ambient light, each material's first marble channel as
 POV-Ray's ``marble`` pattern and the ramp as its ``color_map``, the paper's Phong
 channels as ``finish { ambient diffuse specular roughness }``. It is comparable,
 not identical: POV-Ray's marble is a triangle wave in x with its own turbulence
-(``turbulence`` = distortion/period, ``octaves``, ``omega 0.5``, ``lambda 2``),
+(``turbulence`` = distortion/period, ``octaves``, ``omega`` = gain, ``lambda`` =
+lacunarity; ``ramp_wave`` for ``sawtooth``; the pattern's transform after its scale),
 not |sin(π(period·x + distortion·F))|. POV-Ray is left-handed: z is mirrored.
 
 :func:`time_povray` runs ``povray`` (no anti-aliasing, no display, all cores) and
@@ -31,6 +32,16 @@ def _vec(v, mirror_z=True) -> str:
     return f"<{x!r}, {y!r}, {-z if mirror_z else z!r}>"
 
 
+def _step(kind: str, v) -> str:
+    """A transform step's vector in POV-Ray's left-handed frame: a translation's z
+    mirrored, a rotation's x and y angles negated, a scale as it is."""
+    if kind == "translate":
+        return _vec(v)
+    if kind == "rotate":
+        return _vec((-v[0], -v[1], v[2]), False)
+    return _vec(v, False)
+
+
 def _pigment(channel) -> str:
     if isinstance(channel, model.ColorChannel):
         return f"pigment {{ rgb {_vec(channel.rgb, False)} }}"
@@ -38,12 +49,18 @@ def _pigment(channel) -> str:
         raise ValueError(f"POV-Ray export takes colour and marble channels only, not "
                          f"{type(channel).__name__} (the benchmark's comparison is fig11a)")
     ramp = channel.ramp
-    keys = [k / (len(ramp) - 1) if len(ramp) > 1 else 0.0 for k in range(len(ramp))]
+    keys = channel.ramp_positions or [k / (len(ramp) - 1) if len(ramp) > 1 else 0.0
+                                      for k in range(len(ramp))]
     entries = " ".join(f"[{key!r} rgb {_vec(c, False)}]" for key, c in zip(keys, ramp))
     period = abs(channel.period) or 1.0
-    return (f"pigment {{ marble turbulence {abs(channel.distortion) / period!r} "
-            f"octaves {max(1, min(channel.octaves, 10))} omega 0.5 lambda 2 "
-            f"color_map {{ {entries} }} scale {1.0 / (period * channel.scale)!r} }}")
+    wave = " ramp_wave" if channel.function == "sawtooth" else ""   # else marble's triangle
+    # The pattern's own transform, then the paper's frequency; POV-Ray is left-handed
+    # (z mirrored), so a rotation's x and y angles change sign (docs/coming-from-povray.md).
+    steps = " ".join(f"{kind} {_step(kind, v)}" for kind, v in channel.transform)
+    return (f"pigment {{ marble{wave} turbulence {abs(channel.distortion) / period!r} "
+            f"octaves {max(1, min(channel.octaves, 10))} omega {channel.gain!r} "
+            f"lambda {channel.lacunarity!r} color_map {{ {entries} }} "
+            f"scale {1.0 / (period * channel.scale)!r} {steps} }}")
 
 
 def scene_text(scene: model.Scene, size: int) -> str:

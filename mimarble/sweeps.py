@@ -36,9 +36,9 @@ done, rendered now, failed, left), as the command's last line does.
 ``scheduler=ADDRESS`` joins a running one. Each worker imports mimarble once, as it
 starts, and keeps its loaded scenes and compiled kernels between frames
 (:func:`render_frame`); images come back to this process, which writes them, so no
-shared file system is needed. Starting a LocalCluster costs about 1.3 s on 2 cores and
-one process already uses every core: on such a machine ``workers`` is slower at every
-size measured (docs/benchmarks.md). Ctrl-C stops the workers with the sweep: they never
+shared file system is needed. Starting a LocalCluster costs seconds and one process
+already uses every core: on 2 cores ``workers`` was slower at every size measured
+(docs/benchmarks.md, "Sweeps"). Ctrl-C stops the workers with the sweep: they never
 see it themselves, and it is raised here only between Dask's calls (:class:`_Interrupts`).
 
 **A sweep folder is data, not instructions.** A frame's image is always named by
@@ -600,7 +600,8 @@ def dask_setup(worker=None) -> None:
     importing this module started it already, unless that failed). A worker where
     mimarble cannot start still starts: its frames say why."""
     import signal
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(ValueError):     # not the worker's main thread: leave it
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         import mimarble
         mimarble.start()
@@ -612,8 +613,8 @@ def dask_teardown(worker=None) -> None:
     """Run in each :func:`local_cluster` worker as it is closed: once Python's exit
     begins, the process ends at once, its output flushed. Dr.Jit's and Mitsuba's own
     teardown frees nothing a process that ends needs freed, and writes nothing (compiled
-    kernels are cached as they are compiled); it made the cluster's stop 0.3 s instead
-    of 0.04 s (2 cores, AMD EPYC)."""
+    kernels are cached as they are compiled), and it made the cluster's stop several times
+    longer (docs/benchmarks.md, "Sweeps")."""
     import atexit
     atexit.register(_exit_now)
 
@@ -688,9 +689,9 @@ class _Interrupts:
     @contextlib.contextmanager
     def raised(self):
         """Within, SIGINT is raised at once (a wait that can be cut short)."""
-        self.check()
-        self.raising = True
+        self.raising = True       # first: an interrupt from here on is raised, not held
         try:
+            self.check()
             yield
         finally:
             self.raising = False
@@ -712,7 +713,7 @@ class _Interrupts:
         if self.previous is None:
             return False
         signal.signal(signal.SIGINT, self.previous)
-        if kind is None:
+        if kind is None or kind is GeneratorExit:   # closed early: still say it was asked
             self.check()
         return False
 

@@ -125,8 +125,13 @@ class _Omitted:
 
 
 def footprints_omitted_on_purpose() -> _Omitted:
-    """``with footprints_omitted_on_purpose(): …``: :func:`without_footprint` is False."""
+    """``with footprints_omitted_on_purpose(): …``: :func:`footprints_omitted` is True."""
     return _Omitted()
+
+
+def footprints_omitted() -> bool:
+    """Whether an integrator is tracing materials without footprints on purpose now."""
+    return _Omitted.depth > 0
 
 
 def without_footprint(si) -> bool:
@@ -138,7 +143,7 @@ def without_footprint(si) -> bool:
     the variable, read without a kernel, also inside a symbolic call or loop and while
     ``dr.freeze`` records), never from values in memory: computed partials are not
     literals, whatever their values. False in the scalar variant (it filters nothing)."""
-    if not dr.is_jit_v(mi.Float) or _Omitted.depth:
+    if not dr.is_jit_v(mi.Float):
         return False
     for value in (si.duv_dx.x, si.duv_dx.y, si.duv_dy.x, si.duv_dy.y):
         if value.state != dr.VarState.Literal or value[0] != 0.0:

@@ -73,3 +73,15 @@ def test_bench_refuses_a_page_that_is_not_markdown(tmp_path, capsys):
     from mimarble.cli import main
     assert main(["bench", "--page", str(tmp_path / "page.txt")]) == 2
     assert "page" in capsys.readouterr().err
+
+
+def test_text_between_the_sections_is_kept(tmp_path):
+    page = tmp_path / "b.md"
+    bench_page.write_section(page, on(ZEN3))
+    page.write_text(page.read_text().replace(bench_page.SECTIONS_END,
+                                             "a note of hand\n\n" + bench_page.SECTIONS_END))
+    bench_page.write_section(page, on(ZEN3, 2.0))
+    bench_page.write_section(page, on(ZEN4))
+    text = page.read_text()
+    assert "a note of hand" in text and text.count("(Zen 3,") == 1
+    assert text.index("Zen 3") < text.index("a note of hand") < text.index("Zen 4")

@@ -70,8 +70,9 @@ def test_scene_errors_point_at_file_line_column(tmp_path, text, where, words):
     (["--spp", "3"], "perfect square"),
     (["--edge-spp", "3"], "perfect square"),
     (["--edge-spp", "4", "--mode", "path"], "whitted mode"),
+    (["--filter", "prefilter", "--mode", "path"], "needs whitted mode"),
     (["--filter", "blur"], "invalid choice"),
-    (["-o", "x.jpg"], "unsupported image format"),
+    (["-o", "x.tif"], "unsupported image format"),
     (["-o", "missing/x.png"], "does not exist"),
 ])
 def test_argument_errors_exit_2_without_traceback(tmp_path, small_scene, args, words):

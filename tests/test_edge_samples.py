@@ -58,6 +58,13 @@ def test_edge_samples_are_validated():
         render_module.check_edge_spp(4, "path")
 
 
+def test_a_pixel_filter_in_path_mode_is_refused_before_loading(llvm):
+    for name in ("bandlimit", "prefilter"):
+        with pytest.raises(ValueError, match="needs whitted mode"):
+            mimarble.render("scenes/fig11a.scene", mode="path", filter=name)
+    render_module.check_filter("none", "path")     # no filter at all is fine
+
+
 def test_ray_differentials_reach_the_next_pixels_hit(llvm):
     # Mitsuba's perspective camera starts the differential rays at the main ray's near-plane
     # point; from the eye, the footprint on the surface is the step to the next pixel's hit.

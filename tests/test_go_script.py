@@ -47,6 +47,11 @@ def test_setup_hides_the_editable_banner_and_no_other_warning(tmp_path):
     env["PYTHONPATH"] = site
     install = [str(venv / "bin" / "python"), "-m", "pip", "install", "-q", "--no-deps",
                "--no-build-isolation", "--no-index", "--ignore-installed", "-e", str(src)]
+    unfiltered = dict(env)
+    del unfiltered["PYTHONWARNINGS"]
+    banner = subprocess.run(install, capture_output=True, text=True, env=unfiltered, timeout=600)
+    assert banner.returncode == 0, banner.stderr
+    assert "Editable installation" in banner.stdout + banner.stderr   # there to be hidden
     result = subprocess.run(install, capture_output=True, text=True, env=env, timeout=600)
     assert result.returncode == 0, result.stderr
     assert "Editable installation" not in result.stdout + result.stderr

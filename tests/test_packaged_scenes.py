@@ -130,3 +130,32 @@ def test_python_finds_a_packaged_scene_by_name_and_renders_it(llvm):
     assert path == packaged_scenes.FOLDER / "fig11a.scene"
     assert mimarble.render(path, width=8, height=8, spp=1).shape == (8, 8, 3)
     assert mimarble.packaged_scenes.find("nowhere") is None
+
+
+def test_python_renders_a_packaged_scene_by_name_from_any_folder(llvm, tmp_path, monkeypatch):
+    import mimarble
+    monkeypatch.chdir(tmp_path)                       # no fig11a.scene here
+    by_name = mimarble.render("fig11a", width=8, height=8, spp=1)
+    by_path = mimarble.render(packaged_scenes.find("fig11a"), width=8, height=8, spp=1)
+    assert (by_name == by_path).all()
+
+
+def test_a_copy_that_fails_part_way_leaves_nothing_behind(tmp_path, monkeypatch):
+    import shutil
+    copied = []
+    real = shutil.copyfile
+
+    def disk_full_on_the_third(source, target):
+        if len(copied) == 2:
+            raise OSError(28, "No space left on device")
+        copied.append(source)
+        return real(source, target)
+    monkeypatch.setattr(shutil, "copyfile", disk_full_on_the_third)
+    target = tmp_path / "mine"
+    try:
+        packaged_scenes.copy_to(target)
+    except OSError as e:
+        assert e.errno == 28
+    else:
+        raise AssertionError("the copy should have failed")
+    assert len(copied) == 2 and not target.exists() and list(tmp_path.iterdir()) == []

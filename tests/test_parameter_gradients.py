@@ -28,13 +28,27 @@ CASES = {
     "distortion 0": MarbleChannel(scale=1.3, period=1.7, distortion=0.0, octaves=8,
                                   ramp=((0.1, 0.0, 0.05), (0.9, 0.6, 0.2), (0.3, 0.8, 1.0))),
     "flat ramp": MarbleChannel(scale=1.3, period=1.7, distortion=2.5, octaves=8, ramp=GREY),
+    # POV-Ray's knobs (issue 30): another gain and lacunarity, a ramp at positions.
+    "gain and lacunarity": MarbleChannel(scale=1.3, period=1.7, distortion=2.5, octaves=6,
+                                         gain=0.62, lacunarity=2.3, function="triangle",
+                                         ramp=((0.1, 0.0, 0.05), (0.9, 0.6, 0.2),
+                                               (0.3, 0.8, 1.0))),
+    "positions": MarbleChannel(scale=1.3, period=1.7, distortion=2.5, octaves=8,
+                               ramp=((0.1, 0.0, 0.05), (0.9, 0.6, 0.2), (0.3, 0.8, 1.0),
+                                     (1.0, 1.0, 0.9)),
+                               ramp_positions=(0.1, 0.35, 0.8, 0.95)),
 }
 #: The ramp colour and component whose derivative is taken.
 KEY, COMPONENT = 1, 0
 
 
 def moved(channel, name, h):
-    """The channel with parameter ``name`` moved by h (ramp: colour KEY's COMPONENT)."""
+    """The channel with parameter ``name`` moved by h (ramp: colour KEY's COMPONENT;
+    positions: position KEY)."""
+    if name == "ramp_positions":
+        positions = list(channel.ramp_positions)
+        positions[KEY] += h
+        return dataclasses.replace(channel, ramp_positions=tuple(positions))
     if name != "ramp":
         return dataclasses.replace(channel, **{name: getattr(channel, name) + h})
     ramp = [list(c) for c in channel.ramp]
@@ -61,6 +75,9 @@ def texture_derivative(channel, name, points):
         direction[COMPONENT] = mi.Float([1.0 if k == KEY else 0.0
                                          for k in range(len(channel.ramp))])
         dr.set_grad(value, direction)
+    elif name == "ramp_positions":
+        dr.set_grad(value, mi.Float([1.0 if k == KEY else 0.0
+                                     for k in range(len(channel.ramp))]))
     else:
         dr.set_grad(value, 1.0)
     dr.forward_to(colour)
@@ -71,6 +88,8 @@ def texture_derivative(channel, name, points):
 @pytest.mark.parametrize("name", DIFFERENTIABLE)
 def test_each_differentiable_parameter_has_the_reference_derivative(llvm, case, name):
     channel = CASES[case]
+    if name == "ramp_positions" and channel.ramp_positions is None:
+        pytest.skip("evenly spaced: no positions to move (having them is structural)")
     points = np.random.default_rng(3).uniform(-2, 2, (3000, 3)).astype(np.float32)
     exact = points.astype(np.float64)
     h = 1e-6

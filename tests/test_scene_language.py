@@ -50,7 +50,8 @@ def assert_error_at(text: str, line: int, column: int, fragment: str, filename: 
     e = error(text, filename)
     assert (e.line, e.column) == (line, column), str(e)
     assert fragment in e.message, str(e)
-    head, src, caret = str(e).split("\n")
+    head, src, caret, *hint = str(e).split("\n")
+    assert hint == ([f"hint: {e.hint}"] if e.hint else [])     # a POV-Ray habit's hint line
     assert head == f"{filename}:{line}:{column}: {e.message}"
     assert src == text.split("\n")[line - 1].expandtabs(8)
     assert caret.endswith("^") and caret.strip() == "^"

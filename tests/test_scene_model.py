@@ -141,6 +141,18 @@ def test_scene_error_pickles_and_formats():
     assert str(SceneError("gone", filename="x")) == "x: gone"
 
 
+def test_a_syntax_error_pickles_where_dask_distributed_pickles_exceptions_with_context():
+    """dask.distributed registers tblib's reducers for every exception class: they pickle
+    an exception's __context__ too, and Lark's (its parser state) does not pickle."""
+    pytest.importorskip("distributed")
+    import dask.distributed  # noqa: F401   (the registration happens on import)
+    from mimarble import scene as S
+    with pytest.raises(SceneError) as raised:
+        S.parse("camera { angle 46 }", filename="pov.scene")
+    again = pickle.loads(pickle.dumps(raised.value))
+    assert str(again) == str(raised.value)
+
+
 # --------------------------------------------------------------------------
 #  The paper's scenes
 # --------------------------------------------------------------------------
@@ -226,9 +238,10 @@ def test_grammar_is_shipped_next_to_the_parser():
 def test_marble_rules_and_keys_are_written_from_the_parameter_table():
     import re
 
-    from mimarble.marble_parameters import PARAMETERS
-    from mimarble.scene.grammar import grammar_text
-    names = tuple(p.name for p in PARAMETERS)
+    # The rows with a key of their own (ramp_positions is written inside the ramp block).
+    from mimarble.marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+    from mimarble.scene.grammar import LANGUAGE_MARBLE_KEYS, grammar_text
+    names = tuple(p.name for p in PARAMETERS) + LANGUAGE_MARBLE_KEYS     # then transform
     assert S.BLOCK_KEYS["marble"] == names
     assert not re.search(r"^_?marble(_key)?:", S.GRAMMAR_PATH.read_text(), re.M)  # not by hand
     assert re.search(r"^_marble_key: " + re.escape(" | ".join(names)) + "$", grammar_text(), re.M)
@@ -247,13 +260,18 @@ def test_block_keys_table_matches_the_grammar():
         "ambient": "{ color <0 0 0> }", "diffuse": "{ color <0 0 0> }", "specular": "{ color <0 0 0> }",
         "scale": "1", "period": "1", "distortion": "1", "octaves": "1", "function": "sine", "axis": "y",
         "turbulence": "true", "filter": "prefilter", "tolerance": "0.001", "ramp": "{ <0 0 0> <1 1 1> }",
+        "gain": "0.6", "lacunarity": "2.5",
         "center": "<0 0 0>", "radius": "1",
+        "area": "{ radius 1 }", "axis1": "<1 0 0> axis2 <0 1 0>", "axis2": "<0 1 0> axis1 <1 0 0>",
         "material": '"m"',
+        "transform": "{ }", "translate": "<1 0 0>", "rotate": "<0 0 90>",
     }
     wrap = {
         "image": "image {{ {} }}", "camera": "camera {{ {} }}", "light": "light {{ position <0 0 0> {} }}",
         "material": 'material "m" {{ {} }}', "marble": 'material "m" {{ diffuse {{ marble {{ {} }} }} }}',
         "sphere": 'material "m" {{ }} sphere {{ material "m" {} }}',
+        "area": 'light {{ position <0 0 0> area {{ {} }} }}',
+        "transform": 'material "m" {{ diffuse {{ marble {{ transform {{ {} }} }} }} }}',
     }
     one = {"color": "color <0 0 0>", "marble": "marble { }", "weight": "weight 0.5",
            "image": f'image {{ file "{PNG}" }}', "add": "add { color <0 0 0> color <0 0 0> }",
@@ -278,6 +296,9 @@ def test_block_keys_table_matches_the_grammar():
         for key in keys:
             if (block, key) in (("light", "position"), ("sphere", "material")):
                 continue  # required keys, already in the wrapper
+            if (block, key) == ("area", "samples"):     # with a shape: radius or the axes
+                parse(wrap[block].format("radius 1 samples 4"))
+                continue
             parse(wrap[block].format(f"{key} {samples[key]}"))
 
 
@@ -286,11 +307,13 @@ def test_the_documented_marble_keys_are_the_parameter_table():
     mimarble/marble_parameters.py, in its order, with its default."""
     from pathlib import Path
 
-    from mimarble.marble_parameters import COLOURS, PARAMETERS
+    from mimarble.marble_parameters import COLOURS
+    from mimarble.marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+    from mimarble.scene.grammar import LANGUAGE_MARBLE_KEYS
     text = (Path(__file__).parent.parent / "docs" / "scene-language.md").read_text()
     table = text[text.index("The marble, all keys optional"):]
     rows = [line for line in table.split("\n\n", 2)[1].splitlines() if line.startswith("| `")]
-    assert [row.split("`")[1] for row in rows] == [p.name for p in PARAMETERS]
+    assert [row.split("`")[1] for row in rows] == [p.name for p in PARAMETERS] + list(LANGUAGE_MARBLE_KEYS)
     for row, p in zip(rows, PARAMETERS):
         default = row.split("|")[3].strip().strip("`")
         if p.kind == COLOURS or p.default is None:

@@ -1,6 +1,7 @@
 """Ctrl-C on a sweep rendering on a Dask LocalCluster (issue 28): one line on stderr, the
 workers stopped with it, and a folder a resumed sweep can trust."""
 
+import contextlib
 import json
 import os
 import re
@@ -70,11 +71,16 @@ def test_ctrl_c_on_two_workers_says_one_line_stops_them_and_leaves_whole_files(t
     sys.stderr.write(stderr)      # where the conftest check sees Dr.Jit's bounds reports
     assert process.returncode == 130, (stdout, stderr)
     assert stderr.splitlines() == ["mimarble: interrupted"]
-    # The workers were stopped by the sweep, not left running (or to notice it gone).
-    deadline = time.monotonic() + 60
-    while processes_of_group(process.pid):
-        assert time.monotonic() < deadline, processes_of_group(process.pid)
-        time.sleep(0.1)
+    # The workers were stopped by the sweep, not left running (or to notice it gone);
+    # any that were are killed, so a failing run leaves nothing behind in CI.
+    try:
+        deadline = time.monotonic() + 60
+        while processes_of_group(process.pid):
+            assert time.monotonic() < deadline, processes_of_group(process.pid)
+            time.sleep(0.1)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
     # Nothing half-written: the index whole and of this sweep, every image in the folder
     # whole, each frame it says is done there, no temporary file left behind.
     index = json.loads((out / "sweep.json").read_text())

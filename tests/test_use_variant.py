@@ -42,15 +42,16 @@ def test_a_named_usable_variant_is_set_and_returned():
         mi.set_variant(previous)
 
 
-def test_the_command_line_says_the_sentence_python_raises():
+def test_the_command_line_says_the_sentence_python_raises(tmp_path):
     try:
         mimarble.use_variant("nonsense_rgb")
     except mimarble.EnvironmentProblem as e:
         sentence = str(e)
     env = {k: v for k, v in os.environ.items() if k != environment.VARIANT_ENV}
     result = subprocess.run([sys.executable, "-m", "mimarble", "--variant", "nonsense_rgb",
-                             "render", "scenes/fig10a.scene", "-o", os.devnull + ".png"],
+                             "render", "scenes/fig10a.scene", "-o", str(tmp_path / "x.png")],
                             cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
     assert result.returncode == 2
     assert result.stderr.strip() == f"mimarble: {sentence}"
     assert "can render here" in sentence
+    assert list(tmp_path.iterdir()) == []

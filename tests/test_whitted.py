@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 import pytest
+from traced import operations_traced  # noqa: E402
 
 import mimarble
 from mimarble import scene as sl
@@ -208,7 +209,7 @@ def test_whitted_under_mi_render_names_the_shape_and_class_of_a_wrong_bsdf(llvm)
     while e is not None:
         messages.append(str(e))
         e = e.__cause__ or e.__context__
-    assert any("shape 'sphere_0' has a SmoothDiffuse BSDF" in m and "channel_material" in m
+    assert any("shape 'sphere_0' has BSDF 'diffuse' (SmoothDiffuse)" in m and "channel_material" in m
                for m in messages), messages
 
 
@@ -224,8 +225,9 @@ def test_mimarble_render_refuses_a_wrong_bsdf_before_tracing(variant_name, monke
             pytest.fail("rendered a scene it should refuse")
         monkeypatch.setattr(rendering, "render_in_passes", traced)
         monkeypatch.setattr(mi, "render", traced)
-        with pytest.raises(ValueError, match=r"^whitted: shape 'sphere_0' has a "
-                                             r"RoughConductor BSDF; .*'channel_material'") as err:
+        with pytest.raises(ValueError, match=r"^whitted: shape 'sphere_0' has BSDF "
+                                             r"'roughconductor' \(RoughConductor\); "
+                                             r".*'channel_material'") as err:
             mimarble.render(scene)
         assert err.value.__cause__ is None
     finally:
@@ -235,17 +237,13 @@ def test_mimarble_render_refuses_a_wrong_bsdf_before_tracing(variant_name, monke
 def test_mimarble_render_refuses_an_area_light_naming_its_class(llvm):
     d = to_mitsuba(tiny_scene())
     d["sky"] = {"type": "constant"}
-    with pytest.raises(ValueError, match=r"emitter 'sky' \(Constant\w*\) is not a point light"):
+    with pytest.raises(ValueError, match=r"emitter 'sky' is 'constant' \(\w+\), not a point light"):
         mimarble.render(mi.load_dict(d))
 
 
 def test_specular_work_is_skipped_without_specular_channels(llvm, monkeypatch):
     monkeypatch.setenv("MIMARBLE_FREEZE", "0")      # the code traced, not a replay of it
-    def operations(scene):
-        with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-            mimarble.render(scene)
-            return sum(k.get("operation_count", 0) for k in dr.kernel_history())
-    assert operations(tiny_scene(specular=False)) < operations(tiny_scene(specular=True))
+    assert operations_traced(tiny_scene(specular=False)) < operations_traced(tiny_scene(specular=True))
 
 
 @pytest.mark.parametrize("path", sorted(__import__("glob").glob("scenes/*.scene")))
@@ -283,3 +281,11 @@ def test_whitted_render_differentiates_like_finite_differences(llvm):
     h = 1e-3
     fd = (float(np.array(mean_image(0.8 + h))) - float(np.array(mean_image(0.8 - h)))) / (2 * h)
     assert abs(fd) > 1e-3 and abs(ad - fd) <= 0.01 * abs(fd) + 1e-5, (ad, fd)
+
+
+@pytest.mark.parametrize("name", ["diffuse", "roughconductor", "dielectric", "conductor",
+                                  "plastic", "roughplastic", "thindielectric", "principled",
+                                  "constant", "point", "directional"])
+def test_the_plugin_names_table_agrees_with_mitsubas_classes(llvm, name):
+    from mimarble.mitsuba.whitted import MITSUBA_PLUGIN_NAMES
+    assert MITSUBA_PLUGIN_NAMES[mi.load_dict({"type": name}).class_name()] == name

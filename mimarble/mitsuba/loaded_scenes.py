@@ -128,7 +128,18 @@ def _structure(scene_dict) -> tuple[str, dict, list]:
                     values[f"{name}.{key}"] = item.pop(key)
         masked[name] = item
     files = _image_files(scene_dict)
-    return json.dumps([masked, files], sort_keys=True, default=str), values, files
+    return json.dumps([masked, files], sort_keys=True, default=_exact), values, files
+
+
+def _exact(item):
+    """A value JSON cannot write, as the structure holds it: a transform (a camera's, a
+    marble's ``to_world``) by every float of its matrix — its ``str`` rounds to 6 digits,
+    so two transforms that differ past them would share one loaded scene — anything else
+    by its ``str``."""
+    matrix = getattr(item, "matrix", None)
+    if matrix is not None and "Transform" in type(item).__name__:
+        return [type(item).__name__, [[float(matrix[i][j]) for j in range(4)] for i in range(4)]]
+    return str(item)
 
 
 def _image_files(item) -> list:

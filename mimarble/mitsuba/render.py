@@ -15,8 +15,9 @@ import warnings
 
 import numpy as np
 
-from .. import environment
+from .. import environment, packaged_scenes
 from .. import scene as scene_language
+from ..crop import as_integers, crop_problem
 from ..progress import report
 from ..scene.model import samples_per_axis
 from ..scene.rules import seed_problem, spp_problem
@@ -31,9 +32,10 @@ dr, mi = environment.import_drjit_and_mitsuba()
 def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
            progress=False, tolerance: float | None = None, filter: str | None = None,
            edge_spp: int | None = None, seed: int = 0, width: int | None = None,
-           height: int | None = None) -> np.ndarray:
-    """Render a scene (model, path of a scene file, or a loaded ``mi.Scene``) → linear
-    float32 (H, W, 3).
+           height: int | None = None, crop=None) -> np.ndarray:
+    """Render a scene (model, path of a scene file — or, when no such file exists, a
+    packaged scene's name such as ``"fig11a"``, as the command line takes it —, or a loaded
+    ``mi.Scene``) → linear float32 (H, W, 3).
 
     Everything but the scene is a keyword (``mi.render``'s second argument is
     ``params``, not ``spp``). ``mode``: ``whitted`` (the default for a model or a file)
@@ -47,6 +49,9 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     command line's ``--width``/``--height``: the fov is the full vertical angle, so a new
     height shows the same view at another resolution and a new width crops or extends it
     sideways); a loaded ``mi.Scene`` renders at its film's size, so they are refused for it.
+    ``crop``: ``(x0, y0, x1, y1)``, a window of the image (after ``width``/``height``) —
+    pixel indices from 0 at the top-left, x1 and y1 exclusive: the full render's
+    ``[y0:y1, x0:x1]`` — rendered alone (:func:`render_in_passes`); a scene model or file only.
 
     A scene model or file is loaded once and kept by its structure
     (mimarble/mitsuba/loaded_scenes.py): another render of it, or of a scene that
@@ -68,23 +73,33 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     """
     environment.require_rgb_variant()
     if isinstance(scene_or_path, mi.Scene):
-        if width is not None or height is not None:
-            raise ValueError("render: width and height apply to a scene model or file; a "
-                             "loaded mi.Scene renders at its film's size")
+        if width is not None or height is not None or crop is not None:
+            given = ("crop applies" if width is None and height is None
+                     else "width and height apply")
+            raise ValueError(f"render: {given} to a scene model or file; a "
+                             f"loaded mi.Scene renders at its film's size (its film's own "
+                             f"crop_offset and crop_size crop it)")
         return _render_loaded(scene_or_path, spp, mode, progress, tolerance, filter,
                               edge_spp, seed)
     mode = "whitted" if mode is None else mode
     check_edge_spp(edge_spp, mode)
+    check_filter(filter, mode)
     problem = seed_problem(seed)
     if problem:
         raise ValueError(f"render: {problem}")
     scene = scene_or_path
-    if isinstance(scene_or_path, (str, os.PathLike)):
-        scene = scene_language.load(scene_or_path)
+    if isinstance(scene_or_path, (str, os.PathLike)):   # a file, else a packaged scene's name
+        scene = scene_language.load(packaged_scenes.resolve(scene_or_path))
     elif not isinstance(scene_or_path, scene_language.Scene):
         raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
     scene = _sized(scene, width, height)
+    if crop is not None:
+        problem = crop_problem(crop, scene.image.width, scene.image.height)
+        if problem:
+            raise (TypeError if problem.startswith("must be") else ValueError)(
+                f"render: crop {problem}")
+        crop = as_integers(crop)
     try:
         mitsuba_scene = LOADED.scene_of(scene, mode=mode, spp=spp, tolerance=tolerance,
                                         filter=filter)
@@ -101,8 +116,18 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
         done(0, total)
         image = np.array(mi.render(mitsuba_scene, seed=seed), dtype=np.float32)[..., :3]
         done(total, total)
-        return image
-    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed)
+        # A window of the whole render: Mitsuba's own film crop (crop_offset, crop_size)
+        # maps film positions through other float32 arithmetic, so its pixels differ
+        # (whitted: by up to 6e-5, measured; path: a different sample stream).
+        return image if crop is None else np.ascontiguousarray(image[_slices(crop)])
+    return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed,
+                            crop=crop)
+
+
+def _slices(crop):
+    """``(x0, y0, x1, y1)`` as the (rows, columns) slices of an (H, W, …) array."""
+    x0, y0, x1, y1 = crop
+    return slice(y0, y1), slice(x0, x1)
 
 
 def _sized(scene, width, height):
@@ -157,6 +182,14 @@ def check_images(scene) -> None:
             raise scene_language.SceneError.undecodable_image(scene, channel, reason) from None
 
 
+def check_filter(filter, mode: str = "whitted") -> None:
+    """A pixel filter other than ``none`` needs whitted mode: Mitsuba's ``path`` gives a
+    texture no ray differentials to filter over (docs/mitsuba-scene.md)."""
+    if filter not in (None, "none") and mode != "whitted":
+        raise ValueError(f"filter={filter!r:.40} needs whitted mode (its ray differentials); "
+                         f"Mitsuba's path integrator gives the marble none: leave filter out")
+
+
 def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
     """``edge_spp`` is None or a perfect square ≥ 1, in whitted mode (ValueError otherwise)."""
     if edge_spp is None:
@@ -172,7 +205,7 @@ def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
 
 def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=False,
                      pass_samples: int | None = None, edge_spp: int | None = None,
-                     seed: int = 0) -> np.ndarray:
+                     seed: int = 0, crop: tuple | None = None) -> np.ndarray:
     """What ``mi.render`` computes, in passes of at most ``pass_samples`` samples
     (default :data:`~mimarble.mitsuba.passes.PASS_SAMPLES`; :func:`trace_in_passes`).
 
@@ -193,6 +226,15 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     (so only an ``edge_spp`` above ``spp`` does anything; mimarble/mitsuba/silhouettes.py).
     Deterministic, like the rest.
 
+    ``crop`` ``(x0, y0, x1, y1)`` (checked by the caller: :func:`~mimarble.crop.crop_problem`):
+    only that window is traced, as a list of the full image's pixel indices, and the
+    (y1 − y0, x1 − x0, 3) window comes back. Whitted mode gives exactly the full render's
+    pixels there, edge samples included: the first passes also trace a one-pixel ring
+    around the window (inside the image), so that each window pixel's silhouette test sees
+    the same 8 neighbours as in the full render. Path mode draws the window's samples in
+    its own passes (the sampler is seeded per pass, lane by lane), so its noise there
+    differs from the full render's, as Mitsuba's own film crop does: the same expected image.
+
     The numbers that vary between renders of one scene structure are opaque
     (pass offsets, samples per pixel, image width and height), so a scene
     compiles one kernel for every spp: a new user's renders at 1, 4 and
@@ -206,7 +248,10 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     if edge_spp is not None and edge_spp <= spp:
         edge_spp = None                                # fewer samples would not help a pixel
     target = Target.of(mitsuba_scene, mode, LOADED.parameters_of(mitsuba_scene))
-    width, height = target.width, target.height
+    # What is traced: the whole image, or a window of it (with edge samples, the window
+    # and a ring of one pixel, so that its silhouettes are found as in the whole image).
+    traced = _Window.of(target, crop, ring=1 if edge_spp else 0)
+    width, height = traced.width, traced.height
     pixels = width * height
     image = np.empty((pixels, 3), dtype=np.float32)   # the only full-size array
     # First and last shape hit among each pixel's samples (0: a miss), for edge_spp.
@@ -217,28 +262,90 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     # they take, so that a bar stays open until the edge pass has said how much it adds.
     pending = 1 if edge_spp else 0
     done(0, samples_total + pending)                   # a bar's delay counts from here
-    first_passes = trace_in_passes(target, spp, with_shapes=shapes is not None,
+    first_passes = trace_in_passes(target, spp, traced.pixels, with_shapes=shapes is not None,
                                    pass_samples=pass_samples, seed=seed)
-    for samples in _fill(image, first_passes, spp, shapes):
+    for samples in _fill(image, first_passes, spp, shapes, traced.local):
         samples_done += samples
         done(samples_done, samples_total + pending)
     if edge_spp:
-        edge_samples, edge_passes = edge_sample_passes(target, shapes, edge_spp, pass_samples)
+        edge_samples, edge_passes = edge_sample_passes(target, shapes, edge_spp, pass_samples,
+                                                       traced)
         samples_total += edge_samples
         done(samples_done, samples_total)
-        for samples in _fill(image, edge_passes, edge_spp):
+        for samples in _fill(image, edge_passes, edge_spp, local=traced.local):
             samples_done += samples
             done(samples_done, samples_total)
-    return image.reshape(height, width, 3)
+    return traced.window_of(image.reshape(height, width, 3))
 
 
-def _fill(image: np.ndarray, traced_passes, spp: int, shapes: np.ndarray | None = None):
+class _Window:
+    """The pixels a render traces: ``x0, y0`` and ``width`` × ``height`` of a ``columns``
+    wide image; ``inner``: the rows and columns of the asked-for window within them."""
+
+    def __init__(self, columns: int, x0: int, y0: int, width: int, height: int, inner):
+        self.columns, self.x0, self.y0, self.width, self.height = columns, x0, y0, width, height
+        self.inner = inner
+        self.whole = inner is None
+
+    @classmethod
+    def of(cls, target: Target, crop, ring: int) -> "_Window":
+        """The whole image of ``target`` (``crop`` None), or the window ``crop`` and a
+        ``ring`` of pixels around it, within the image."""
+        if crop is None:
+            return cls(target.width, 0, 0, target.width, target.height, None)
+        x0, y0, x1, y1 = crop
+        tx0, ty0 = max(x0 - ring, 0), max(y0 - ring, 0)
+        tx1, ty1 = min(x1 + ring, target.width), min(y1 + ring, target.height)
+        return cls(target.width, tx0, ty0, tx1 - tx0, ty1 - ty0,
+                   (slice(y0 - ty0, y1 - ty0), slice(x0 - tx0, x1 - tx0)))
+
+    @property
+    def pixels(self) -> np.ndarray | None:
+        """The traced pixels' indices in the whole image, row by row (None: all of them)."""
+        if self.whole:
+            return None
+        rows = np.arange(self.y0, self.y0 + self.height, dtype=np.uint32)[:, None]
+        columns = np.arange(self.x0, self.x0 + self.width, dtype=np.uint32)[None, :]
+        return (rows * np.uint32(self.columns) + columns).ravel()
+
+    def local(self, pixels):
+        """Whole-image pixel indices (a slice or an array) → indices into the traced pixels."""
+        if self.whole:
+            return pixels
+        pixels = np.asarray(pixels, dtype=np.int64)
+        return (pixels // self.columns - self.y0) * self.width + pixels % self.columns - self.x0
+
+    def global_(self, local: np.ndarray) -> np.ndarray:
+        """Indices into the traced pixels → the whole image's (uint32)."""
+        if self.whole:
+            return local
+        local = np.asarray(local, dtype=np.int64)
+        return ((local // self.width + self.y0) * self.columns
+                + local % self.width + self.x0).astype(np.uint32)
+
+    def contains(self, local: np.ndarray) -> np.ndarray:
+        """Which of the traced pixels ``local`` lie in the asked-for window (bool)."""
+        if self.whole:
+            return np.ones(len(local), dtype=bool)
+        rows, columns = np.divmod(np.asarray(local, dtype=np.int64), self.width)
+        (r, c) = self.inner
+        return (rows >= r.start) & (rows < r.stop) & (columns >= c.start) & (columns < c.stop)
+
+    def window_of(self, image: np.ndarray) -> np.ndarray:
+        """The asked-for window of the traced (height, width, 3) image."""
+        return image if self.whole else np.ascontiguousarray(image[self.inner])
+
+
+def _fill(image: np.ndarray, traced_passes, spp: int, shapes: np.ndarray | None = None,
+          local=lambda pixels: pixels):
     """Store each pass's pixel means (its float64 sums / ``spp``, rounded to float32) in
     ``image`` (pixels, 3), and with ``shapes`` their first-hit shape ranges in it
-    (2, pixels); yields the samples each pass traced, once it is stored."""
+    (2, pixels); yields the samples each pass traced, once it is stored. ``local``: the
+    whole image's pixel indices → ``image``'s (a crop's window)."""
     for traced in traced_passes:
-        image[traced.pixels] = traced.means
+        pixels = local(traced.pixels)
+        image[pixels] = traced.means
         if shapes is not None:
-            shapes[0, traced.pixels] = traced.first_shape
-            shapes[1, traced.pixels] = traced.last_shape
+            shapes[0, pixels] = traced.first_shape
+            shapes[1, pixels] = traced.last_shape
         yield traced.samples

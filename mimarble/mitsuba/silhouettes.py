@@ -37,11 +37,20 @@ def silhouette_pixels(shapes: np.ndarray, width: int, height: int) -> np.ndarray
 
 
 def edge_sample_passes(target: Target, shapes: np.ndarray, edge_spp: int,
-                       pass_samples: int | None = None):
+                       pass_samples: int | None = None, window=None):
     """(samples, passes): the edge pass of an image whose first passes found ``shapes``
     ((2, pixels), as for :func:`silhouette_pixels`). ``passes`` traces ``edge_spp``
-    stratum centres in every silhouette pixel (whitted mode), ``samples`` in all."""
-    edges = silhouette_pixels(shapes, target.width, target.height)
+    stratum centres in every silhouette pixel (whitted mode), ``samples`` in all.
+
+    ``window`` (a crop: mimarble/mitsuba/render.py's ``_Window``): ``shapes`` are of its
+    traced pixels, the crop and a ring of one pixel around it within the image, so that
+    each crop pixel's 3×3 neighbourhood is the whole image's; only the crop's silhouette
+    pixels are traced again."""
+    if window is None or window.whole:
+        edges = silhouette_pixels(shapes, target.width, target.height)
+    else:
+        local = silhouette_pixels(shapes, window.width, window.height)
+        edges = window.global_(local[window.contains(local)])
     return len(edges) * edge_spp, trace_in_passes(target, edge_spp, edges,
                                                   pass_samples=pass_samples)
 

@@ -16,6 +16,9 @@ lights, the ``whitted`` integrator, a non-jittered ``stratified`` sampler and a
 * a light of colour I → ``point`` intensity I·π·d², d its distance to the
   camera's look-at point: a Lambertian surface there then receives
   kd·I·cosθ, as in whitted mode, and the 1/d² falloff is physical elsewhere;
+  an area light → a ``rectangle`` or ``sphere`` shape with an ``area`` emitter of the
+  same radiant intensity towards the look-at point (:func:`area_light_dict`); in
+  whitted mode a ``stratified_area`` emitter;
 * the global ambient A → a hidden ``constant`` environment of radiance A
   (a Lambertian surface open to the sky reflects kd⊙A: the ambient term with
   kd in place of ka);
@@ -76,6 +79,11 @@ def texture_dict(channel, tolerance: float | None = None, operand=None) -> dict:
                 for p, value in channel.items()})
     out["tolerance"] = float(next(t for t in (tolerance, channel.tolerance,
                                               error_budget.DEFAULT_TOLERANCE) if t is not None))
+    if getattr(channel, "transform", ()):
+        # The pattern's transform (mimarble/scene/transforms.py), composed in double
+        # precision and rounded once: the plugin's to_world (v = scale·to_world⁻¹·p).
+        import mitsuba as mi   # imported here: the module itself stays importable without it
+        out["to_world"] = mi.ScalarTransform4f([list(row) for row in channel.to_world])
     return out
 
 
@@ -313,6 +321,9 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
                               "radius": sphere.radius, "bsdf": materials[sphere.material]}
 
     for k, light in enumerate(scene.lights):
+        if light.area is not None:
+            out[f"light_{k}"] = area_light_dict(light, scene.camera.lookat, mode)
+            continue
         intensity = list(light.color)
         if mode == "path":
             d2 = math.dist(light.position, scene.camera.lookat) ** 2
@@ -323,6 +334,63 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     if mode == "path" and any(scene.ambient):
         out["ambient"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(scene.ambient)}}
     return out
+
+
+def _cross(a, b):
+    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+
+
+def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
+    """An area light (``light.area``) in Mitsuba's terms.
+
+    ``whitted``: a ``stratified_area`` emitter (area_light.py), its n×n point samples the
+    rendering model's (docs/rendering-model.md, "Area lights"); a sphere's disks are
+    oriented from the direction to ``lookat``.
+
+    ``path``: Mitsuba's own: a ``rectangle`` (or ``sphere``) shape with an ``area`` emitter
+    and a black ``diffuse`` BSDF. Its radiance L is set so that its radiant intensity
+    towards the look-at point equals the path-mode point light's, I·π·d² (d the distance
+    from the light's centre to ``lookat``), so that there, as for a point light, a
+    Lambertian surface receives what whitted mode gives it:
+
+    * sphere of radius R: intensity π·R²·L in every direction, L = I·d²/R²; its total
+      power, 4π·(π·R²·L), is the point light's;
+    * rectangle of area A = |axis1 × axis2|, one-sided, its normal ±(axis1 × axis2) the
+      one facing ``lookat``: intensity A·L·cos θ at θ from its normal, so L = I·π·d²/(A·cos θ₀),
+      θ₀ the look-at point's angle (cos θ₀ = 1 when the look-at point lies in its plane). Its
+      power, π·A·L, is 1/(4·cos θ₀) of the point light's: it lights one half-space, with a
+      cosine.
+    """
+    area, position = light.area, list(light.position)
+    if mode == "whitted":
+        out = {"type": "stratified_area", "position": position, "intensity": list(light.color),
+               "samples": area.samples}
+        if isinstance(area, model.SphereArea):
+            out.update(shape="sphere", radius=area.radius, toward=list(lookat))
+        else:
+            out.update(shape="rectangle", axis1=list(area.axis1), axis2=list(area.axis2))
+        return out
+    import mitsuba as mi   # imported here: the module itself stays importable without it
+    d2 = math.dist(light.position, lookat) ** 2
+    black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+    if isinstance(area, model.SphereArea):
+        radiance = [c * d2 / area.radius ** 2 for c in light.color]
+        return {"type": "sphere", "center": position, "radius": area.radius, "bsdf": black,
+                "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
+    axis1, axis2 = list(area.axis1), list(area.axis2)
+    normal = _cross(axis1, axis2)
+    if sum(a * (b - c) for a, b, c in zip(normal, lookat, position)) < 0:
+        axis1, axis2 = axis2, axis1          # right-handed, the normal facing the look-at
+        normal = [-c for c in normal]
+    size = math.sqrt(sum(c * c for c in normal))
+    facing = sum(a * (b - c) for a, b, c in zip(normal, lookat, position)) / (size * math.sqrt(d2)) \
+        if d2 > 0 else 1.0
+    facing = facing if facing > 0 else 1.0
+    radiance = [c * math.pi * d2 / (size * facing) for c in light.color]
+    matrix = [[axis1[i] / 2, axis2[i] / 2, normal[i] / size, position[i]] for i in range(3)]
+    return {"type": "rectangle", "to_world": mi.ScalarTransform4f(matrix + [[0, 0, 0, 1]]),
+            "bsdf": black,
+            "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
 
 
 #: Marble is calcite: refractive index 1.49–1.66, so a polished face reflects ~5 % at normal

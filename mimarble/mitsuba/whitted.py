@@ -37,7 +37,9 @@ lanes that face the light, no channel evaluation for absent channels.
      - Trace the shadow rays (false: V = [n·l > 0]).
 
 Every shape's BSDF must be a ``channel_material``; lights must be point-like
-(``point``, ``spot``); other emitters are an error.
+(``point``, ``spot``) or ``stratified_area`` (an area light as n×n point lights at fixed
+stratum centres, area_light.py: the samples a symbolic loop, so that the kernel holds one
+light's code whatever their count); other emitters are an error.
 """
 
 from __future__ import annotations
@@ -46,6 +48,7 @@ from .. import environment
 from ..plugins import describe, numbers, plugin
 from ..texture_mapping import differentials_from_the_eye, footprints_omitted_on_purpose
 from . import sphere_hit
+from .area_light import StratifiedArea
 from .material import ChannelMaterial
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -67,11 +70,35 @@ def _no_channels(si):
     return zero, zero, zero, mi.Float(1.0)
 
 
+#: Mitsuba 3.9's BSDF and emitter plugins by class (each ``src/*/NAME.cpp`` ends with
+#: ``MI_EXPORT_PLUGIN(CLASS)``): objects know their class, not the name a scene gave.
+#: Making each plugin to ask its class is no way to find out: some abort the process
+#: without their parameters (``blendbsdf``).
+MITSUBA_PLUGIN_NAMES = {
+    "BlendBSDF": "blendbsdf", "BumpMap": "bumpmap", "CircularPolarizer": "circular",
+    "SmoothConductor": "conductor", "SmoothDielectric": "dielectric",
+    "SmoothDiffuse": "diffuse", "Hair": "hair", "MaskBSDF": "mask", "Measured": "measured",
+    "MeasuredPolarized": "measured_polarized", "NormalMap": "normalmap", "Null": "null",
+    "SmoothPlastic": "plastic", "LinearPolarizer": "polarizer", "PolarizedPlastic": "pplastic",
+    "Principled": "principled", "PrincipledThin": "principledthin",
+    "LinearRetarder": "retarder", "RoughConductor": "roughconductor",
+    "RoughDielectric": "roughdielectric", "RoughPlastic": "roughplastic",
+    "ThinDielectric": "thindielectric", "TwoSidedBRDF": "twosided",
+    "AreaLight": "area", "ConstantBackgroundEmitter": "constant",
+    "DirectionalEmitter": "directional", "DirectionalArea": "directionalarea",
+    "EnvironmentMapEmitter": "envmap", "PointLight": "point", "Projector": "projector",
+    "SpotLight": "spot", "SunskyEmitter": "sunsky", "TimedSunskyEmitter": "timed_sunsky",
+}
+
+
 def _class_of(plugin) -> str:
-    """The plugin's class as Mitsuba's ``to_string`` names it ('diffuse' is
-    ``SmoothDiffuse``), or a Python plugin's class."""
+    """The plugin as a scene names it, with its class: "'diffuse' (SmoothDiffuse)"; a
+    class not in :data:`MITSUBA_PLUGIN_NAMES` by its class alone (a Python plugin's is
+    its Python class)."""
     name = plugin.class_name()
-    return type(plugin).__name__ if name in ("BSDF", "Emitter") else name
+    if name in ("BSDF", "Emitter"):
+        return type(plugin).__name__
+    return f"'{MITSUBA_PLUGIN_NAMES[name]}' ({name})" if name in MITSUBA_PLUGIN_NAMES else name
 
 
 def _material_channels(material, si, active):
@@ -139,8 +166,8 @@ class Whitted:
         materials = [shape.bsdf() for shape in scene.shapes()]
         for shape, material in zip(scene.shapes(), materials):
             if not isinstance(material, ChannelMaterial):
-                raise ValueError(f"whitted: shape {shape.id()!r} has a {_class_of(material)} "
-                                 f"BSDF; the whitted integrator needs 'channel_material' "
+                raise ValueError(f"whitted: shape {shape.id()!r} has BSDF {_class_of(material)}; "
+                                 f"the whitted integrator needs 'channel_material' "
                                  f"(or render with Mitsuba's 'path')")
         return materials
 
@@ -148,10 +175,12 @@ class Whitted:
     def _lights(scene):
         lights = list(scene.emitters())
         for light in lights:
-            if not mi.has_flag(light.flags(), mi.EmitterFlags.DeltaPosition):
-                raise ValueError(f"whitted: emitter {light.id()!r} ({_class_of(light)}) is not "
+            if not isinstance(light, StratifiedArea) and \
+                    not mi.has_flag(light.flags(), mi.EmitterFlags.DeltaPosition):
+                raise ValueError(f"whitted: emitter {light.id()!r} is {_class_of(light)}, not "
                                  f"a point light; the whitted integrator shades with point "
-                                 f"lights only ('point', 'spot')")
+                                 f"lights only ('point', 'spot', and 'stratified_area' for "
+                                 f"area lights)")
         return lights
 
     @staticmethod
@@ -204,6 +233,10 @@ class Whitted:
 
         radiance = ka * self.ambient
         for light in lights:
+            if isinstance(light, StratifiedArea):   # n×n point lights, in a symbolic loop
+                radiance += light.shade(scene, spheres, si, p, n, v, on_sphere, hit, kd, ks,
+                                        shininess, any_specular, self.shadows)
+                continue
             ds, weight = light.sample_direction(si, mi.Point2f(0.5, 0.5), hit)
             intensity = weight * dr.square(ds.dist)   # undo the 1/d² falloff
             n_dot_l = dr.dot(n, ds.d)

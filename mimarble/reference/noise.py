@@ -29,7 +29,9 @@ The fractal sum is the paper's ``Fractal3`` (Fig. 6)::
     F(v, K) = Σ_{i<K} N(2^i v) / 2^i           (|N| with turbulence)
 
 evaluated for every octave (no octave is skipped, up to 64); ``2^i v`` is an
-exact scaling in float64.
+exact scaling in float64. With another gain ω and lacunarity λ (POV-Ray's omega and
+lambda; the paper's are ½ and 2) it is Σ_{i<K} ω^i N(λ^i v), ω^i and λ^i as float64
+powers (``ω ** i``: exact at the paper's values, so its sum is the same).
 """
 
 from __future__ import annotations
@@ -127,23 +129,25 @@ def noise3(points):
     return noise(p[..., 0], p[..., 1], p[..., 2])
 
 
-def fractal(x, y, z, octaves, turbulence=False):
-    """``F = Σ_{i<octaves} N(2^i v) / 2^i`` at v = (x, y, z); ``|N|`` with turbulence."""
+def fractal(x, y, z, octaves, turbulence=False, gain=0.5, lacunarity=2.0):
+    """``F = Σ_{i<octaves} ω^i N(λ^i v)`` at v = (x, y, z), ω = ``gain``, λ =
+    ``lacunarity`` (the paper's: N(2^i v)/2^i); ``|N|`` with turbulence."""
     octaves = int(octaves)
     if not 0 <= octaves <= MAX_OCTAVES:
         raise ValueError(f"octaves must be in 0..{MAX_OCTAVES}, got {octaves}")
+    gain, lacunarity = float(gain), float(lacunarity)
     x, y, z = np.broadcast_arrays(*(np.asarray(c, dtype=np.float64) for c in (x, y, z)))
     total = np.zeros(x.shape)
     for i in range(octaves):
-        o = float(2 ** i)                        # exact power of two
+        o = lacunarity ** i                      # 2^i: an exact power of two
         n = noise(x * o, y * o, z * o)
         if turbulence:
             n = np.abs(n)
-        total += n / o
+        total += n * gain ** i                   # 2^−i: n / 2^i exactly
     return total
 
 
-def fractal3(points, octaves, turbulence=False):
+def fractal3(points, octaves, turbulence=False, gain=0.5, lacunarity=2.0):
     """The paper's ``Fractal3(v, octaves)`` at an (N, 3) array of points -> (N,)."""
     p = np.asarray(points, dtype=np.float64)
-    return fractal(p[..., 0], p[..., 1], p[..., 2], octaves, turbulence)
+    return fractal(p[..., 0], p[..., 1], p[..., 2], octaves, turbulence, gain, lacunarity)

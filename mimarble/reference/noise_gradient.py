@@ -8,7 +8,8 @@ noise (:func:`mimarble.reference.noise.noise`): a sum over the 8 corners of
     ∂N/∂x = Σ_c [ω′(dx) ω(dy) ω(dz) (G·d) + ω(dx) ω(dy) ω(dz) G_x],
     ω′(t) = −30 t² (|t| − 1)² · sign(t),
 
-and ∇F = Σ_i ∇N(2^i v) (|N|: sign(N)·∇N). Imports NumPy and the reference noise only.
+and ∇F = Σ_i ∇N(2^i v) (|N|: sign(N)·∇N); at gain ω and lacunarity λ,
+∇F = Σ_i (ωλ)^i ∇N(λ^i v). Imports NumPy and the reference noise only.
 """
 
 from __future__ import annotations
@@ -54,17 +55,17 @@ def noise_gradient(x, y, z):
     return out.reshape(shape + (3,))
 
 
-def fractal_gradient(points, octaves, turbulence=False):
-    """∇F at an (N, 3) array of points, F = Σ_{i<octaves} N(2^i v)/2^i -> (N, 3)."""
+def fractal_gradient(points, octaves, turbulence=False, gain=0.5, lacunarity=2.0):
+    """∇F at an (N, 3) array of points, F = Σ_{i<octaves} ω^i N(λ^i v) -> (N, 3)."""
     octaves = int(octaves)
     if not 0 <= octaves <= MAX_OCTAVES:
         raise ValueError(f"octaves must be in 0..{MAX_OCTAVES}, got {octaves}")
     v = np.asarray(points, dtype=np.float64)
     out = np.zeros(v.shape)
     for i in range(octaves):
-        o = float(2 ** i)
+        o = float(lacunarity) ** i
         g = noise_gradient(v[..., 0] * o, v[..., 1] * o, v[..., 2] * o)
         if turbulence:
             g = g * np.sign(noise(v[..., 0] * o, v[..., 1] * o, v[..., 2] * o))[..., None]
-        out += g
+        out += g * (float(gain) * float(lacunarity)) ** i
     return out

@@ -20,6 +20,10 @@ In short:
   with V(p,l) = 1 iff n·l̂ > 0 and no sphere meets the open segment from
   p' = p + ε·n, ε = EPS_REL·(1 + max_k |p_k|) (:data:`EPS_REL` = 1e-4), to
   the light (the paper's ``shadowHit``: any hit, early out).
+* **Area lights** (:func:`area_samples`, :func:`area_sample_points`): n×n point lights
+  of colour I/n², at the stratum centres of the rectangle (position + s·axis1 + t·axis2,
+  s, t = (a + ½)/n − ½) or, for a sphere, of the concentric-mapped unit disk of radius R
+  facing each shaded point; each is a light of the formula above.
 
 The **hit record** (:class:`HitRecord`) is the paper's "passing back" (§3.1):
 the hit routine returns where and what was hit, and the record carries the
@@ -59,6 +63,8 @@ __all__ = [
     "intersect_spheres",
     "closest_hit",
     "shadow_hit",
+    "area_samples",
+    "area_sample_points",
     "hit",
     "channel_color",
     "shade",
@@ -99,6 +105,7 @@ class PreparedScene:
     light_colors: np.ndarray       # (L, 3)
     ambient: np.ndarray            # (3,)
     background: np.ndarray         # (3,)
+    light_areas: tuple = ()        # (L,) None, or area_samples' pattern of an area light
 
 
 def prepare(scene: Scene) -> PreparedScene:
@@ -133,6 +140,8 @@ def prepare(scene: Scene) -> PreparedScene:
         light_colors=np.array([l.color for l in lights], dtype=np.float64).reshape(-1, 3),
         ambient=np.array(scene.ambient, dtype=np.float64),
         background=np.array(scene.image.background, dtype=np.float64),
+        light_areas=tuple(None if l.area is None else area_samples(l, scene.camera.lookat)
+                          for l in lights),
     )
 
 
@@ -251,6 +260,90 @@ def shadow_hit(centers, radii, o, d, t_max):
     return blocked
 
 
+# ---------------------------------------------------------------------------
+# Area lights: their fixed sample patterns
+
+@dataclass(frozen=True)
+class AreaSamples:
+    """An area light's pattern: ``offsets`` (N, 2) of sample k = b·n + a; for a rectangle
+    ``edges`` (axis1, axis2), for a sphere ``radius`` and its frame (``w0``, ``f``)."""
+
+    kind: str                       # "rectangle" or "sphere"
+    center: np.ndarray              # (3,)
+    offsets: np.ndarray             # (N, 2)
+    color: np.ndarray               # (3,) each sample's: the light's colour / N
+    edges: np.ndarray | None = None     # (2, 3), a rectangle's
+    radius: float = 0.0
+    w0: np.ndarray | None = None    # (3,) a sphere's: unit, centre towards the look-at
+    f: np.ndarray | None = None     # (3,) a sphere's: unit, perpendicular to w0
+
+
+def _stratum_centres(n: int):
+    """(a, b) of sample k = b·n + a, as float arrays, centres (a + ½)/n, (b + ½)/n."""
+    k = np.arange(n * n)
+    return ((k % n) + 0.5) / n, ((k // n) + 0.5) / n
+
+
+def _concentric_disk(u, v):
+    """Shirley & Chiu's concentric map of [−1, 1]² onto the unit disk: r = u,
+    φ = (π/4)·v/u where |u| > |v|, else r = v, φ = π/2 − (π/4)·u/v; (0, 0) stays."""
+    u, v = np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64)
+    wide = np.abs(u) > np.abs(v)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r = np.where(wide, u, v)
+        phi = np.where(wide, (np.pi / 4) * (v / u), np.pi / 2 - (np.pi / 4) * (u / v))
+    centre = (u == 0.0) & (v == 0.0)
+    x = np.where(centre, 0.0, r * np.cos(phi))
+    y = np.where(centre, 0.0, r * np.sin(phi))
+    return np.stack([x, y], axis=-1)
+
+
+def area_samples(light, lookat) -> AreaSamples:
+    """The fixed part of an area light's n×n pattern (docs/rendering-model.md, "Area
+    lights"). A sphere's frame: w0 = normalize(lookat − centre) ((0, 0, −1) if they
+    coincide); f = the world axis of w0's smallest |component| (the first of equals),
+    minus its part along w0, normalised."""
+    area = light.area
+    n = samples_per_axis(area.samples)
+    centre = np.array(light.position, dtype=np.float64)
+    color = np.array(light.color, dtype=np.float64) / (n * n)
+    a, b = _stratum_centres(n)
+    if hasattr(area, "axis1"):
+        return AreaSamples("rectangle", centre, np.stack([a - 0.5, b - 0.5], axis=-1), color,
+                           edges=np.array([area.axis1, area.axis2], dtype=np.float64))
+    w0 = np.array(lookat, dtype=np.float64) - centre
+    norm = np.linalg.norm(w0)
+    w0 = w0 / norm if norm > 0 else np.array([0.0, 0.0, -1.0])
+    f = np.eye(3)[int(np.argmin(np.abs(w0)))]
+    f = f - np.dot(f, w0) * w0
+    return AreaSamples("sphere", centre, _concentric_disk(2.0 * a - 1.0, 2.0 * b - 1.0), color,
+                       radius=float(area.radius), w0=w0, f=f / np.linalg.norm(f))
+
+
+def area_sample_points(pattern: AreaSamples, p: np.ndarray) -> np.ndarray:
+    """The sample points seen from hit points p (k, 3): (N, k, 3). A rectangle's are the
+    same for every p; a sphere's disk faces each p: centre + R·(x·t + y·b), w the unit
+    vector from the centre to p, t = normalize(f − (f·w)·w) (w0 in place of f where
+    |f − (f·w)·w|² ≤ 1e-12), b = w × t; the centre itself where p is the centre."""
+    p = np.asarray(p, dtype=np.float64).reshape(-1, 3)
+    if pattern.kind == "rectangle":
+        points = pattern.center + pattern.offsets @ pattern.edges          # (N, 3)
+        return np.broadcast_to(points[:, None, :], (len(points), len(p), 3))
+    rel = p - pattern.center
+    length2 = np.einsum("ij,ij->i", rel, rel)
+    away = length2 > 0.0
+    w = rel / np.sqrt(np.where(away, length2, 1.0))[:, None]
+    t = pattern.f - np.einsum("ij,j->i", w, pattern.f)[:, None] * w
+    near = np.einsum("ij,ij->i", t, t) <= 1e-12
+    t[near] = pattern.w0 - np.einsum("ij,j->i", w[near], pattern.w0)[:, None] * w[near]
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    b = np.cross(w, t)
+    e1 = np.where(away[:, None], pattern.radius * t, 0.0)
+    e2 = np.where(away[:, None], pattern.radius * b, 0.0)
+    x, y = pattern.offsets[:, 0], pattern.offsets[:, 1]
+    return pattern.center + x[:, None, None] * e1[None] + y[:, None, None] * e2[None]
+
+
 @dataclass
 class HitRecord:
     """What :func:`hit` passes back for a batch of rays (the paper's hit record).
@@ -361,8 +454,17 @@ def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
     p_shadow = p + eps[:, None] * n
 
     lights = []                                 # (l_index, visible mask, n·l, n·h)
+    areas = []                                  # (Σ I·n·l, Σ I·(n·h)^s) over visible samples
     any_visible = np.zeros(k, dtype=bool)
+    shin = prep.shininess[rec.material]
     for li in range(len(prep.light_positions)):
+        pattern = prep.light_areas[li] if prep.light_areas else None
+        if pattern is not None:
+            sums = _area_light(prep, pattern, p, n, v, p_shadow, shin)
+            if sums is not None:
+                areas.append(sums[1:])
+                any_visible |= sums[0]
+            continue
         lp = prep.light_positions[li]
         l_hat = _normalize(lp - p)
         ndotl = np.einsum("ij,ij->i", n, l_hat)
@@ -383,7 +485,7 @@ def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
     needed = {}
     if np.any(prep.ambient != 0.0):
         needed["ambient"] = np.ones(k, dtype=bool)
-    if lights:
+    if lights or areas:
         needed["diffuse"] = any_visible
         needed["specular"] = any_visible
     fill_channels(prep, rec, needed)
@@ -393,7 +495,11 @@ def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
     if ka is not None:
         L += ka * prep.ambient
     if kd is not None or ks is not None:
-        shin = prep.shininess[rec.material]
+        for diffuse_sum, specular_sum in areas:
+            if kd is not None:
+                L += kd * diffuse_sum
+            if ks is not None:
+                L += ks * specular_sum
         for li, visible, ndotl, ndoth in lights:
             term = np.zeros((k, 3))
             if kd is not None:
@@ -403,6 +509,35 @@ def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
             L += np.where(visible[:, None], prep.light_colors[li] * term, 0.0)
     out[rec.index] = L
     return out
+
+
+def _area_light(prep: PreparedScene, pattern: AreaSamples, p, n, v, p_shadow, shin):
+    """An area light's samples at hit points p, each a point light of colour I/N:
+    (visible to some sample (k,), Σ_s V_s·I_s·max(0, n·l̂_s) (k, 3),
+    Σ_s V_s·I_s·max(0, n·ĥ_s)^shininess (k, 3)), or None when no sample is visible."""
+    k = len(p)
+    seen = np.zeros(k, dtype=bool)
+    diffuse_sum = np.zeros(k)
+    specular_sum = np.zeros(k)
+    for lp in area_sample_points(pattern, p):        # (k, 3) each
+        l_hat = _normalize(lp - p)
+        ndotl = np.einsum("ij,ij->i", n, l_hat)
+        front = np.nonzero(ndotl > 0.0)[0]
+        if front.size == 0:
+            continue
+        seg = lp[front] - p_shadow[front]
+        dist = np.linalg.norm(seg, axis=1)
+        blocked = shadow_hit(prep.centers, prep.radii, p_shadow[front], seg / dist[:, None], dist)
+        lit = front[~blocked]
+        if lit.size == 0:
+            continue
+        seen[lit] = True
+        diffuse_sum[lit] += ndotl[lit]
+        ndoth = np.einsum("ij,ij->i", n[lit], _normalize(l_hat[lit] + v[lit]))
+        specular_sum[lit] += np.maximum(0.0, ndoth) ** shin[lit]
+    if not seen.any():
+        return None
+    return seen, diffuse_sum[:, None] * pattern.color, specular_sum[:, None] * pattern.color
 
 
 def trace(scene, o, d) -> np.ndarray:

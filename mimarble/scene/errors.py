@@ -27,7 +27,9 @@ class SceneError(Exception):
         the offending source line
                 ^
 
-    with tabs expanded to 8-column stops and the caret under the column. A line longer
+    with tabs expanded to 8-column stops and the caret under the column, then, for a habit
+    of POV-Ray's that the language writes otherwise, one more line ``hint: …`` naming
+    this language's way (``hint``; syntax_errors.POVRAY_HINTS). A line longer
     than :data:`SHOWN_WIDTH` characters is shown as a window of that many around the
     column, with ``...`` where it was cut.
     Errors without a position (a file that cannot be read) have ``line`` and
@@ -45,8 +47,10 @@ class SceneError(Exception):
         line: int | None = None,
         column: int | None = None,
         source_line: str | None = None,
+        hint: str | None = None,
     ) -> None:
         self.message = message
+        self.hint = hint
         self.filename = filename
         self.line = line
         self.column = column
@@ -54,11 +58,13 @@ class SceneError(Exception):
         super().__init__(message)
 
     @classmethod
-    def at(cls, text: str, filename: str, line: int, column: int, message: str) -> "SceneError":
+    def at(cls, text: str, filename: str, line: int, column: int, message: str,
+           hint: str | None = None) -> "SceneError":
         """An error at (line, column) of ``text``, quoting that line."""
         lines = text.split("\n")
         src = lines[line - 1] if 1 <= line <= len(lines) else ""
-        return cls(message, filename=filename, line=line, column=column, source_line=src.rstrip("\r"))
+        return cls(message, filename=filename, line=line, column=column,
+                   source_line=src.rstrip("\r"), hint=hint)
 
     @classmethod
     def in_file(cls, source: str | None, pos, message: str) -> "SceneError":
@@ -85,7 +91,8 @@ class SceneError(Exception):
                            f"image file '{channel.file}' cannot be decoded: {reason}")
 
     def __reduce__(self):
-        return (_rebuild, (self.message, self.filename, self.line, self.column, self.source_line))
+        return (_rebuild, (self.message, self.filename, self.line, self.column, self.source_line,
+                           self.hint))
 
     @property
     def location(self) -> str:
@@ -98,6 +105,10 @@ class SceneError(Exception):
         return ":".join(parts)
 
     def __str__(self) -> str:
+        shown = self._shown()
+        return shown if self.hint is None else f"{shown}\nhint: {self.hint}"
+
+    def _shown(self) -> str:
         head = f"{self.location}: {self.message}"
         if self.line is None or self.source_line is None:
             return head
@@ -119,5 +130,6 @@ class SceneError(Exception):
         return f"{head}\n{shown}\n{' ' * width}^"
 
 
-def _rebuild(message, filename, line, column, source_line):
-    return SceneError(message, filename=filename, line=line, column=column, source_line=source_line)
+def _rebuild(message, filename, line, column, source_line, hint=None):
+    return SceneError(message, filename=filename, line=line, column=column, source_line=source_line,
+                      hint=hint)

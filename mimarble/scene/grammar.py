@@ -13,12 +13,18 @@ from __future__ import annotations
 from pathlib import Path
 
 from .. import marble_parameters
-from ..marble_parameters import PARAMETERS
+# The rows with a key of their own (ramp_positions is written inside the ramp block).
+from ..marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
 
-__all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "marble_rules", "grammar_text"]
+__all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "LANGUAGE_MARBLE_KEYS", "marble_rules", "grammar_text"]
 
 #: The hand-written part of the grammar: everything but the marble block's rules.
 GRAMMAR_PATH = Path(__file__).with_name("scene.lark")
+
+#: The marble block's keys that are the language's own, not rows of the table: their rules
+#: are written in ``scene.lark`` (``transform``: the pattern's translate / rotate / scale,
+#: which the plugin takes as its ``to_world``). They come after the table's keys.
+LANGUAGE_MARBLE_KEYS: tuple[str, ...] = ("transform",)
 
 #: How a value of each kind of parameter is written. Words are any name here; which
 #: names a choice takes is checked after parsing, so that a wrong one gets a message
@@ -28,7 +34,9 @@ VALUE_SYNTAX: dict[str, str] = {
     marble_parameters.INTEGER: "NUMBER",
     marble_parameters.CHOICE: "WORD",
     marble_parameters.BOOLEAN: "WORD",
-    marble_parameters.COLOURS: '"{" _colour* "}"',     # < r g b > or #rrggbb each
+    # < r g b > or #rrggbb each, each maybe after its position (a number; the parser
+    # checks that every colour has one or none does):  ramp { 0 < 1 1 1 > 1 #202020 }
+    marble_parameters.COLOURS: '"{" (NUMBER | _colour)* "}"',
 }
 
 
@@ -39,7 +47,7 @@ def marble_rules() -> str:
         "// The marble block, written from mimarble/marble_parameters.py by",
         "// mimarble/scene/grammar.py (each value's range: after parsing).",
         'marble: "marble" "{" _marble_key* "}"',
-        "_marble_key: " + " | ".join(p.name for p in PARAMETERS),
+        "_marble_key: " + " | ".join([p.name for p in PARAMETERS] + list(LANGUAGE_MARBLE_KEYS)),
     ]
     for p in PARAMETERS:
         rule = f'{p.name + ":":<{width}} "{p.name}" {VALUE_SYNTAX[p.kind]}'

@@ -3,12 +3,14 @@
 Read by the builder (which keys a block may hold), by the syntax-error wording (which
 keywords to list, in what order) and by whoever documents or tests the language. The
 marble block's keys are the rows of the marble's parameter table
-(mimarble/marble_parameters.py), as its grammar rules are (grammar.py).
+(mimarble/marble_parameters.py), as its grammar rules are (grammar.py), then the
+language's own ``transform`` block (the pattern's translate / rotate / scale).
 """
 
 from __future__ import annotations
 
-from ..marble_parameters import PARAMETERS
+# The rows with a key of their own (ramp_positions is written inside the ramp block).
+from ..marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
 
 __all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BLOCK_KEYS"]
 
@@ -25,7 +27,8 @@ CHANNEL_BLOCKS: tuple[str, ...] = ("ambient", "diffuse", "specular", "add", "mul
 BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "image": ("width", "height", "samples", "background"),
     "camera": ("eye", "lookat", "up", "fov"),
-    "light": ("position", "color"),
+    "light": ("position", "color", "area"),
+    "area": ("axis1", "axis2", "radius", "samples"),
     "material": ("ambient", "diffuse", "specular", "shininess"),
     "ambient": CHANNEL_KEYWORDS,
     "diffuse": CHANNEL_KEYWORDS,
@@ -34,6 +37,7 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "multiply": CHANNEL_KEYWORDS,
     "mix": CHANNEL_KEYWORDS + ("weight",),
     "image_map": ("file",),
-    "marble": tuple(p.name for p in PARAMETERS),
+    "marble": tuple(p.name for p in PARAMETERS) + ("transform",),
+    "transform": ("translate", "rotate", "scale"),   # inside marble: transforms.STEPS
     "sphere": ("center", "radius", "material"),
 }

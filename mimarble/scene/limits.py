@@ -16,7 +16,7 @@ from __future__ import annotations
 from ..marble_parameters import BY_NAME
 
 __all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
-           "MAX_LIGHTS", "MAX_SPHERES", "MAX_IMAGE_SAMPLES"]
+           "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES"]
 
 #: The largest float32: the Mitsuba path is single precision, so every number of a scene
 #: must be at most this in magnitude.
@@ -37,9 +37,14 @@ MAX_IMAGE_MAP_PIXELS = 1 << 26
 #: Python's stack runs out a few hundred levels down. 64 is far past any written by hand.
 MAX_CHANNEL_DEPTH = 64
 
-#: Point lights per scene. The whitted integrator unrolls its loop over the lights into
-#: the kernel, whose compilation grows faster than linearly with them.
+#: Lights per scene. The whitted integrator unrolls its loop over the lights into the
+#: kernel, whose compilation grows faster than linearly with them. An area light counts
+#: as one: its samples are a loop in the kernel (traced once, whatever their number).
 MAX_LIGHTS = 1024
+
+#: Samples of one area light (``area { … samples N }``, N = n², 32 × 32 at most). Each is
+#: a shadow ray per shaded point: render time grows with them (the kernel does not).
+MAX_LIGHT_SAMPLES = 1024
 
 #: Spheres per scene: parse time and render memory grow with them; 10 000 stay within
 #: seconds and a gigabyte.
@@ -60,5 +65,6 @@ LIMITS = {
     "max_image_map_pixels": MAX_IMAGE_MAP_PIXELS,
     "max_channel_depth": MAX_CHANNEL_DEPTH,
     "max_lights": MAX_LIGHTS,
+    "max_light_samples": MAX_LIGHT_SAMPLES,
     "max_spheres": MAX_SPHERES,
 }

@@ -19,7 +19,8 @@ same words, without a file position: a value it cannot take is a ValueError
 (``radius must be > 0, found -1``), a value of the wrong type a TypeError. Numbers are
 finite and within float32's range, colours ≥ 0, the image within its size and sample
 limits, the camera's fov in (0, 180) with eye ≠ lookat and ``up`` not parallel to the
-view, a sphere's radius > 0, a material's name and shininess, channels nested at most 64
+view, a sphere's radius > 0, an area light's samples (n², at most 1024), radius and
+axes, a material's name and shininess, channels nested at most 64
 deep, a scene's lights and spheres within their limits (limits.py), each material under
 its own name and every sphere's material one of its materials. Vectors and colours are
 stored as tuples of three floats, sizes as ints. ``MarbleChannel`` alone keeps what it is
@@ -36,7 +37,7 @@ from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple, Union
 
 from .. import marble_parameters
-from . import rules
+from . import rules, transforms
 from .limits import MAX_IMAGE_SAMPLES
 
 __all__ = [
@@ -46,6 +47,9 @@ __all__ = [
     "Image",
     "Camera",
     "Light",
+    "RectangleArea",
+    "SphereArea",
+    "AREA_SAMPLES",
     "ColorChannel",
     "MarbleChannel",
     "Channel",
@@ -73,7 +77,7 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 RGB = tuple[float, float, float]
 # Type hints only: the values are the marble's parameter table's (FUNCTIONS, FILTERS, AXES).
-MarbleFunction = Literal["abs_sine", "sine", "cosine"]
+MarbleFunction = Literal["abs_sine", "sine", "cosine", "triangle", "sawtooth"]
 MarbleFilter = Literal["none", "bandlimit", "prefilter"]
 Axis = Literal["x", "y", "z"]
 
@@ -281,17 +285,77 @@ class Camera:
         _store(self, eye=eye, lookat=lookat, up=up, fov=fov)
 
 
-@dataclass(frozen=True)
-class Light:
-    """``light { position <> color <> }``: a point light without distance falloff."""
+#: An area light's samples when its block says none (a 4×4 grid).
+AREA_SAMPLES = 16
 
-    position: Vec3
-    color: RGB = (1.0, 1.0, 1.0)
+
+def _light_samples(value) -> int:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise TypeError(f"samples must be an integer, found {_shown(value)}")
+    if not isinstance(value, numbers.Integral) and not math.isfinite(value):
+        raise ValueError(f"samples must be an integer, found {_shown(value)}")
+    _refuse(rules.light_samples_problem(value), value)
+    return int(value)
+
+
+@dataclass(frozen=True)
+class RectangleArea:
+    """``area { axis1 <> axis2 <> samples N }``: a light's parallelogram, centred on its
+    position, with edges ``axis1`` and ``axis2`` (full lengths, as POV-Ray's
+    ``area_light``), sampled at the centres of an n×n grid (N = n²)."""
+
+    axis1: Vec3
+    axis2: Vec3
+    samples: int = AREA_SAMPLES
     pos: Pos | None = _pos()
 
     def __post_init__(self) -> None:
+        axis1, axis2 = _vector(self.axis1, "axis1"), _vector(self.axis2, "axis2")
+        problem = rules.area_axes_problem(axis1, axis2)
+        if problem:
+            raise ValueError(problem)
+        _store(self, axis1=axis1, axis2=axis2, samples=_light_samples(self.samples))
+
+
+@dataclass(frozen=True)
+class SphereArea:
+    """``area { radius R samples N }``: a spherical light of radius R around its
+    position, seen from each shaded point as a disk facing it, sampled at N = n²
+    stratum centres mapped onto the disk (docs/rendering-model.md, "Area lights")."""
+
+    radius: float
+    samples: int = AREA_SAMPLES
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        radius = _number(self.radius, "radius")
+        _refuse(rules.radius_problem(radius), self.radius)
+        _store(self, radius=radius, samples=_light_samples(self.samples))
+
+
+@dataclass(frozen=True)
+class Light:
+    """``light { position <> color <> area { … } }``: a point light without distance
+    falloff, or with ``area`` (a :class:`RectangleArea` or :class:`SphereArea`) an area
+    light: its ``color`` is the total, split evenly over its samples, each a point light
+    of the same model."""
+
+    position: Vec3
+    color: RGB = (1.0, 1.0, 1.0)
+    area: RectangleArea | SphereArea | None = None
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        if self.area is not None and not isinstance(self.area, (RectangleArea, SphereArea)):
+            raise TypeError(f"a light's area must be a RectangleArea, a SphereArea or None, "
+                            f"found {_shown(self.area)}")
         _store(self, position=_vector(self.position, "position"),
                color=_colour(self.color, "light color"))
+
+    @property
+    def samples(self) -> int:
+        """Its point samples: 1 for a point light."""
+        return 1 if self.area is None else self.area.samples
 
 
 @dataclass(frozen=True)
@@ -321,22 +385,71 @@ class MarbleChannel(marble_parameters.MarbleParameters):
     Its fields are the rows of the marble's parameter table
     (mimarble/marble_parameters.py: names, defaults, ranges), in order, then ``pos``.
 
-    The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)``,
-    piecewise linear, ``t`` clamped to [0, 1] (one colour: a constant).
+    The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)`` (or at
+    ``ramp_positions``), piecewise linear, ``t`` clamped to [0, 1] (one colour: a
+    constant). ``gain`` and ``lacunarity`` (0.5 and 2, the paper's) weigh and space the
+    octaves, F = sum gain^i N(lacunarity^i v); ``triangle`` and ``sawtooth`` are
+    POV-Ray's waves of the ``abs_sine`` phase (mimarble/stripes.py).
 
     ``filter`` and ``tolerance`` are rendering options for Mitsuba (``bandlimit``
     leaves out octaves finer than the pixel footprint, ``prefilter`` averages the
     colour over the pixel's interval of phase; octaves that the colour error
     ``tolerance`` allows are left out, ``None``: the scene's default,
     mimarble/error_budget.py); the reference tracer always renders the full marble.
+
+    ``transform`` (keyword-only, the language's ``transform { … }``) moves the pattern:
+    steps ``(kind, (x, y, z))`` with kind ``translate``, ``rotate`` (degrees about x, then
+    y, then z) or ``scale`` (POV-Ray's: 2 is twice as coarse), applied in order, so that
+    ``v = scale · M⁻¹ · p`` with M = :attr:`to_world` (mimarble/scene/transforms.py).
+    A scale step may be given one number. Checked here: the kinds, three finite numbers
+    each, no scale factor 0, and M invertible in single precision.
     """
 
     pos: Pos | None = _pos()
+    transform: tuple = field(default=(), kw_only=True)
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        _store(self, transform=_transform_steps(self.transform))
 
     @property
     def axis_index(self) -> int:
         """0, 1 or 2 for ``axis`` x, y or z."""
         return AXES.index(self.axis)
+
+    @property
+    def to_world(self):
+        """The transform's 4×4 matrix M (rows of floats, double precision): the identity
+        without one."""
+        return transforms.compose(self.transform)
+
+
+def _transform_steps(steps) -> tuple:
+    """A marble's transform steps, checked and stored as ``(kind, (x, y, z))`` tuples."""
+    if isinstance(steps, (str, bytes)) or not hasattr(steps, "__iter__"):
+        raise TypeError(f"MarbleChannel: transform must be a sequence of (step, < x y z >), "
+                        f"found {_shown(steps)}")
+    out = []
+    for step in steps:
+        try:
+            kind, vector = step
+        except (TypeError, ValueError):
+            raise TypeError(f"MarbleChannel: a transform step is (kind, < x y z >), found "
+                            f"{_shown(step)}") from None
+        if kind not in transforms.STEPS:
+            raise ValueError(f"MarbleChannel: a transform step is translate, rotate or scale, "
+                             f"found {_shown(kind)}")
+        if kind == "scale" and isinstance(vector, numbers.Real):
+            vector = (vector,) * 3
+        vector = _vector(vector, f"transform {kind}")
+        problem = transforms.step_problem(kind, vector)
+        if problem:
+            raise ValueError(f"{problem}, found {_shown(vector)}")
+        out.append((kind, vector))
+    problem = transforms.matrix_problem(transforms.compose(out))
+    if problem:
+        raise ValueError(problem)
+    return tuple(out)
 
 
 @dataclass(frozen=True)

@@ -40,9 +40,11 @@ import re
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
+from .. import marble_parameters
 from ..marble_parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter,
                                  ParameterError, hex_colour, hex_colour_problem)
-from . import rules
+from . import rules, transforms
+from .comments import blanked
 from .errors import SceneError
 from .grammar import grammar_text
 from .image_header import image_file_sentence
@@ -58,14 +60,17 @@ from .model import (
     ColorChannel,
     FrozenMap,
     Image,
+    AREA_SAMPLES,
     Light,
     MarbleChannel,
     Material,
     Pos,
+    RectangleArea,
     Scene,
     Sphere,
+    SphereArea,
 )
-from .syntax_errors import decoded, syntax_error
+from .syntax_errors import decoded, povray_hint, syntax_error
 
 __all__ = ["parse", "load", "LIMITS"]
 
@@ -80,7 +85,8 @@ _TOO_LARGE = (f"the scene is larger than 4 MiB ({MAX_SCENE_BYTES} bytes), the mo
 _LINEAR_COLOUR = "< r g b >"
 
 # Rule names whose keyword differs from the rule name.
-_RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image"}
+_RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image",
+                 "transform_scale": "scale"}
 
 
 def _parser_cache_file(grammar: str) -> str | bool:
@@ -142,7 +148,8 @@ def _watched_terminals() -> tuple[dict[str, str], frozenset, frozenset]:
 
 
 def _tree(text: str, filename: str) -> Tree:
-    """Lark's tree of ``text``, fed token by token, refusing at its keyword, before the
+    """Lark's tree of ``text`` (its comments blanked out: comments.py; the messages quote
+    the text as written), fed token by token, refusing at its keyword, before the
     rest is parsed, a statement past its count limit and a channel nested past the depth
     limit (its depth: the expression blocks open around it, plus one; the builder checks
     the same on its way down), and a colour ``#…`` that is not ``#rrggbb``. Lark's errors
@@ -151,7 +158,7 @@ def _tree(text: str, filename: str) -> Tree:
     counts = dict.fromkeys(counted.values(), 0)
     braces: list[bool] = []          # each open '{': whether an expression opened it
     open_expressions = 0
-    parser = _lark().parse_interactive(text)
+    parser = _lark().parse_interactive(blanked(text, filename))
     last = previous = None
     try:
         for last in parser.iter_parse():
@@ -172,13 +179,18 @@ def _tree(text: str, filename: str) -> Tree:
                 if problem and not re.match(r"#[0-9A-Fa-f]", last):     # '# note', '#include'
                     problem += "; comments are // … or /* … */"
             if problem:
-                raise SceneError.at(text, filename, last.line, last.column, problem)
+                hint = povray_hint(str(last)) if kind == "HEX_COLOUR" else None   # #declare
+                raise SceneError.at(text, filename, last.line, last.column, problem, hint)
             previous = last
         return parser.feed_eof(last)
     except UnexpectedInput as e:
         if getattr(e, "interactive_parser", None) is None:
             e.interactive_parser = parser       # as Lark's own parse() leaves it
-        raise syntax_error(e, text, filename, _keyword_terminals()) from None
+        error = syntax_error(e, text, filename, _keyword_terminals())
+    # Raised outside the handler, so Lark's exception (whose parser state holds modules)
+    # is not its __context__: a process that imported dask.distributed pickles an
+    # exception with its context (tblib's reducers), and this one must pickle.
+    raise error
 
 
 def _oversized(text) -> bool:
@@ -458,7 +470,41 @@ class _Builder:
             raise self.error(st, "light has no 'position'")
         position = self.point(f["position"].children[0], "position")
         color = self.color(f["color"].children[0], "light color") if "color" in f else Light(position).color
-        return Light(position, color, pos=_pos_of(st))
+        area = self.area(f["area"]) if "area" in f else None
+        return Light(position, color, area, pos=_pos_of(st))
+
+    def area(self, st: Tree) -> RectangleArea | SphereArea:
+        """``area { axis1 <> axis2 <> samples N }`` (a rectangle) or ``area { radius R
+        samples N }`` (a sphere); samples a square n² within the limit, at the number."""
+        f = self.fields(st, "'area' block")
+        edges = [f[k] for k in ("axis1", "axis2") if k in f]
+        if edges and "radius" in f:
+            second = max(edges + [f["radius"]], key=lambda t: (t.meta.line, t.meta.column))
+            raise self.error(second, "an area light is a rectangle (axis1 and axis2) or a "
+                                     "sphere (radius), not both")
+        if not edges and "radius" not in f:
+            raise self.error(st, "area needs axis1 and axis2 (a rectangle) or radius (a "
+                                 "sphere), e.g. area { radius 0.5 samples 16 }")
+        samples = AREA_SAMPLES
+        if "samples" in f:
+            tok = f["samples"].children[0]
+            samples = self.number(tok)
+            self.refuse(tok, rules.light_samples_problem(samples))
+        if "radius" in f:
+            tok = f["radius"].children[0]
+            radius = self.number(tok)
+            self.refuse(tok, rules.radius_problem(radius))
+            return SphereArea(radius, samples, pos=_pos_of(st))
+        if len(edges) < 2:
+            missing = "axis2" if "axis1" in f else "axis1"
+            raise self.error(st, f"a rectangular area light needs both axis1 and axis2 "
+                                 f"(no '{missing}')")
+        axis1, axis2 = (self.point(f[k].children[0], k) for k in ("axis1", "axis2"))
+        problem = rules.area_axes_problem(axis1, axis2)
+        if problem:
+            zero = "axis1" if not any(axis1) else "axis2"
+            raise self.error(f[zero] if "zero" in problem else f["axis2"], problem)
+        return RectangleArea(axis1, axis2, samples, pos=_pos_of(st))
 
     def material(self, st: Tree) -> Material:
         name_tok = st.children[0]
@@ -556,13 +602,40 @@ class _Builder:
             if p.name not in f:
                 continue
             value, where = self.marble_value(p, f[p.name])
+            if p.kind == COLOURS:       # ramp { [p] colour … }: its positions, checked
+                value, positions = value
+                if positions is not None:
+                    values["ramp_positions"] = positions
             try:
                 values[p.name] = p.check(value, text=True)
             except ParameterError as e:
                 if p.kind == COLOURS:   # a count: the message says it
                     raise self.error(where, str(e)) from None
                 raise self.error(where, f"{e}, found {rules.shortened(where)}") from None
-        return MarbleChannel(**values, pos=_pos_of(st))
+        steps = self.transform(f["transform"]) if "transform" in f else ()
+        return MarbleChannel(**values, transform=steps, pos=_pos_of(st))
+
+    def transform(self, st: Tree) -> tuple:
+        """``transform { translate <> rotate <> scale s|<> … }``: its steps in the order
+        written, any number of each; a scale factor 0 is refused at its number, a matrix
+        the renderer cannot invert at the ``transform`` keyword (transforms.py)."""
+        steps = []
+        for step in (c for c in st.children if isinstance(c, Tree)):
+            kind = _keyword(step)
+            (value,) = step.children
+            if isinstance(value, Token):        # scale s: the same factor on each axis
+                vector, toks = (self.number(value),) * 3, [value] * 3
+            else:
+                vector, toks = self.vector(value, f"{kind} (a vector < x y z >)")
+            problem = transforms.step_problem(kind, vector)
+            if problem:
+                zero = next(t for v, t in zip(vector, toks) if v == 0)
+                raise self.error(zero, f"{problem}, found {rules.shortened(zero)}")
+            steps.append((kind, vector))
+        problem = transforms.matrix_problem(transforms.compose(steps))
+        if problem:
+            raise self.error(st, problem)
+        return tuple(steps)
 
     def marble_value(self, p: Parameter, key: Tree):
         """The value of a marble key as written, for ``p.check``, and where to point at
@@ -576,7 +649,39 @@ class _Builder:
         vecs = [c for c in key.children if isinstance(c, Tree) or c.type == "HEX_COLOUR"]
         most = p.bounds[1]
         where = vecs[most] if len(vecs) > most else key
-        return tuple(self.color(v, f"{p.name} colour") for v in vecs), where
+        colours = tuple(self.color(v, f"{p.name} colour") for v in vecs)
+        return (colours, self.ramp_positions(key, vecs)), where
+
+    def ramp_positions(self, key: Tree, vecs: list):
+        """The positions of a ramp block, ``ramp { 0 < 1 1 1 > 0.5 #808080 1 < 0 0 0 > }``
+        (a number before each colour, or before none), checked by the table's rule at
+        the number at fault; None without positions."""
+        before, written = None, []      # the number written before each colour, or None
+        for child in key.children:
+            if isinstance(child, Token) and child.type == "NUMBER":
+                if before is not None:
+                    raise self.error(before, f"ramp position {rules.shortened(before)} has "
+                                             f"no colour after it; write a position, then "
+                                             f"its colour: ramp {{ 0 < 1 1 1 > 1 #202020 }}")
+                before = child
+            elif isinstance(child, Tree) or child.type == "HEX_COLOUR":
+                written.append(before)
+                before = None
+        if before is not None:
+            raise self.error(before, f"ramp position {rules.shortened(before)} has no colour "
+                                     f"after it; the ramp ends there")
+        if not any(t is not None for t in written):
+            return None
+        if any(t is None for t in written):
+            k = next(k for k, t in enumerate(written) if t is None)
+            raise self.error(vecs[k], f"ramp colour {k + 1} has no position, where others "
+                                      f"have one: give every colour a position or none")
+        positions = tuple(self.number(t) for t in written)
+        problem = marble_parameters.positions_problem(positions)
+        if problem:
+            k, sentence = problem
+            raise self.error(written[min(k, len(written) - 1)], sentence)
+        return positions
 
     def sphere(self, st: Tree) -> tuple[Sphere, Token]:
         f = self.fields(st, "'sphere' block")

@@ -13,12 +13,13 @@ from __future__ import annotations
 
 import math
 
-from .limits import (FLT_MAX, LIMITS, MAX_CHANNEL_DEPTH, MAX_IMAGE_SAMPLES, MAX_LIGHTS,
-                     MAX_SPHERES)
+from .limits import (FLT_MAX, LIMITS, MAX_CHANNEL_DEPTH, MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES,
+                     MAX_LIGHTS, MAX_SPHERES)
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
+           "light_samples_problem", "area_axes_problem",
            "depth_problem", "listed_names", "shortened"]
 
 
@@ -118,6 +119,35 @@ def radius_problem(radius: float) -> str | None:
 
 def shininess_problem(shininess: float) -> str | None:
     return None if shininess > 0 else "shininess must be > 0"
+
+
+def light_samples_problem(samples: float) -> str | None:
+    """An area light's samples: a whole n² (an n×n grid of stratum centres) in
+    1..:data:`MAX_LIGHT_SAMPLES`."""
+    problem = integer_problem(samples, "samples", 1, MAX_LIGHT_SAMPLES)
+    if problem and "must be in" in problem:
+        return (f"an area light takes 1..{MAX_LIGHT_SAMPLES} samples (each is a shadow ray "
+                f"per shaded point; docs/scene-language.md, Limits)")
+    if problem:
+        return problem
+    if math.isqrt(int(samples)) ** 2 != samples:
+        return ("samples must be a perfect square n·n (1, 4, 9, 16, …): an area light is "
+                "sampled on an n×n grid")
+    return None
+
+
+def area_axes_problem(axis1, axis2) -> str | None:
+    """A rectangular area light's edges: neither zero, not parallel (they span a
+    parallelogram of non-zero area, in float32 too)."""
+    cross = (axis1[1] * axis2[2] - axis1[2] * axis2[1],
+             axis1[2] * axis2[0] - axis1[0] * axis2[2],
+             axis1[0] * axis2[1] - axis1[1] * axis2[0])
+    lengths = [math.sqrt(sum(c * c for c in v)) for v in (axis1, axis2)]
+    if min(lengths) == 0:
+        return "an area light's axis1 and axis2 must not be zero"
+    if not math.sqrt(sum(c * c for c in cross)) > 1e-6 * lengths[0] * lengths[1]:
+        return "an area light's axis1 and axis2 must not be parallel (they span its rectangle)"
+    return None
 
 
 def material_name_problem(name: str) -> str | None:

@@ -19,7 +19,7 @@ from .errors import SceneError
 from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, STATEMENTS
 from .rules import shortened
 
-__all__ = ["syntax_error", "decoded"]
+__all__ = ["syntax_error", "decoded", "POVRAY_HINTS", "povray_hint"]
 
 #: How the terminals that are not keywords are named in a message.
 _PUNCT = {
@@ -34,6 +34,89 @@ _PUNCT = {
     "HEX_COLOUR": "a colour '#rrggbb'",
     "$END": "end of file",
 }
+
+
+#: Habits of POV-Ray's scene language, and a line naming this language's way: shown as
+#: ``hint: …`` under the error a habit causes (SceneError.hint). A key is what was
+#: written where the error is: the token itself (a word, ``#declare``, ``;``), or, tried
+#: first, the token in the innermost open block (``sphere <``) or after the keyword before
+#: it (``turbulence <number>``: a number after ``turbulence``).
+#: docs/coming-from-povray.md says the rest.
+POVRAY_HINTS: dict[str, str] = {
+    "#declare": "the language has no variables: write each value where it is used; a "
+                "material, named once (material \"m\" { … }), serves any number of spheres",
+    "#local": "the language has no variables: write each value where it is used",
+    "#include": "the language has no #include: a scene is one file (pictures are read by "
+                "image { file \"…\" })",
+    "#version": "the language has no #version: leave it out",
+    ";": "nothing ends with ';' here: leave it out",
+    "pigment": "POV-Ray's pigment is a channel of a material here: material \"m\" { diffuse "
+               "{ color < 1 0 0 > } }, or marble { … } or image { file \"…\" } in its place",
+    "texture": "POV-Ray's texture is a material here, named in the sphere: material \"m\" "
+               "{ diffuse { … } specular { … } } and sphere { … material \"m\" }",
+    "finish": "POV-Ray's finish is the material's components here: material \"m\" { "
+              "ambient { … } diffuse { … } specular { color < 0.3 0.3 0.3 > } shininess 32 }",
+    "rgb": "write the colour alone: color < 1 0 0 > is linear RGB (POV-Ray's rgb), "
+           "color #ff0000 sRGB",
+    "srgb": "POV-Ray's srgb is #rrggbb here (sRGB-encoded, e.g. color #ff8000); < r g b > is "
+            "linear",
+    "light_source": "POV-Ray's light_source is light { position < x y z > color < r g b > } "
+                    "here (z negated: docs/coming-from-povray.md)",
+    "light <": "a light's position is named: light { position < 10 10 10 > color < 1 1 1 > }",
+    "area_light": "an area light is an area { … } block in a light: see light { … } in "
+                  "docs/scene-language.md",
+    "location": "POV-Ray's camera location is eye < x y z > here, with z negated (POV-Ray is "
+                "left-handed; copied as it is, the image comes out mirrored left to right)",
+    "look_at": "write lookat < x y z >, one word",
+    "angle": "POV-Ray's angle is the horizontal field of view; fov is the vertical one: "
+             "fov = 2·atan(tan(angle/2)·height/width), 35 for POV-Ray's 46 at 4:3",
+    "sky": "POV-Ray's sky is up < x y z > here",
+    "sphere <": "a sphere's values are named: sphere { center < 0 0 0 > radius 2 material \"m\" }",
+    "ramp ,": "ramp colours are separated by spaces, not commas: ramp { < 1 0 0 > < 0 0 1 > } "
+              "(commas may separate a vector's numbers only)",
+    "color_map": "POV-Ray's color_map is the marble's ramp here: marble { ramp { < 1 1 1 > "
+                 "< 0.2 0.2 0.3 > } }",
+    "turbulence <number>": "turbulence is a switch here (true: Perlin's |N| noise); the amount "
+                           "POV-Ray's turbulence sets is distortion: marble { distortion 0.8 }",
+    "omega": "POV-Ray's omega (each octave's amplitude factor) is gain here: marble { gain 0.5 }",
+    "lambda": "POV-Ray's lambda (each octave's frequency factor) is lacunarity here: "
+              "marble { lacunarity 2 }",
+    "marble translate": "a marble's pattern moves inside transform: marble { transform { "
+                        "translate < 1 0 0 > rotate < 0 0 30 > scale 2 } }",
+    "marble rotate": "a marble's pattern turns inside transform: marble { transform { "
+                     "rotate < 0 0 30 > } }",
+    "translate": "only a marble's pattern moves, in marble { transform { translate < x y z > } }; "
+                 "a sphere is placed by its center",
+    "rotate": "only a marble's pattern turns, in marble { transform { rotate < x y z > } }",
+    "global_settings": "the ambient light is the statement ambient < r g b >; there are no "
+                       "other global settings",
+    "background": "the background is in the image statement: image { background < r g b > }",
+}
+
+_NUMBER_TEXT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
+
+
+def povray_hint(token: str, *, block: str | None = None, after: str | None = None) -> str | None:
+    """The hint for ``token`` (as written) in the innermost open ``block`` (its keyword),
+    right after the keyword ``after``: :data:`POVRAY_HINTS`' line, or None."""
+    shape = "<number>" if _NUMBER_TEXT.fullmatch(token) else token
+    keys = ([f"{after} {shape}"] if after else []) + ([f"{block} {shape}"] if block else []) + [shape]
+    return next((POVRAY_HINTS[k] for k in keys if k in POVRAY_HINTS), None)
+
+
+def _hint(e: UnexpectedInput, text: str, keywords: dict[str, str]) -> str | None:
+    """The POV-Ray hint for the error ``e`` (None: none applies)."""
+    if isinstance(e, UnexpectedCharacters):
+        return povray_hint(text[e.pos_in_stream:e.pos_in_stream + 1])
+    tok = getattr(e, "token", None)
+    if not isinstance(tok, Token) or tok.type == "$END":
+        return None
+    state = getattr(e, "state", None)
+    blocks = _open_blocks(state)
+    stack = getattr(state, "value_stack", None) or []
+    prev = stack[-1] if stack else None
+    after = str(prev) if isinstance(prev, Token) and prev.type in keywords else None
+    return povray_hint(str(tok), block=str(blocks[-1][0]) if blocks else None, after=after)
 
 
 def decoded(data: bytes, filename: str) -> str:
@@ -176,15 +259,23 @@ def _renamed_note(key: str) -> str:
 def syntax_error(e: UnexpectedInput, text: str, filename: str,
                  keywords: dict[str, str]) -> SceneError:
     """The SceneError for Lark's ``e`` while parsing ``text``. ``keywords`` maps the
-    grammar's keyword terminals to their text (``EYE`` -> ``eye``)."""
+    grammar's keyword terminals to their text (``EYE`` -> ``eye``). A habit of POV-Ray's
+    gets its hint (:data:`POVRAY_HINTS`)."""
+    error = _syntax_error(e, text, filename, keywords)
+    error.hint = _hint(e, text, keywords)
+    return error
+
+
+def _syntax_error(e: UnexpectedInput, text: str, filename: str,
+                  keywords: dict[str, str]) -> SceneError:
     def at(line, col, msg):
         return SceneError.at(text, filename, line, col, msg)
 
     if isinstance(e, UnexpectedCharacters):
         pos = e.pos_in_stream
         rest = text[pos:]
-        if rest.startswith("/*"):
-            return at(e.line, e.column, "unterminated block comment: '/*' has no matching '*/'")
+        # Comments are blanked out before lexing (comments.py, which refuses an unclosed
+        # '/*'), so a '*/' here closes nothing.
         if rest.startswith("*/"):
             return at(e.line, e.column, "'*/' without a matching '/*'")
         if rest.startswith('"'):
