@@ -56,6 +56,8 @@ def test_area_blocks_parse_into_the_model():
     ("area { radius 0 }", "0 }", "radius must be > 0, found 0"),
     ("area { axis1 < 1 0 0 > axis2 < -2 0 0 > }", "axis2", "must not be parallel"),
     ("area { axis1 < 0 0 0 > axis2 < 0 0 1 > }", "axis1", "must not be zero"),
+    ("area { radius 1e38 }", "1e38", "radius must be at most 1e+18"),
+    ("area { axis1 < 3e38 0 0 > axis2 < 0 3e38 0 > }", "axis2", "must be at most 1e+18 long"),
     ("area { axis1 < 1 0 0 > radius 1 }", "radius",
      "a rectangle (axis1 and axis2) or a sphere (radius), not both"),
     ("area { axis1 < 1 0 0 > }", "area", "needs both axis1 and axis2 (no 'axis2')"),

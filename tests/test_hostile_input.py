@@ -224,6 +224,20 @@ def nested(depth: int, expression="add") -> str:
     return f'material "m" {{ diffuse {{ {inner} }} }}'
 
 
+@pytest.mark.parametrize("expression", ["add", "mix"])
+def test_a_channel_nested_to_the_limit_renders_as_its_reference(llvm, expression):
+    """At the depth limit the replay's inputs are nested deeper than Dr.Jit's traversal
+    goes (a RecursionError inside dr.freeze): the pass is traced instead, same image."""
+    import mimarble
+    from mimarble.compare import image_metrics
+    text = ("image { width 8 height 8 samples 1 } camera { eye < 0 0 9 > } "
+            "light { position < 5 5 5 > } " + nested(MAX_CHANNEL_DEPTH, expression)
+            + ' sphere { material "m" radius 2 }')
+    scene = parse(text)
+    metrics = image_metrics(mimarble.render(scene), mimarble.reference.render(scene))
+    assert metrics["psnr"] > 100, metrics
+
+
 @pytest.mark.parametrize("expression", ["add", "multiply", "mix"])
 def test_channels_nest_64_deep_and_no_deeper(expression):
     parse(nested(MAX_CHANNEL_DEPTH, expression))

@@ -101,6 +101,13 @@ def _own_error(error: RuntimeError) -> BaseException:
     return cause if not isinstance(cause, RuntimeError) else error
 
 
+def _innermost(error: BaseException) -> BaseException:
+    """The first cause of a chain of errors."""
+    while error.__cause__ is not None:
+        error = error.__cause__
+    return error
+
+
 class Recorded:
     """``function(key, *args)`` replayed from its recordings while :func:`enabled`, else
     called.
@@ -117,9 +124,10 @@ class Recorded:
         self.function = function
         self.frozen = {}                # key → dr.freeze(function)
         self.recorded = 0               # recordings of frozen functions no longer kept
+        self.too_deep = set()           # keys whose inputs Dr.Jit's traversal cannot walk
 
     def __call__(self, key, *args):
-        if not enabled():
+        if not enabled() or key in self.too_deep:
             return self.function(key, *args)
         frozen = self.frozen.pop(key, None)
         if frozen is None:
@@ -136,6 +144,12 @@ class Recorded:
         try:
             return frozen(key, *args)
         except RuntimeError as e:
+            if _innermost(e).__class__ is RecursionError:
+                # Inputs nested deeper than Dr.Jit's traversal goes (a channel expression
+                # near the language's depth limit): traced every time instead.
+                self.frozen.pop(key, None)
+                self.too_deep.add(key)
+                return self.function(key, *args)
             raise _own_error(e) from None
         finally:
             if collecting:

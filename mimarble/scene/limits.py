@@ -16,7 +16,7 @@ from __future__ import annotations
 from ..marble_parameters import BY_NAME
 
 __all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
-           "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES"]
+           "MAX_AREA_LIGHT_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES"]
 
 #: The largest float32: the Mitsuba path is single precision, so every number of a scene
 #: must be at most this in magnitude.
@@ -46,6 +46,11 @@ MAX_LIGHTS = 1024
 #: a shadow ray per shaded point: render time grows with them (the kernel does not).
 MAX_LIGHT_SAMPLES = 1024
 
+#: An area light's radius and edge lengths: squared (distances to its samples, the
+#: rectangle's area) they stay finite in float32 (3.4e38); past it the light would
+#: vanish into overflow, silently black.
+MAX_AREA_LIGHT_SIZE = 1e18
+
 #: Spheres per scene: parse time and render memory grow with them; 10 000 stay within
 #: seconds and a gigabyte.
 MAX_SPHERES = 10_000
@@ -66,5 +71,6 @@ LIMITS = {
     "max_channel_depth": MAX_CHANNEL_DEPTH,
     "max_lights": MAX_LIGHTS,
     "max_light_samples": MAX_LIGHT_SAMPLES,
+    "max_area_light_size": MAX_AREA_LIGHT_SIZE,
     "max_spheres": MAX_SPHERES,
 }

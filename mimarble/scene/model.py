@@ -329,7 +329,7 @@ class SphereArea:
 
     def __post_init__(self) -> None:
         radius = _number(self.radius, "radius")
-        _refuse(rules.radius_problem(radius), self.radius)
+        _refuse(rules.area_radius_problem(radius), self.radius)
         _store(self, radius=radius, samples=_light_samples(self.samples))
 
 

@@ -493,7 +493,7 @@ class _Builder:
         if "radius" in f:
             tok = f["radius"].children[0]
             radius = self.number(tok)
-            self.refuse(tok, rules.radius_problem(radius))
+            self.refuse(tok, rules.area_radius_problem(radius))
             return SphereArea(radius, samples, pos=_pos_of(st))
         if len(edges) < 2:
             missing = "axis2" if "axis1" in f else "axis1"

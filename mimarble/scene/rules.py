@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import math
 
-from .limits import (FLT_MAX, LIMITS, MAX_CHANNEL_DEPTH, MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES,
-                     MAX_LIGHTS, MAX_SPHERES)
+from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH,
+                     MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES)
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
-           "light_samples_problem", "area_axes_problem",
+           "light_samples_problem", "area_axes_problem", "area_radius_problem",
            "depth_problem", "listed_names", "shortened"]
 
 
@@ -117,6 +117,14 @@ def radius_problem(radius: float) -> str | None:
     return None if radius > 0 else "radius must be > 0"
 
 
+def area_radius_problem(radius: float) -> str | None:
+    """A spherical area light's radius: > 0 and within :data:`MAX_AREA_LIGHT_SIZE`."""
+    if radius > MAX_AREA_LIGHT_SIZE:
+        return (f"an area light's radius must be at most {MAX_AREA_LIGHT_SIZE:g} (squared, "
+                f"it must stay finite in single precision)")
+    return radius_problem(radius)
+
+
 def shininess_problem(shininess: float) -> str | None:
     return None if shininess > 0 else "shininess must be > 0"
 
@@ -145,6 +153,9 @@ def area_axes_problem(axis1, axis2) -> str | None:
     lengths = [math.sqrt(sum(c * c for c in v)) for v in (axis1, axis2)]
     if min(lengths) == 0:
         return "an area light's axis1 and axis2 must not be zero"
+    if max(lengths) > MAX_AREA_LIGHT_SIZE:
+        return (f"an area light's axis1 and axis2 must be at most {MAX_AREA_LIGHT_SIZE:g} "
+                f"long (squared, they must stay finite in single precision)")
     if not math.sqrt(sum(c * c for c in cross)) > 1e-6 * lengths[0] * lengths[1]:
         return "an area light's axis1 and axis2 must not be parallel (they span its rectangle)"
     return None
