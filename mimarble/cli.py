@@ -84,10 +84,11 @@ def _scene_path(argument) -> str:
     packaged scene's name (``fig11a``), else the path itself, whose reading says what is
     wrong (mimarble/packaged_scenes.py)."""
     from . import packaged_scenes
-    if packaged_scenes.is_unknown_name(argument):
+    path = packaged_scenes.resolve(argument)      # one look through the packaged scenes
+    if path == os.fspath(argument) and packaged_scenes.is_unknown_name(argument):
         raise UsageError(f"{argument}: no such file (looked for {os.path.abspath(argument)}), "
                          f"nor a packaged scene of that name (`mimarble scenes` lists them)")
-    return packaged_scenes.resolve(argument)
+    return path
 
 
 class UsageError(Exception):

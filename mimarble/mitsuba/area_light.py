@@ -63,7 +63,8 @@ import numpy as np
 
 from .. import environment
 from ..plugins import describe, numbers, plugin
-from ..scene.rules import area_axes_problem, light_samples_problem, radius_problem
+from ..scene.model import samples_per_axis
+from ..scene.rules import area_axes_problem, area_radius_problem, light_samples_problem
 from . import sphere_hit
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -150,7 +151,7 @@ class StratifiedArea:
         problem = light_samples_problem(samples)
         if problem:
             raise ValueError(f"stratified_area: {problem}, found {samples!r}")
-        self.samples, self.n = int(samples), math.isqrt(int(samples))
+        self.samples, self.n = int(samples), samples_per_axis(int(samples))
         position = _property(props, "position", [0.0, 0.0, 0.0])
         self.position = mi.Point3f(*position)
         self.intensity = mi.Color3f(*_property(props, "intensity", [1.0, 1.0, 1.0]))
@@ -165,7 +166,7 @@ class StratifiedArea:
             offsets = grid_offsets(self.n)
         else:
             radius = float(props.get("radius", 1.0))
-            problem = radius_problem(radius)
+            problem = area_radius_problem(radius)
             if problem or not math.isfinite(radius):
                 raise ValueError(f"stratified_area: radius must be > 0, got {radius!r}")
             self.radius = mi.Float(radius)

@@ -75,13 +75,13 @@ def scene_facts(scene, params=None) -> SceneFacts:
             placements.append(value)
         elif not dr.detail.collect_indices(value):
             constants.append((name, repr(value)))
-    own_key = getattr(integrator, "recording_key", None)
-    own_inputs = getattr(integrator, "recording_inputs", None)
+    own = getattr(integrator, "recording", None)
+    own_key, own_inputs = own(scene, placements) if own is not None else \
+        (recording_key(integrator), ())
     film = scene.sensors()[0].film()
     key = (id(scene), tuple(film.crop_size()), tuple(film.crop_offset()), len(scene.emitters()),
-           own_key(scene, placements) if own_key is not None else recording_key(integrator),
-           plugins, tuple(constants))
-    return SceneFacts(key, own_inputs(scene, placements) if own_inputs is not None else ())
+           own_key, plugins, tuple(constants))
+    return SceneFacts(key, own_inputs)
 
 
 def scene_key(scene, params=None) -> tuple:

@@ -39,7 +39,7 @@ from .. import error_budget
 from ..marble_parameters import checked
 from ..scene import model
 from ..scene.image_header import check_image_maps
-from ..scene.rules import spp_problem
+from ..scene.rules import cross, spp_problem
 
 MODES = ("whitted", "path")
 
@@ -336,10 +336,6 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     return out
 
 
-def _cross(a, b):
-    return [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-
-
 def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
     """An area light (``light.area``) in Mitsuba's terms.
 
@@ -378,7 +374,7 @@ def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
         return {"type": "sphere", "center": position, "radius": area.radius, "bsdf": black,
                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
     axis1, axis2 = list(area.axis1), list(area.axis2)
-    normal = _cross(axis1, axis2)
+    normal = list(cross(axis1, axis2))
     if sum(a * (b - c) for a, b, c in zip(normal, lookat, position)) < 0:
         axis1, axis2 = axis2, axis1          # right-handed, the normal facing the look-at
         normal = [-c for c in normal]

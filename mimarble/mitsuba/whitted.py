@@ -131,18 +131,15 @@ class Whitted:
         if dr.is_jit_v(mi.Float):
             dr.make_opaque(self.ambient, self.background)
 
-    def recording_key(self, scene, placements) -> tuple:
-        """What decides the code :meth:`sample` traces for ``scene`` besides Dr.Jit's
+    def recording(self, scene, placements) -> tuple[tuple, tuple]:
+        """(key, inputs) of a recording of :meth:`sample` for ``scene``, from one look-up of
+        the sphere table it keeps for it. Key: what decides the traced code besides Dr.Jit's
         variables and the materials' own keys (see ``Marble.recording_key``): the shadow
-        switch and the sphere table's structure. ``placements``: the shapes' ``to_world``
+        switch and the table's structure. Inputs: the Dr.Jit state it reads that the scene
+        does not hold (the table, made current). ``placements``: the shapes' ``to_world``
         (``mi.traverse``'s)."""
-        return ("whitted", self.shadows,
-                sphere_hit.SphereTable.of(scene, placements).structure)
-
-    def recording_inputs(self, scene, placements) -> tuple:
-        """The Dr.Jit state :meth:`sample` reads for ``scene`` that the scene does not hold
-        (the sphere table it keeps for it, made current): a recording's inputs."""
-        return (sphere_hit.SphereTable.of(scene, placements),)
+        table = sphere_hit.SphereTable.of(scene, placements)
+        return ("whitted", self.shadows, table.structure), (table,)
 
     def to_string(self):
         return describe("Whitted", {"ambient": numbers(self.ambient).tolist(),

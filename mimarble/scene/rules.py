@@ -19,7 +19,7 @@ from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH,
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
-           "light_samples_problem", "area_axes_problem", "area_radius_problem",
+           "light_samples_problem", "area_axes_problem", "area_radius_problem", "cross",
            "depth_problem", "listed_names", "shortened"]
 
 
@@ -62,6 +62,11 @@ def _sub(a, b):
     return tuple(y - x for x, y in zip(a, b))
 
 
+def cross(a, b) -> tuple:
+    """a × b, in double precision."""
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
 def view_problem(eye, lookat) -> str | None:
     """The camera looks somewhere: eye ≠ lookat (and their distance is finite)."""
     view = _sub(eye, lookat)
@@ -76,10 +81,7 @@ def up_problem(eye, lookat, up) -> str | None:
     view = _sub(eye, lookat)
     view_len = math.sqrt(sum(c * c for c in view))
     up_len = math.sqrt(sum(c * c for c in up))
-    cross = (up[1] * view[2] - up[2] * view[1],
-             up[2] * view[0] - up[0] * view[2],
-             up[0] * view[1] - up[1] * view[0])
-    cross_len = math.sqrt(sum(c * c for c in cross))
+    cross_len = math.sqrt(sum(c * c for c in cross(up, view)))
     if up_len == 0 or not cross_len > 1e-9 * up_len * view_len:
         return "camera 'up' must not be zero or parallel to the view direction (lookat - eye)"
     return None
@@ -147,16 +149,14 @@ def light_samples_problem(samples: float) -> str | None:
 def area_axes_problem(axis1, axis2) -> str | None:
     """A rectangular area light's edges: neither zero, not parallel (they span a
     parallelogram of non-zero area, in float32 too)."""
-    cross = (axis1[1] * axis2[2] - axis1[2] * axis2[1],
-             axis1[2] * axis2[0] - axis1[0] * axis2[2],
-             axis1[0] * axis2[1] - axis1[1] * axis2[0])
+    spanned = cross(axis1, axis2)
     lengths = [math.sqrt(sum(c * c for c in v)) for v in (axis1, axis2)]
     if min(lengths) == 0:
         return "an area light's axis1 and axis2 must not be zero"
     if max(lengths) > MAX_AREA_LIGHT_SIZE:
         return (f"an area light's axis1 and axis2 must be at most {MAX_AREA_LIGHT_SIZE:g} "
                 f"long (squared, they must stay finite in single precision)")
-    if not math.sqrt(sum(c * c for c in cross)) > 1e-6 * lengths[0] * lengths[1]:
+    if not math.sqrt(sum(c * c for c in spanned)) > 1e-6 * lengths[0] * lengths[1]:
         return "an area light's axis1 and axis2 must not be parallel (they span its rectangle)"
     return None
 
