@@ -1,8 +1,10 @@
 """``mimarble bench``: run time against error, and what skipping saves — the measuring.
 
 The benchmark's *runs* render every scene in every :class:`Mode` at every spp
-(a grid over modes and spp, not ``mimarble sweep``'s over scene parameters); then
-the paper's render times, and on fig11a the targets and the whole process.
+(a grid over modes and spp, not ``mimarble sweep``'s over scene parameters), the
+adaptive modes at every threshold instead; then each mode's time to plain 16 and
+64 spp's RMSE (:func:`time_to_rmse`), the paper's render times, and on fig11a the
+targets and the whole process.
 
 Every timing is a median of warm runs taken after a sync (LLVM kernel launches
 are asynchronous; converting the image to NumPy waits for it), with the first
@@ -28,6 +30,7 @@ import numpy as np
 
 from . import environment, files, kernel_cache, reference, stress
 from . import scene as scene_language
+from .bench_report import setting
 from .compare import image_metrics
 from .machine import machine_facts
 from .mitsuba.render import render_in_passes
@@ -40,31 +43,63 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Edge samples of the runs' prefilter+edges mode unless --edge-spp says otherwise.
 DEFAULT_EDGE_SPP = 64
+#: The adaptive modes' thresholds unless --adaptive says otherwise: the estimated
+#: per-pixel error (linear colour) above which a pixel gets more samples, coarse to fine.
+ADAPTIVE_THRESHOLDS = (0.005, 0.0025, 0.00125, 0.0006, 0.0003, 0.00015, 7.5e-5, 3.7e-5,
+                       1.8e-5, 9e-6, 4.5e-6)
+#: The adaptive modes' first pass and cap on any pixel's samples (both perfect squares).
+ADAPTIVE_FIRST_SPP = 1
+DEFAULT_MAX_SPP = 64
+#: The runs' spp (the adaptive modes' are their thresholds') and the converged reference's:
+#: finer than the runs' finest, so that plain 64 spp's RMSE is an error, not zero.
+DEFAULT_SPPS = (1, 4, 16, 64)
+DEFAULT_CONVERGED_SPP = 256
+#: The plain spp whose RMSE every mode's time is measured to (:func:`times_to_plain_rmse`).
+TARGET_SPPS = (16, 64)
 
 
 @dataclasses.dataclass(frozen=True)
 class Mode:
     """How the benchmark renders a scene: every marble's ``filter``, and edge samples
-    (None: none)."""
+    (None: none); ``adaptive``: through :func:`~mimarble.mitsuba.adaptive.render_adaptive`
+    (a first pass, then more samples where a pixel's estimated error is above a
+    threshold), once per threshold instead of once per spp."""
 
     name: str
     filter: str = "none"
     edge_spp: int | None = None
+    adaptive: bool = False
 
 
-def modes(filter: str | None = None, edge_spp: int | None = None) -> tuple[Mode, ...]:
-    """The runs' modes: plain, bandlimit, prefilter and prefilter with edge samples;
-    with ``filter``, that filter alone (with edge samples when ``edge_spp`` is given)."""
+def modes(filter: str | None = None, edge_spp: int | None = None,
+          adaptive: bool = True) -> tuple[Mode, ...]:
+    """The runs' modes: plain, bandlimit, prefilter and prefilter with edge samples, then
+    (``adaptive``) adaptive sampling of plain and of prefiltered marble; with ``filter``,
+    that filter alone (with edge samples when ``edge_spp`` is given), and adaptive
+    sampling of it."""
     if filter is None:
-        return (Mode("plain"), Mode("bandlimit", "bandlimit"), Mode("prefilter", "prefilter"),
-                Mode("prefilter+edges", "prefilter", edge_spp or DEFAULT_EDGE_SPP))
-    name = "plain" if filter == "none" else filter
-    return (Mode(name + ("+edges" if edge_spp else ""), filter, edge_spp),)
+        fixed = (Mode("plain"), Mode("bandlimit", "bandlimit"), Mode("prefilter", "prefilter"),
+                 Mode("prefilter+edges", "prefilter", edge_spp or DEFAULT_EDGE_SPP))
+        filters = ("none", "prefilter")
+    else:
+        name = "plain" if filter == "none" else filter
+        fixed = (Mode(name + ("+edges" if edge_spp else ""), filter, edge_spp),)
+        filters = (filter,)
+    if not adaptive:
+        return fixed
+    return fixed + tuple(Mode("adaptive" + ("" if f == "none" else "+" + f), f, adaptive=True)
+                         for f in filters)
 
 
 MODES = modes()
 #: The modes the fig11a targets compare (octaves 32 vs 8, time to RMSE ≤ 0.01).
 TARGET_MODES = MODES[:2]
+
+
+def is_paper_scene(name: str) -> bool:
+    """Whether a run's scene is one of the paper's figures (``fig…``): the means are over
+    these; every other scene (the fine veins, …) is reported on its own."""
+    return name.startswith("fig")
 # The paper's "render" column (seconds on a 2 GHz Pentium 4, 500×500) for Figs. 7–11.
 PAPER_SECONDS = {
     "fig07a": 2.0, "fig07b": 2.0, "fig07c": 2.0, "fig07d": 2.0,
@@ -85,6 +120,24 @@ class Timing:
     compile_ms: float             # codegen + backend of the first render's kernels
     kernels_compiled: int         # kernels of the first render not found in any cache
     image: np.ndarray = dataclasses.field(repr=False)
+    result: object = dataclasses.field(default=None, repr=False)   # the last render's own
+
+
+def _timed(render, repeats: int, image_of=lambda result: result) -> Timing:
+    """Render once (compile), then ``repeats`` warm renders, each after a sync."""
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+        result = render()
+        first = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+    runs = []
+    for _ in range(repeats):
+        dr.sync_thread()
+        start = time.perf_counter()
+        result = render()
+        runs.append(1000 * (time.perf_counter() - start))
+    return Timing(run_ms=statistics.median(runs), runs_ms=runs,
+                  compile_ms=sum(k["codegen_time"] + k["backend_time"] for k in first),
+                  kernels_compiled=kernel_cache.compiled(first), image=image_of(result),
+                  result=result)
 
 
 def time_render(scene, spp: int, repeats: int, edge_spp: int | None = None) -> Timing:
@@ -92,22 +145,27 @@ def time_render(scene, spp: int, repeats: int, edge_spp: int | None = None) -> T
     ``mimarble.render`` renders (``render_in_passes``: one kernel for every spp, ray
     differentials from the eye, edge samples)."""
     mitsuba_scene = mi.load_dict(to_mitsuba(scene, spp=spp))
+    return _timed(lambda: render_in_passes(mitsuba_scene, spp, edge_spp=edge_spp), repeats)
 
-    def render():
-        return render_in_passes(mitsuba_scene, spp, edge_spp=edge_spp)
 
-    with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-        image = render()
-        first = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
-    runs = []
-    for _ in range(repeats):
-        dr.sync_thread()
-        start = time.perf_counter()
-        image = render()
-        runs.append(1000 * (time.perf_counter() - start))
-    return Timing(run_ms=statistics.median(runs), runs_ms=runs,
-                  compile_ms=sum(k["codegen_time"] + k["backend_time"] for k in first),
-                  kernels_compiled=kernel_cache.compiled(first), image=image)
+def time_adaptive(scene, threshold: float, max_spp: int, repeats: int,
+                  spp: int = ADAPTIVE_FIRST_SPP, loaded=None) -> Timing:
+    """As :func:`time_render`, through ``render_adaptive`` (first pass ``spp``, more
+    samples where a pixel's estimated error is above ``threshold``, at most ``max_spp``);
+    the Timing's ``result`` is the last render's (``samples``, ``traced``, ``rounds``).
+    ``loaded``: ``scene`` already loaded into Mitsuba (one load for every threshold)."""
+    from .mitsuba.adaptive import render_adaptive
+    mitsuba_scene = loaded if loaded is not None else mi.load_dict(to_mitsuba(scene, spp=spp))
+    return _timed(lambda: render_adaptive(mitsuba_scene, spp, threshold, max_spp), repeats,
+                  image_of=lambda result: np.asarray(result.image))
+
+
+def samples_taken(mitsuba_scene, spp: int, edge_spp: int | None) -> float:
+    """Mean samples traced per pixel by ``render_in_passes(mitsuba_scene, spp, edge_spp=…)``:
+    ``spp``, plus ``edge_spp`` more on each silhouette pixel (its replaced samples count)."""
+    if edge_spp is None or edge_spp <= spp:
+        return float(spp)
+    return spp + edge_spp * float(np.mean(edge_mask(mitsuba_scene, spp)))
 
 
 def _reference_source_digest() -> str:
@@ -147,23 +205,29 @@ def targets_scene(scene_paths):
     return str(beside_package) if beside_package.is_file() else None
 
 
-def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=5,
-              targets=None, paper=True, cache_dir=None, progress=True, povray=True,
-              tolerance=None, modes=MODES) -> dict:
-    """The runs (every scene in every mode at every spp), the paper comparison, and
-    (with ``targets``, a scene path) the targets.
+def run_bench(scene_paths, size=256, spps=DEFAULT_SPPS, converged_spp=DEFAULT_CONVERGED_SPP,
+              repeats=5, targets=None, paper=True, cache_dir=None, progress=True, povray=True,
+              tolerance=None, modes=MODES, thresholds=ADAPTIVE_THRESHOLDS,
+              max_spp=DEFAULT_MAX_SPP) -> dict:
+    """The runs (every scene in every mode at every spp; an adaptive mode at every one of
+    ``thresholds``, first pass 1 spp, at most ``max_spp``), each mode's time to plain 16
+    and 64 spp's RMSE, the paper comparison, and (with ``targets``, a scene path) the
+    targets.
 
     ``tolerance``: every marble's error budget for our renders (None: each scene's
     default); the converged reference is always the full sum. ``modes``: the
     :class:`Mode` of each scene's runs. Each run also has its RMSE inside the silhouettes
-    (``interior_rmse``: pixels whose 3×3 neighbourhood sees one shape, at 16 spp).
+    (``interior_rmse``: pixels whose 3×3 neighbourhood sees one shape, at 16 spp) and the
+    samples it traced per pixel (``mean_spp``; an adaptive run's replaced ones included,
+    and its pixels' samples at the end, ``final_spp``, apart).
     ``cache_dir``: where converged references are kept (default
     :func:`mimarble.files.cache_folder`). ``progress``: as :func:`mimarble.progress.report`
     takes it, counting steps.
     """
     cache_dir = Path(cache_dir or files.cache_folder())
     scenes = [(Path(p).stem, scene_language.load(p)) for p in scene_paths]
-    steps = len(scenes) * (1 + len(modes) * len(spps))
+    steps = len(scenes) * (1 + sum(len(thresholds) if m.adaptive else len(spps)
+                                   for m in modes))
     steps += sum(1 for name, _ in scenes if name in PAPER_SECONDS) if paper else 0
     steps += 9 if targets else 0           # measure_targets' 7 steps, the whole process, calls
     step = _stepper(report(progress, "bench", unit="step"), steps)
@@ -171,6 +235,9 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
                "size": size, "converged_spp": converged_spp,
                "repeats": repeats, "tolerance": tolerance, "runs": [], "paper": [],
                "modes": [dataclasses.asdict(m) for m in modes], "targets": {}}
+    if any(m.adaptive for m in modes):
+        results["adaptive"] = {"thresholds": list(thresholds), "first_spp": ADAPTIVE_FIRST_SPP,
+                               "max_spp": max_spp}
 
     for name, scene in scenes:
         small = resized(scene, size)
@@ -179,18 +246,36 @@ def run_bench(scene_paths, size=256, spps=(1, 4, 16), converged_spp=64, repeats=
         step(f"{name}: converged reference")
         for mode in modes:
             variant = with_marbles(small, filter=mode.filter, tolerance=tolerance)
-            for spp in spps:
-                timing = time_render(variant, spp, repeats, mode.edge_spp)
+
+            def entry(timing, **fields):
                 metrics = image_metrics(timing.image, truth)
                 results["runs"].append({
-                    "scene": name, "mode": mode.name, "spp": spp, "edge_spp": mode.edge_spp,
+                    "scene": name, "mode": mode.name, **fields,
                     "run_ms": timing.run_ms, "compile_ms": timing.compile_ms,
                     "kernels_compiled": timing.kernels_compiled,
                     "rmse": metrics["rmse"], "psnr": metrics["psnr"],
                     "interior_rmse": float(np.sqrt(np.mean(
                         np.square(timing.image - truth)[interior])))})
+
+            if mode.adaptive:
+                loaded = mi.load_dict(to_mitsuba(variant, spp=ADAPTIVE_FIRST_SPP))
+                for threshold in thresholds:
+                    timing = time_adaptive(variant, threshold, max_spp, repeats, loaded=loaded)
+                    pixels = timing.image.shape[0] * timing.image.shape[1]
+                    entry(timing, spp=ADAPTIVE_FIRST_SPP, edge_spp=None, threshold=threshold,
+                          max_spp=max_spp, mean_spp=int(timing.result.traced) / pixels,
+                          final_spp=float(np.mean(timing.result.samples)),
+                          rounds=int(timing.result.rounds))
+                    step(f"{name}: {mode.name} threshold {threshold:g}")
+                continue
+            loaded = mi.load_dict(to_mitsuba(variant, spp=1)) if mode.edge_spp else None
+            for spp in spps:
+                timing = time_render(variant, spp, repeats, mode.edge_spp)
+                entry(timing, spp=spp, edge_spp=mode.edge_spp,
+                      mean_spp=samples_taken(loaded, spp, mode.edge_spp))
                 step(f"{name}: {mode.name} {spp} spp")
     results["speedup_at_plain16_rmse"] = speedups_at_equal_error(results["runs"])
+    results["time_to_rmse"] = times_to_plain_rmse(results["runs"])
 
     if paper:
         for name, scene in scenes:
@@ -356,6 +441,119 @@ def measure_targets(scene_path, repeats, cache_dir, step, tolerance=None) -> dic
     return t
 
 
+def _crossing(rmses, target: float):
+    """Where a curve's RMSEs (coarse to fine) reach ``target``: ``(i, f)``, the crossing at
+    fraction ``f`` in log(RMSE) from point ``i`` to point ``i + 1`` (``(0, 0.0)``: the
+    first point already reaches it); None when no point does."""
+    rmses = [float(e) for e in rmses]
+    if not rmses:
+        return None
+    if rmses[0] <= target:
+        return 0, 0.0
+    for i, (e0, e1) in enumerate(zip(rmses, rmses[1:])):
+        if e0 > target >= e1:
+            if e1 <= 0 or target <= 0:        # no logarithm: the later point
+                return i, 1.0
+            return i, float((np.log(e0) - np.log(target)) / (np.log(e0) - np.log(e1)))
+    return None
+
+
+def _log_between(a: float, b: float, f: float) -> float:
+    """Linear in the logarithm from ``a`` (f = 0) to ``b`` (f = 1)."""
+    if f == 0.0:
+        return float(a)
+    if f == 1.0 or a <= 0 or b <= 0:
+        return float(b)
+    return float(np.exp(np.log(a) + f * (np.log(b) - np.log(a))))
+
+
+def time_to_rmse(curve, target: float) -> float | None:
+    """When a mode's curve on one scene, its ``(run_ms, rmse)`` points in the order of the
+    mode's settings (coarse to fine: spp up, an adaptive threshold down), reaches RMSE
+    ``target``: between the first two neighbouring points that bracket it (the coarser
+    above, the finer at or below), linearly in log(time) against log(RMSE); the coarsest
+    (cheapest) point's time when it already reaches it; None when no point does (no
+    extrapolation beyond the measured points). The settings' order, not the times', so
+    that a noisy timing cannot reorder the curve (on a quiet machine they agree)."""
+    curve = [(float(t), float(e)) for t, e in curve]
+    at = _crossing([e for _, e in curve], target)
+    if at is None:
+        return None
+    i, f = at
+    return _log_between(curve[i][0], curve[min(i + 1, len(curve) - 1)][0], f)
+
+
+def _interpolated(curve, target: float, key: str) -> float | None:
+    """``key`` of a curve's runs (dicts, coarse to fine) where :func:`time_to_rmse` puts
+    the crossing, interpolated as the time is (its logarithm linear in log RMSE)."""
+    at = _crossing([r["rmse"] for r in curve], target)
+    if at is None:
+        return None
+    i, f = at
+    return _log_between(curve[i][key], curve[min(i + 1, len(curve) - 1)][key], f)
+
+
+def times_to_plain_rmse(runs, target_spps=TARGET_SPPS) -> dict:
+    """Each mode's time to plain ``spp``'s RMSE for every spp of ``target_spps``
+    (:func:`time_to_rmse` on the mode's curve), per scene, and the speed-ups (plain's
+    own time at that spp over the mode's), with means over the paper scenes and each
+    other scene (fine veins, …) on its own.
+
+    ``{"targets": [16, 64], "by_scene": {scene: {"16": {"rmse", "plain_ms", "by_mode":
+    {mode: {"ms", "speedup", "mean_spp"} or None (never reached)}}}}, "groups": {"paper"
+    or scene: {"scenes": [...], "16": {mode: {"mean_speedup", "worst_speedup",
+    "mean_ms", "mean_spp", "reached", "missed": [scenes]}}}}}`` — a mode that never
+    reaches the target on a scene counts as missed there: the mean is over the scenes
+    it reached, and ``missed`` names the others. ``mean_spp``: the samples traced per
+    pixel at the crossing (interpolated as the time)."""
+    by_scene = {}
+    for scene in sorted({r["scene"] for r in runs}):
+        mine = [r for r in runs if r["scene"] == scene]
+        modes = list(dict.fromkeys(r["mode"] for r in mine))
+        out = {}
+        for spp in target_spps:
+            plain = next((r for r in mine if r["mode"] == "plain" and r["spp"] == spp), None)
+            if plain is None:
+                continue
+            by_mode = {}
+            for mode in modes:
+                curve = sorted((r for r in mine if r["mode"] == mode), key=setting)
+                ms = time_to_rmse([(r["run_ms"], r["rmse"]) for r in curve], plain["rmse"])
+                by_mode[mode] = None if ms is None else {
+                    "ms": ms, "speedup": plain["run_ms"] / ms,
+                    "mean_spp": _interpolated(curve, plain["rmse"], "mean_spp")
+                    if all("mean_spp" in r for r in curve) else None}
+            out[str(spp)] = {"rmse": plain["rmse"], "plain_ms": plain["run_ms"],
+                             "by_mode": by_mode}
+        if out:
+            by_scene[scene] = out
+    groups = {}
+    paper = [s for s in by_scene if is_paper_scene(s)]
+    for group, members in ([("paper", paper)] if paper else []) + [
+            (s, [s]) for s in by_scene if not is_paper_scene(s)]:
+        summary = {"scenes": members}
+        for spp in map(str, target_spps):
+            at = [by_scene[s][spp] for s in members if spp in by_scene[s]]
+            if not at:
+                continue
+            modes = list(dict.fromkeys(m for a in at for m in a["by_mode"]))
+            summary[spp] = {}
+            for mode in modes:
+                reached = {s: by_scene[s][spp]["by_mode"].get(mode) for s in members
+                           if spp in by_scene[s]}
+                got = [v for v in reached.values() if v]
+                spps = [v["mean_spp"] for v in got if v["mean_spp"] is not None]
+                summary[spp][mode] = {
+                    "reached": len(got), "of": len(reached),
+                    "missed": [s for s, v in reached.items() if not v],
+                    "mean_speedup": float(np.mean([v["speedup"] for v in got])) if got else None,
+                    "worst_speedup": float(min(v["speedup"] for v in got)) if got else None,
+                    "mean_ms": float(np.mean([v["ms"] for v in got])) if got else None,
+                    "mean_spp": float(np.mean(spps)) if spps else None}
+        groups[group] = summary
+    return {"targets": list(target_spps), "by_scene": by_scene, "groups": groups}
+
+
 def speedups_at_equal_error(runs) -> dict:
     """Per scene and mode: the fastest run of the mode whose RMSE is at most plain 16 spp's,
     and plain 16 spp's time over its time (None: no run of the mode got there)."""
@@ -370,7 +568,8 @@ def speedups_at_equal_error(runs) -> dict:
             good = [r for r in mine if r["mode"] == mode and r["rmse"] <= plain16["rmse"]]
             best = min(good, key=lambda r: r["run_ms"]) if good else None
             out[scene][mode] = None if best is None else {
-                "spp": best["spp"], "edge_spp": best.get("edge_spp"), "run_ms": best["run_ms"],
+                "spp": best["spp"], "edge_spp": best.get("edge_spp"),
+                "threshold": best.get("threshold"), "run_ms": best["run_ms"],
                 "rmse": best["rmse"], "plain16_ms": plain16["run_ms"],
                 "plain16_rmse": plain16["rmse"], "speedup": plain16["run_ms"] / best["run_ms"]}
     return out

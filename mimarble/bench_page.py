@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .bench_report import (ADAPTIVE_TARGETS, group_cell, group_name, paper_runs, setting,
+                           setting_label)
 from .files import write_atomically
 
 #: What LLVM's AMD targets are called in AMD's own words.
@@ -57,30 +59,74 @@ def machine_slug(facts: dict) -> str:
     return re.sub(r"[^a-z0-9]+", "-", f"{name} {cpu}".lower()).strip("-") or "unknown"
 
 
-def _mean(runs, mode, spp, key):
-    return float(np.mean([r[key] for r in runs if r["mode"] == mode and r["spp"] == spp]))
+def _mean(runs, key):
+    return float(np.mean([r[key] for r in runs]))
+
+
+def _rows(runs) -> list[str]:
+    """One row per mode and setting (spp, or an adaptive threshold): means over ``runs``."""
+    lines = ["| mode | spp | render time | RMSE | PSNR | samples per pixel |",
+             "|---|---|---|---|---|---|"]
+    for mode in dict.fromkeys(r["mode"] for r in runs):
+        mine = [r for r in runs if r["mode"] == mode]
+        for key in sorted({setting(r) for r in mine}):
+            at = [r for r in mine if setting(r) == key]
+            label = at[0]["spp"] if key[0] == "spp" else setting_label(at[0])
+            taken = (f"{_mean(at, 'mean_spp'):.2f}" if all(r.get("mean_spp") is not None
+                                                          for r in at) else "")
+            lines.append(f"| {mode} | {label} | {_mean(at, 'run_ms'):.1f} ms | "
+                         f"{_mean(at, 'rmse'):.4f} | {_mean(at, 'psnr'):.1f} dB | {taken} |")
+    return lines
 
 
 def _error_table(results: dict) -> list[str]:
     runs = results["runs"]
-    modes = list(dict.fromkeys(r["mode"] for r in runs))
-    spps = sorted({r["spp"] for r in runs})
-    scenes = len({r["scene"] for r in runs})
-    lines = [f"**Run time against error**, every scene at {results['size']}², means over "
-             f"{scenes} scenes:", "",
-             "| mode | spp | render time | RMSE | PSNR |", "|---|---|---|---|---|"]
-    for mode in modes:
-        for spp in spps:
-            if any(r["mode"] == mode and r["spp"] == spp for r in runs):
-                lines.append(f"| {mode} | {spp} | {_mean(runs, mode, spp, 'run_ms'):.1f} ms | "
-                             f"{_mean(runs, mode, spp, 'rmse'):.4f} | "
-                             f"{_mean(runs, mode, spp, 'psnr'):.1f} dB |")
+    paper = paper_runs(runs)
+    chosen = {id(r) for r in paper}
+    others = [r for r in runs if id(r) not in chosen]
+    scenes = len({r["scene"] for r in paper})
+    which = "every paper scene" if others else "every scene"
+    lines = [f"**Run time against error**, {which} at {results['size']}², means over "
+             f"{scenes} scenes:", ""] + _rows(paper)
+    adaptive = results.get("adaptive")
+    if adaptive:
+        lines += ["", f"Adaptive modes: a first pass of {adaptive['first_spp']} spp, then more "
+                      f"samples where a pixel's estimated error is above the threshold, at most "
+                      f"{adaptive['max_spp']} spp; samples per pixel counts every one traced."]
+    for scene in dict.fromkeys(r["scene"] for r in others):
+        lines += ["", f"**{scene}** ({results['size']}²):", ""]
+        lines += _rows([r for r in others if r["scene"] == scene])
     speedups = results.get("speedup_at_plain16_rmse") or {}
     for mode in sorted({m for by_mode in speedups.values() for m in by_mode}):
         reached = [v["speedup"] for v in (b.get(mode) for b in speedups.values()) if v]
         if reached:
             lines += ["", f"Speed-up of {mode} over plain 16 spp at equal or lower RMSE: mean "
                           f"{np.mean(reached):.2f}× over {len(reached)} of {len(speedups)} scenes."]
+    return lines
+
+
+def _time_to_rmse_table(results: dict) -> list[str]:
+    """Each mode's time to plain 16 and 64 spp's RMSE, as means over the paper scenes and
+    on each other scene: speed-up over plain's time (worst scene), time, samples."""
+    ttr = results.get("time_to_rmse")
+    if not ttr or not ttr.get("groups"):
+        return []
+    modes = list(dict.fromkeys(m for g in ttr["groups"].values() for spp in map(str, ttr["targets"])
+                               for m in g.get(spp, {})))
+    lines = ["", "**Time to plain 16 and 64 spp's RMSE**, each scene's own, interpolated on "
+                 "each mode's curve (log time against log RMSE between the runs around it; "
+                 "never beyond them): the speed-up over plain's time at that spp, the time and "
+                 "the samples per pixel taken; means over the scenes a mode reached, the others "
+                 "named. Targets: the adaptive modes "
+                 + " and ".join(f"≥ {v:g}× to plain {k}'s" for k, v in ADAPTIVE_TARGETS.items())
+                 + ".", "",
+             "| RMSE of | scenes | " + " | ".join(modes) + " |",
+             "|---|---|" + "---|" * len(modes)]
+    for spp in map(str, ttr["targets"]):
+        for name, group in ttr["groups"].items():
+            if spp in group:
+                lines.append(f"| plain {spp} spp | {group_name(name, group)} | "
+                             + " | ".join(group_cell(group[spp].get(m)) for m in modes) + " |")
     return lines
 
 
@@ -156,6 +202,7 @@ def section(results: dict, plot: str | None = None) -> str:
              f"kernel history); RMSE is against the float64 reference tracer at "
              f"{results['converged_spp']} spp.", ""]
     lines += _error_table(results)
+    lines += _time_to_rmse_table(results)
     if plot:
         lines += ["", f"![error against time on {machine_label(facts)}]({plot})"]
     lines += _paper_table(results) + _targets_table(results) + _process_table(results)

@@ -3,6 +3,9 @@
 Reads only the results dict of :func:`mimarble.bench.run_bench` (or its JSON read
 back), so a saved benchmark is reported without loading Dr.Jit or Mitsuba. The
 targets' modes are the ones the results hold, in the order they were measured.
+
+A run is one scene in one mode at one *setting*: its spp, or an adaptive mode's
+threshold (:func:`setting`); the helpers here name settings for the page and the plot too.
 """
 
 from __future__ import annotations
@@ -10,6 +13,32 @@ from __future__ import annotations
 import numpy as np
 
 from .machine import machine_line
+
+
+#: The issue's targets for the adaptive modes' speed-up to plain N spp's RMSE.
+ADAPTIVE_TARGETS = {"16": 4.0, "64": 6.0}
+
+
+def setting(run: dict):
+    """What a run varies along its mode's curve: ``("threshold", T)`` for an adaptive
+    run, else ``("spp", spp)``; sorts coarse to fine within a mode."""
+    if run.get("threshold") is not None:
+        return ("threshold", -run["threshold"])
+    return ("spp", run["spp"])
+
+
+def setting_label(run: dict) -> str:
+    """A run's setting in words: ``16 spp`` or ``threshold 0.005``."""
+    if run.get("threshold") is not None:
+        return f"threshold {run['threshold']:g}"
+    return f"{run['spp']} spp"
+
+
+def paper_runs(runs: list) -> list:
+    """The runs of the paper's scenes (``fig…``), the ones means are taken over; all of
+    them when there are none (a benchmark of other scenes only)."""
+    mine = [r for r in runs if r["scene"].startswith("fig")]
+    return mine or list(runs)
 
 
 def _target_modes(targets: dict) -> list[str]:
@@ -30,7 +59,65 @@ def _speedup_lines(speedups: dict) -> list[str]:
             f"worst {min(reached):.2f}×"
         mean = f"mean {np.mean(reached):.2f}× over {len(reached)} of {len(values)} scenes" \
             if reached else "reached on no scene"
-        lines.append(f"  {mode:15}: {mean}, {worst}   target ≥ 4× (prefilter+edges)")
+        goal = "   target ≥ 4×" if mode == "prefilter+edges" else ""
+        lines.append(f"  {mode:18}: {mean}, {worst}{goal}")
+    return lines
+
+
+def _cell(v: dict | None) -> str:
+    """One scene's crossing: speed-up, time, samples per pixel; — where never reached."""
+    if not v:
+        return "—"
+    spp = f" {v['mean_spp']:.1f} spp" if v.get("mean_spp") is not None else ""
+    return f"{v['speedup']:.2f}× {v['ms']:.1f} ms{spp}"
+
+
+def group_cell(g: dict | None) -> str:
+    """A group's crossing: mean speed-up (worst), mean time and samples, and the scenes
+    where the mode never got there."""
+    if not g:
+        return "—"
+    if not g["reached"]:
+        return f"missed on all {g['of']}"
+    spp = f", {g['mean_spp']:.1f} spp" if g.get("mean_spp") is not None else ""
+    text = (f"{g['mean_speedup']:.2f}×" + (f" (worst {g['worst_speedup']:.2f}×)" if g["of"] > 1
+                                           else "") + f", {g['mean_ms']:.1f} ms{spp}")
+    if g["missed"]:
+        text += f"; missed on {len(g['missed'])} of {g['of']}: {', '.join(g['missed'])}"
+    return text
+
+
+def group_name(name: str, group: dict) -> str:
+    return (f"paper scenes (mean of {len(group['scenes'])})" if name == "paper" else name)
+
+
+def time_to_rmse_lines(ttr: dict) -> list[str]:
+    """Each mode's time to plain N spp's RMSE: every scene, then the means (paper scenes;
+    every other scene on its own), with the adaptive targets."""
+    lines = []
+    for spp in map(str, ttr["targets"]):
+        scenes = {s: by[spp] for s, by in ttr["by_scene"].items() if spp in by}
+        if not scenes:
+            continue
+        modes = list(dict.fromkeys(m for at in scenes.values() for m in at["by_mode"]))
+        width = 24
+        lines += ["", f"Time to plain {spp} spp's RMSE (each mode's curve, log-log between the "
+                      f"runs around it): speed-up over plain {spp} spp's time, time, samples "
+                      f"per pixel; — never reached",
+                  f"{'scene':15} {'RMSE':>8} {'plain ms':>8}  "
+                  + " ".join(f"{m:{width}}" for m in modes)]
+        for scene, at in scenes.items():
+            lines.append(f"{scene:15} {at['rmse']:>8.4f} {at['plain_ms']:>8.1f}  "
+                         + " ".join(f"{_cell(at['by_mode'].get(m)):{width}}" for m in modes))
+        target = ADAPTIVE_TARGETS.get(spp)
+        for name, group in ttr["groups"].items():
+            if spp not in group:
+                continue
+            lines.append(f"  {group_name(name, group)}:")
+            for mode, g in group[spp].items():
+                goal = (f"   target ≥ {target:g}×" if target and mode.startswith("adaptive")
+                        else "")
+                lines.append(f"    {mode:18} {group_cell(g)}{goal}")
     return lines
 
 
@@ -95,13 +182,24 @@ def format_report(results: dict) -> str:
     lines = [f"mimarble bench — {machine_line(results['machine'])}",
              f"{results['size']}², error against the float64 reference at "
              f"{results['converged_spp']} spp; times are medians of {results['repeats']} warm runs", ""]
-    lines.append(f"{'scene':8} {'mode':15} {'spp':>4} {'run ms':>8} {'compile ms':>10} "
-                 f"{'new kernels':>11} {'RMSE':>8} {'PSNR dB':>8} {'interior':>8}")
+    adaptive = results.get("adaptive")
+    if adaptive:
+        lines.insert(-1, f"adaptive modes: first pass {adaptive['first_spp']} spp, more samples "
+                         f"where a pixel's estimated error is above the threshold, at most "
+                         f"{adaptive['max_spp']} spp")
+    lines.append(f"{'scene':15} {'mode':18} {'spp':>4} {'threshold':>9} {'mean spp':>8} "
+                 f"{'run ms':>8} {'compile ms':>10} {'new kernels':>11} {'RMSE':>8} "
+                 f"{'PSNR dB':>8} {'interior':>8}")
     for r in results["runs"]:
-        lines.append(f"{r['scene']:8} {r['mode']:15} {r['spp']:>4} {r['run_ms']:>8.1f} "
-                     f"{r['compile_ms']:>10.1f} {r['kernels_compiled']:>11} {r['rmse']:>8.4f} "
-                     f"{r['psnr']:>8.1f} {r.get('interior_rmse', float('nan')):>8.4f}")
+        threshold = f"{r['threshold']:>9g}" if r.get("threshold") is not None else f"{'':9}"
+        taken = f"{r['mean_spp']:>8.2f}" if r.get("mean_spp") is not None else f"{'':8}"
+        lines.append(f"{r['scene']:15} {r['mode']:18} {r['spp']:>4} {threshold} {taken} "
+                     f"{r['run_ms']:>8.1f} {r['compile_ms']:>10.1f} {r['kernels_compiled']:>11} "
+                     f"{r['rmse']:>8.4f} {r['psnr']:>8.1f} "
+                     f"{r.get('interior_rmse', float('nan')):>8.4f}")
     lines += _speedup_lines(results.get("speedup_at_plain16_rmse") or {})
+    if results.get("time_to_rmse"):
+        lines += time_to_rmse_lines(results["time_to_rmse"])
     if results["paper"]:
         lines += ["", "Against the paper's render column (500×500, the scene's own spp):",
                   f"{'scene':8} {'spp':>4} {'ours s':>8} {'paper s':>8} {'ours/paper':>10} "

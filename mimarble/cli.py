@@ -216,6 +216,12 @@ def _spp(args, scene) -> int:
     problem = spp_problem(spp, scene.image.width, scene.image.height)
     if problem:
         raise UsageError(f"--{problem}")
+    if getattr(args, "adaptive", None) is not None:
+        from .scene.rules import adaptive_problem
+        problem = adaptive_problem(args.adaptive, args.max_spp or max(64, spp), spp,
+                                   scene.image.width, scene.image.height)
+        if problem:
+            raise UsageError(problem.replace("max_spp=", "--max-spp ").replace("spp=", "--spp "))
     return spp
 
 
@@ -262,8 +268,16 @@ def _render(args) -> int:
     return _render_to_file(args, lambda scene, spp: mimarble.render(
         scene, spp=spp, mode=args.mode, progress=True, tolerance=args.tolerance,
         filter=args.filter, edge_spp=args.edge_spp,
-        crop=None if args.crop is None else tuple(args.crop)),
-        lambda: f"{args.mode} mode, {mimarble.mi.variant()}")
+        crop=None if args.crop is None else tuple(args.crop), adaptive=args.adaptive,
+        max_spp=args.max_spp),
+        lambda: f"{args.mode} mode{_adaptive_words(args)}, {mimarble.mi.variant()}")
+
+
+def _adaptive_words(args) -> str:
+    """How an adaptive render is described after its mode ('' for none)."""
+    if args.adaptive is None:
+        return ""
+    return f", adaptive {args.adaptive:g} up to {args.max_spp or 64} spp"
 
 
 def _reference(args) -> int:
@@ -275,6 +289,7 @@ def _reference(args) -> int:
 def _compare(args) -> int:
     import json
 
+    _check_adaptive_options(args)
     if args.diff:
         _check_folder(_check_suffix(Path(args.diff), (".png",), "error map"))
     scene = _load_scene(args)
@@ -287,13 +302,14 @@ def _compare(args) -> int:
     filters = {args.filter} if args.filter else {
         getattr(inner, "filter", "none") for material in scene.materials.values()
         for channel in material.channels().values() for inner in walk(channel)}
-    if filters - {"none"} or args.edge_spp:
+    if filters - {"none"} or args.edge_spp or args.adaptive:
         print("mimarble: note: the reference tracer renders plain supersampling (the ground "
-              "truth): filtered marble or edge samples differ from it by what they filter",
-              file=sys.stderr)
+              "truth): filtered marble, edge samples or adaptive sampling differ from it by "
+              "what they filter or sample otherwise", file=sys.stderr)
     start = time.perf_counter()
     ours = mimarble.render(scene, spp=spp, progress=True, tolerance=args.tolerance,
-                           filter=args.filter, edge_spp=args.edge_spp)
+                           filter=args.filter, edge_spp=args.edge_spp,
+                           adaptive=args.adaptive, max_spp=args.max_spp)
     mitsuba_seconds = time.perf_counter() - start
     start = time.perf_counter()
     ref = reference.render(scene, spp=spp, progress=True)
@@ -319,12 +335,18 @@ def _bench(args) -> int:
     from . import scene as mimarble_scene
     from .scene import LIMITS
     scenes = _scene_list(args.scenes)
+    if not args.scenes:     # the paper's figures, then the fine veins beside them (issue 24)
+        scenes += sorted(str(p) for p in (Path(scenes[0]).parent / "fine-veins").glob("*.scene"))
     lo, hi = LIMITS["image_size"]
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
     for spp in args.spp:
         _check_spp(spp)
     _check_spp(args.converged_spp, option="--converged-spp")
+    _check_spp(args.max_spp, option="--max-spp")
+    for threshold in args.adaptive or ():
+        if not 0 < threshold < float("inf"):
+            raise UsageError(f"--adaptive {threshold}: a threshold must be a finite number > 0")
     if args.repeats < 1:
         raise UsageError(f"--repeats {args.repeats}: must be at least 1")
     if args.json:
@@ -345,7 +367,10 @@ def _bench(args) -> int:
                               converged_spp=args.converged_spp, targets=targets_scene,
                               paper=not args.no_paper, povray=not args.no_povray,
                               tolerance=args.tolerance,
-                              modes=bench.modes(args.filter, args.edge_spp))
+                              modes=bench.modes(args.filter, args.edge_spp,
+                                                adaptive=not args.no_adaptive),
+                              thresholds=tuple(args.adaptive or bench.ADAPTIVE_THRESHOLDS),
+                              max_spp=args.max_spp)
     from .bench_report import format_report
     from .files import write_json
     results["command"] = "mimarble " + " ".join(shlex.quote(a) for a in args.argv)
@@ -522,6 +547,18 @@ def build_parser() -> argparse.ArgumentParser:
                                                        else "; default 64 in the benchmark's "
                                                             "prefilter+edges mode"))
 
+    def add_adaptive(p):
+        p.add_argument("--adaptive", type=_adaptive_threshold, metavar="T",
+                       help="adaptive sampling (whitted mode): --spp is the first pass, then "
+                            "every pixel whose estimated error is above T (linear colour "
+                            "units, e.g. 0.0003; times n² at n² samples) is "
+                            "rendered again with twice the samples per axis, up to --max-spp; "
+                            "refines silhouettes itself (not with --edge-spp). With --filter "
+                            "prefilter the estimate costs least (docs/rendering-model.md)")
+        p.add_argument("--max-spp", type=int, metavar="N",
+                       help="adaptive sampling's most samples per pixel, a perfect square "
+                            "(default 64)")
+
     def add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
         p.add_argument("--variant", default=argparse.SUPPRESS, help="Mitsuba variant")
 
@@ -554,6 +591,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_quality(p)
     add_tolerance(p)
     add_filter(p, "default: the marbles' own")
+    add_adaptive(p)
     add_variant(p)
     p.set_defaults(run=_render)
 
@@ -579,29 +617,44 @@ def build_parser() -> argparse.ArgumentParser:
     add_size(p)
     add_tolerance(p)
     add_filter(p, "default: the marbles' own (the reference renders plain supersampling)")
+    add_adaptive(p)
     add_variant(p)
     p.set_defaults(run=_compare, mode="whitted")
 
     p = sub.add_parser("bench", help="run time against error against the converged reference")
     p.add_argument("scenes", nargs="*", help="scene files or packaged scenes' names (default: "
-                                             "./scenes/*.scene, else the packaged paper figures)")
+                                             "./scenes/*.scene and ./scenes/fine-veins/*.scene, "
+                                             "else the packaged paper figures and fine veins)")
     p.add_argument("--json", metavar="OUT", help="write all measurements as JSON")
     p.add_argument("--plot", metavar="OUT.png", help="write the error-against-time plot")
     p.add_argument("--page", metavar="PAGE.md",
                    help="write this machine's section into a benchmarks page (e.g. "
                         "docs/benchmarks.md), keeping the other machines' sections")
     p.add_argument("--size", type=int, default=256, help="image size of the measured renders (default 256)")
-    p.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16], help="the spp values measured")
+    p.add_argument("--spp", type=int, nargs="+", default=[1, 4, 16, 64],
+                   help="the spp values measured in the modes that are not adaptive (default "
+                        "1 4 16 64; each mode's time to plain 16 and 64 spp's RMSE needs those two)")
+    p.add_argument("--adaptive", type=float, nargs="+", metavar="T",
+                   help="the adaptive modes' thresholds: a first pass of 1 spp, then more samples "
+                        "where a pixel's estimated error (linear colour) is above T (times "
+                        "n² at n² samples), one run per T (default: 0.005 halving down to "
+                        "4.5e-6, mimarble.bench.ADAPTIVE_THRESHOLDS)")
+    p.add_argument("--max-spp", type=int, default=64, metavar="N",
+                   help="the adaptive modes' most samples per pixel, a perfect square (default 64)")
+    p.add_argument("--no-adaptive", action="store_true",
+                   help="skip the adaptive modes (adaptive, adaptive+prefilter)")
     p.add_argument("--repeats", type=int, default=5, help="warm runs per timing (median)")
-    p.add_argument("--converged-spp", type=int, default=64, help="reference spp (default 64)")
+    p.add_argument("--converged-spp", type=int, default=256,
+                   help="reference spp (default 256: finer than the runs' 64)")
     p.add_argument("--no-targets", action="store_true", help="skip the issue's target measurements")
     p.add_argument("--no-paper", action="store_true", help="skip the comparison with the paper")
     p.add_argument("--no-povray", action="store_true",
                    help="skip timing POV-Ray 3.7 on a comparable marble sphere (done with the "
                         "targets when `povray` is installed)")
     add_tolerance(p)
-    add_filter(p, "measures only this one (default: plain, bandlimit, prefilter, and prefilter "
-                  "with edge samples)")
+    add_filter(p, "measures only this one, and adaptive sampling of it (default: plain, "
+                  "bandlimit, prefilter, prefilter with edge samples, adaptive sampling of plain "
+                  "and of prefiltered marble)")
     add_variant(p)
     p.set_defaults(run=_bench)
 
@@ -689,13 +742,41 @@ def _edge_spp(text: str) -> int:
     return value
 
 
+def _check_adaptive_options(args) -> None:
+    """``--adaptive`` needs whitted mode and no ``--edge-spp``; ``--max-spp`` needs it."""
+    if args.adaptive is None:
+        if args.max_spp is not None:
+            raise UsageError("--max-spp applies to adaptive sampling: give --adaptive T too")
+        return
+    if args.mode != "whitted":
+        raise UsageError(f"--adaptive needs whitted mode (its stratum centres), not --mode "
+                         f"{args.mode}")
+    if args.edge_spp:
+        raise UsageError("--adaptive refines silhouettes itself: give --adaptive or "
+                         "--edge-spp, not both")
+
+
 def _check_whitted_options(args) -> None:
     """``--edge-spp`` and a ``--filter`` other than none need whitted mode."""
+    _check_adaptive_options(args)
     if args.edge_spp and args.mode != "whitted":
         raise UsageError(f"--edge-spp needs whitted mode (its stratum centres), not --mode {args.mode}")
     if args.filter not in (None, "none") and args.mode != "whitted":
         raise UsageError(f"--filter {args.filter} needs whitted mode (its ray differentials); "
                          f"Mitsuba's path integrator gives the marble none")
+
+
+def _adaptive_threshold(text: str) -> float:
+    """``--adaptive``: a finite number > 0 (argparse reports the error as a usage error)."""
+    from .scene.rules import adaptive_problem
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    problem = adaptive_problem(value, None, 1, 1, 1)
+    if problem:
+        raise argparse.ArgumentTypeError(f"{text} {problem.split(' ', 1)[1]}")
+    return value
 
 
 def _tolerance(text: str) -> float:

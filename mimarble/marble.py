@@ -207,6 +207,29 @@ class Marble(RGBTexture):
         colour = dr.select(point.finite, self.pixel_filter.colour(self, point), dr.nan)
         return dr.select(active, colour, 0.0)
 
+    def prepare_alternate(self) -> None:
+        """Make what :meth:`eval_and_alternate` reads (the phase-average tables), before a
+        kernel that calls it is traced."""
+        if self.ramp.size > 1:
+            self.pixel_filter.prepare_alternate()
+
+    def eval_and_alternate(self, si, active=True):
+        """(:meth:`eval`'s colour, a second estimate of the pixel's colour): the filter's
+        other view of the footprint (mimarble/pixel_filter.py) — the prefiltered mean for a
+        point sample, the colour at the point for a filtered marble. Their difference is
+        the marble's own estimate of how wrong one sample of it can be here, which
+        adaptive sampling reads (mimarble/mitsuba/adaptive.py). Needs the footprint (ray
+        differentials) and :meth:`prepare_alternate` first."""
+        if self.ramp.size == 1 or self.pixel_filter.average is None:
+            # A constant; or a marble not prepared (another scene's, traced by a symbolic
+            # call over every live material): one estimate.
+            colour = self.eval(si, active)
+            return colour, colour
+        point = self.mapping.map(si, True)
+        colour, alternate = self.pixel_filter.colour_and_alternate(self, point)
+        return tuple(dr.select(active, dr.select(point.finite, c, dr.nan), 0.0)
+                     for c in (colour, alternate))
+
     def _no_footprint_message(self) -> str:
         name = f" {self.id()!r}" if self.id() else ""
         return (f"marble{name}: filter={self.filter!r} has no pixel footprint to filter "

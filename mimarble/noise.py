@@ -344,16 +344,19 @@ def fractal3(p, octaves: int, turbulence: bool = False, spectrum: Spectrum = PAP
 
 
 class FractalSum(NamedTuple):
-    """What :func:`fractal_sum` returns: F, ∇F (None unless asked for), and the
-    variance σ² of F across the pixel that ∇F does not describe (0 unless folding)."""
+    """What :func:`fractal_sum` returns: F, ∇F (None unless asked for), the
+    variance σ² of F across the pixel that ∇F does not describe (0 unless folding), and
+    with ``point``, F at the point with every octave (None unless asked for)."""
 
     value: object
     gradient: object
     spread: object
+    point: object = None
 
 
 def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradient: bool = False,
-                differentials=None, spectrum: Spectrum = PAPER_SPECTRUM) -> FractalSum:
+                differentials=None, spectrum: Spectrum = PAPER_SPECTRUM,
+                point: bool = False) -> FractalSum:
     """The one octave sum: F(p) = Σ_{i<K'} w_i · ω^i N(λ^i p), K' = min(K, 25) at the
     paper's ω = ½, λ = 2 (``spectrum``: another ω and λ; K' from ω, :func:`octaves_evaluated`).
 
@@ -371,6 +374,10 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
       ∇N and the differentials, |n| < W/2), the mean of |N| is n²/W + W/4, not |n|, and
       it spreads with variance n² + W²/12 − mean² about that mean, with no slope: such an
       octave adds its mean to F and its spread to σ², not its gradient.
+    * ``point``, with ``band``: also F with every octave, unweighted and unfolded, bit
+      for bit :func:`fractal3`'s (the same terms in the same order): the band's octaves
+      share their noise with it, the rest are plain N (a second loop from each lane's
+      last octave), so the point sample costs only the octaves past the band.
 
     In JIT variants the octaves are a symbolic loop (``dr.while_loop``): one noise
     evaluation's code, however many octaves. Unrolled, a kernel holds every octave's
@@ -392,6 +399,8 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
         state["gradient"] = dr.zeros(type(p), width) if jit else type(p)(0.0)
     if folds:
         state["spread"] = dr.zeros(float_type, width)
+    if point:
+        state["point"] = dr.zeros(float_type, width) if jit else 0.0
     if most == 0:
         return _result(state)
     q = wrap_large_point(p)
@@ -406,12 +415,14 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
             if g is not None:
                 g = g * dr.sign(n) * dr.select(n == 0.0, 0.0, 1.0)
             n = dr.abs(n)
+        state = dict(state)
+        if point:
+            state["point"] = state["point"] + n * amplitude
         weight = None
         if band is not None:
             whole, last = band
             i_float = float_type(i)
             weight = dr.select(i_float < whole, 1.0, dr.select(i_float == whole, last, 0.0))
-        state = dict(state)
         weighted = amplitude if weight is None else amplitude * weight
         if folds:
             # N across the pixel, in N's units: ∇N(2^i p)·2^i·(∂p/∂x, ∂p/∂y).
@@ -459,11 +470,24 @@ def fractal_sum(p, octaves: int, turbulence: bool = False, *, band=None, gradien
     # Nothing differentiable enters it (a differentiated p is unrolled above). Outside
     # one, the flag decides, as before.
     mode = "symbolic" if dr.flag(dr.JitFlag.SymbolicScope) else None
-    return _result(dr.while_loop(loop, lambda i, *rest: i < count, body, mode=mode)[3])
+    i, frequency, amplitude, state = dr.while_loop(loop, lambda i, *rest: i < count, body,
+                                                   mode=mode)
+    if point:
+        def rest(i, frequency, amplitude, total):
+            n = noise3(q * frequency)
+            if turbulence:
+                n = dr.abs(n)
+            return i + 1, frequency * lacunarity, amplitude * gain, total + n * amplitude
+
+        state = dict(state)
+        state["point"] = dr.while_loop((i, frequency, amplitude, state["point"]),
+                                       lambda i, *rest: i < most, rest, mode=mode)[3]
+    return _result(state)
 
 
 def _result(state) -> FractalSum:
-    return FractalSum(state["total"], state.get("gradient"), state.get("spread", 0.0))
+    return FractalSum(state["total"], state.get("gradient"), state.get("spread", 0.0),
+                      state.get("point"))
 
 
 def _smoothstep(a, b, x):

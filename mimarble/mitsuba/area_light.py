@@ -269,14 +269,16 @@ class StratifiedArea:
     # -- what the whitted integrator calls ---------------------------------------
 
     def shade(self, scene, spheres, si, p, n, v, on_sphere, hit, kd, ks, shininess,
-              any_specular, shadows):
+              any_specular, shadows, doubts=None):
         """Σ over the samples of the paper's point-light term (whitted.py's, operation for
         operation, so that one sample renders as a point light at the centre, bit for
-        bit), in a symbolic loop: the kernel holds it once."""
+        bit), in a symbolic loop: the kernel holds it once. ``doubts``: the channels'
+        doubts (dkd, dks), shaded by the same samples beside the radiance (whitted.py's
+        ``shade``): then (radiance, doubt)."""
         edges = self._edges(p)
         colour = self.intensity * (1.0 / self.samples)
 
-        def body(k, radiance):
+        def body(k, radiance, *doubt):
             target = self._point(k, edges)
             d = target - p                       # Mitsuba's point light, sample_direction
             dist = dr.norm(d)
@@ -291,15 +293,22 @@ class StratifiedArea:
             shade = kd * n_dot_l
             if any_specular:
                 h = dr.normalize(d + v)
-                shade += ks * dr.power(dr.maximum(dr.dot(n, h), 0.0), shininess)
-            return k + 1, radiance + dr.select(lit, intensity * shade, 0.0)
+                highlight = dr.power(dr.maximum(dr.dot(n, h), 0.0), shininess)
+                shade += ks * highlight
+            radiance = radiance + dr.select(lit, intensity * shade, 0.0)
+            if not doubt:
+                return k + 1, radiance
+            dkd, dks = doubts
+            doubt_shade = dkd * n_dot_l + (dks * highlight if any_specular else 0.0)
+            return k + 1, radiance, doubt[0] + dr.select(lit, intensity * doubt_shade, 0.0)
 
-        radiance = dr.zeros(mi.Color3f, dr.width(p))
+        zero = dr.zeros(mi.Color3f, dr.width(p))
+        state = (zero,) if doubts is None else (zero, zero)
         if not _jit():
             for k in range(self.samples):
-                radiance = body(k, radiance)[1]
-            return radiance
-        _, radiance = dr.while_loop(state=(mi.UInt32(0), radiance),
-                                    cond=lambda k, radiance: k < self.samples,
-                                    body=body, labels=("k", "radiance"))
-        return radiance
+                state = body(k, *state)[1:]
+        else:
+            state = dr.while_loop(state=(mi.UInt32(0),) + state,
+                                  cond=lambda k, *rest: k < self.samples, body=body,
+                                  labels=("k", "radiance", "doubt")[:1 + len(state)])[1:]
+        return state[0] if doubts is None else state

@@ -28,7 +28,8 @@ from __future__ import annotations
 
 from .. import environment
 from ..plugins import Kept, describe, first_number, plugin, recording_key
-from .channel_expression import evaluate, shared_evaluations, textures_within
+from .channel_expression import (evaluate, evaluate_alternate, shared_evaluations,
+                                 textures_within)
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -65,6 +66,31 @@ class ChannelMaterial:
                 values[name] = dr.zeros(mi.Color3f, dr.width(si.p)) if texture is None \
                     else evaluate(texture, si, active)
         return values["ambient"], values["diffuse"], values["specular"], self.exponent
+
+    def channels_and_doubts(self, si, active=True):
+        """:meth:`channels`, and each channel's doubt: |its colour − its second estimate|
+        (``Marble.eval_and_alternate``, combined through expressions), 0 for a channel
+        without a marble. Needs the footprint and :meth:`prepare_alternates` first."""
+        values, doubts = {}, {}
+        width = dr.width(si.p)
+        with shared_evaluations(alternates=True):
+            for name in CHANNELS:
+                texture = getattr(self, name)
+                values[name] = dr.zeros(mi.Color3f, width) if texture is None \
+                    else evaluate(texture, si, active)
+            for name in CHANNELS:
+                texture = getattr(self, name)
+                doubts[name] = dr.zeros(mi.Color3f, width) if texture is None \
+                    else dr.abs(evaluate_alternate(texture, si, active) - values[name])
+        return (values["ambient"], values["diffuse"], values["specular"], self.exponent,
+                doubts["ambient"], doubts["diffuse"], doubts["specular"])
+
+    def prepare_alternates(self) -> None:
+        """Every marble within the channels makes what its second estimate reads."""
+        for name in CHANNELS:
+            for texture in textures_within(getattr(self, name)):
+                if hasattr(texture, "prepare_alternate"):
+                    texture.prepare_alternate()
 
     def has_channel(self, name: str) -> bool:
         return getattr(self, name) is not None

@@ -20,6 +20,7 @@ cache").
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
@@ -88,63 +89,107 @@ class TracedPass(NamedTuple):
     means: np.ndarray | None
     first_shape: np.ndarray | None
     last_shape: np.ndarray | None
+    estimates: "Estimates | None" = None
+
+
+class Estimates(NamedTuple):
+    """What a pass with estimates finds about each pixel's error, beside its mean (for
+    adaptive sampling, mimarble/mitsuba/adaptive.py), float32: ``doubt``, the mean over
+    its samples of whitted's doubt (``Whitted.shade``); ``spread``, the largest over the
+    colours of the range (largest − least) of its samples' radiance."""
+    doubt: np.ndarray
+    spread: np.ndarray
 
 
 def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, *,
                     with_radiance: bool = True, with_shapes: bool = False,
-                    pass_samples: int | None = None, seed: int = 0):
+                    with_estimates: bool = False, pass_samples: int | None = None,
+                    seed: int = 0, key: tuple | None = None):
     """Yield a :class:`TracedPass` per pass of ``spp`` samples in each pixel.
 
     ``pixels``: uint32 pixel indices, default every pixel of ``target``'s
     image in order. ``with_radiance``: trace the integrator (``PixelTracer.trace``),
     else only the first shape hit (``PixelTracer.first_shape``); ``with_shapes``:
-    also reduce the first shape hit per pixel. ``pass_samples``: lanes per pass
-    (default :data:`PASS_SAMPLES`). A pass's sampler seed (path mode) is its number
+    also reduce the first shape hit per pixel; ``with_estimates`` (whitted mode, with
+    radiance and shapes): also the pixel's :class:`Estimates`. ``pass_samples``: lanes
+    per pass (default :data:`PASS_SAMPLES`). A pass's sampler seed (path mode) is its number
     plus ``seed`` times an odd 32-bit constant (Fibonacci hashing), modulo 2³², so that
     renders of different seeds draw different samples (seed 0: the pass's number).
+    ``key``: :func:`~mimarble.mitsuba.replay.scene_facts` of the target, when the caller
+    has it (a render's several calls); else found here.
 
     A pixel split over passes is summed in float64 in pass order and handed
-    back whole, by the pass that takes its last samples.
+    back whole, by the pass that takes its last samples. A pass over a list of pixels
+    traces a few more (the last one again, up to :func:`padded_count`) and keeps what it
+    asked for, so that lists of many lengths replay a few recordings.
     """
     pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
     count = target.width * target.height if pixels is None else len(pixels)
-    key, inputs = scene_facts(target.scene, target.params)
-    so_far = None                    # a split pixel's (sums, first, last) so far
+    key, inputs = scene_facts(target.scene, target.params) if key is None else key
+    so_far = None                    # a split pixel's (sums, first, last, …) so far
     for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, spp, pass_samples)):
-        lanes = n_pixels * n_samples
         numbers = PassNumbers(p0, q0, n_samples, spp, (seed * 0x9E3779B1 + index) & 0xFFFFFFFF,
                               target.mode == "whitted")
-        subset = None if pixels is None else mi.UInt32(pixels[p0:p0 + n_pixels])
+        subset, traced_pixels = None, n_pixels
+        if pixels is not None:
+            traced_pixels = padded_count(n_pixels, max(pass_samples // n_samples, 1))
+            chunk = pixels[p0:p0 + n_pixels]
+            padded = np.concatenate([chunk, np.full(traced_pixels - n_pixels, chunk[-1],
+                                                    dtype=np.uint32)])
+            # A Dr.Jit copy, not a view of NumPy's memory, whose alignment Dr.Jit's
+            # recordings tell apart (a fresh buffer could record again).
+            subset = mi.UInt32(padded) + dr.opaque(mi.UInt32, 0)
+        lanes = traced_pixels * n_samples
         split = n_samples < spp                      # one pixel, over several passes
-        values, first, last = _traced_pass(
+        values, first, last, estimates = _traced_pass(
             (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
-             split), target.scene, inputs, target.sampler, lanes, n_samples, numbers, subset,
-            with_radiance, with_shapes, split, target.mode)
+             with_estimates, split), target.scene, inputs, target.sampler, lanes, n_samples,
+            numbers, subset, with_radiance, with_shapes, with_estimates, split, target.mode)
         # Views of the Dr.Jit arrays (no copy): means interleaved per pixel, or a split
-        # pixel's sums as Color3d (3, 1).
+        # pixel's sums as Color3d (3, 1); the first n_pixels of a padded list.
         traced = (None if values is None else
                   values.numpy().T.astype(np.float64) if split else
-                  values.numpy().reshape(-1, 3),
-                  None if first is None else first.numpy(),
-                  None if last is None else last.numpy())
+                  values.numpy().reshape(-1, 3)[:n_pixels],
+                  None if first is None else first.numpy()[:n_pixels],
+                  None if last is None else last.numpy()[:n_pixels])
+        if estimates is not None and split:   # doubt sums, lows and highs, per colour
+            traced += tuple(x.numpy().astype(np.float64) if k == 0 else x.numpy().reshape(-1, 3)
+                            for k, x in enumerate(estimates))
+        elif estimates is not None:           # the pixels' mean doubt and spread
+            traced += tuple(x.numpy()[:n_pixels] for x in estimates)
         if split:
             so_far = _accumulate(so_far if q0 else None, traced)
             n_pixels = int(q0 + n_samples == spp)     # none until its last samples are in
             traced = tuple(None if x is None else x[:n_pixels] for x in so_far)
             if traced[0] is not None:
                 traced = ((traced[0] / spp).astype(np.float32),) + traced[1:]
+            if estimates is not None:
+                doubt_sums, low, high = traced[3:]
+                traced = traced[:3] + ((doubt_sums / spp).astype(np.float32),
+                                       (high - low).max(axis=-1).astype(np.float32))
         span = slice(p0, p0 + n_pixels)
-        yield TracedPass(span if pixels is None else pixels[span], lanes, *traced)
+        yield TracedPass(span if pixels is None else pixels[span], lanes, *traced[:3],
+                         Estimates(*traced[3:]) if estimates is not None else None)
+
+
+def padded_count(count: int, most: int) -> int:
+    """``count`` pixels rounded up to one of a few sizes — 16, then steps of a quarter
+    octave (at most 19 % more) — but not above ``most`` (nor below ``count``): passes
+    over pixel lists of any length replay one recording per size."""
+    size = 16 if count <= 16 else math.ceil(2.0 ** (math.ceil(4.0 * math.log2(count)) / 4.0))
+    return max(count, min(size, most))
 
 
 def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples: int,
                 numbers: PassNumbers, subset, with_radiance: bool, with_shapes: bool,
-                split: bool, mode: str):
-    """One pass, in Dr.Jit: (values, first, last) of each run of ``n_samples`` lanes of
-    ``lanes`` — the radiance summed in float64, then (unless ``split``: the pass holds
-    only some of one pixel's samples) divided by ``n_samples`` and rounded to float32,
-    the pixels' RGB interleaved in one Float (``split``: the sums, a Color3d); the
-    smallest and largest id of the first shape hit (UInt32); None where not asked for.
+                with_estimates: bool, split: bool, mode: str):
+    """One pass, in Dr.Jit: (values, first, last, estimates) of each run of ``n_samples``
+    lanes of ``lanes`` — the radiance summed in float64, then (unless ``split``: the pass
+    holds only some of one pixel's samples) divided by ``n_samples`` and rounded to
+    float32, the pixels' RGB interleaved in one Float (``split``: the sums, a Color3d); the
+    smallest and largest id of the first shape hit (UInt32); with ``with_estimates``, the
+    mean doubt (float32) and the spread (:class:`Estimates`; ``split``: the doubt's sum,
+    the least and the largest radiance per colour); None where not asked for.
     Lane k is sample
     ``first_sample + k mod n`` of pixel ``first_pixel + ⌊k / n⌋`` (n = ``numbers.samples``),
     or of pixel ``subset[⌊k / n⌋]``.
@@ -163,12 +208,18 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     pixel = numbers.first_pixel + lane // numbers.samples if subset is None else \
         dr.gather(mi.UInt32, subset, lane // numbers.samples)
     sub = numbers.first_sample + lane % numbers.samples
-    if with_radiance:
+    doubt = colour = None
+    if with_estimates:
+        colour, shapes, doubt = tracer.trace_with_doubts(pixel, sub, numbers)
+        colour = colour + dr.zeros(mi.Color3f, lanes)                   # constants: full width
+        doubt = mi.Float64(doubt) + dr.zeros(mi.Float64, lanes)
+        radiance = mi.Color3d(colour)
+    elif with_radiance:
         radiance, shapes = tracer.trace(pixel, sub, numbers, with_shapes)
         radiance = mi.Color3d(radiance) + dr.zeros(mi.Color3d, lanes)   # constants: full width
     else:
         radiance, shapes = None, tracer.first_shape(pixel, sub, numbers)
-    dr.eval(*(x for x in (radiance, shapes) if x is not None))         # one kernel for all
+    dr.eval(*(x for x in (radiance, shapes, doubt, colour) if x is not None))  # one kernel
     if radiance is not None and n_samples > 1:
         radiance = dr.block_sum(radiance, n_samples)
     if radiance is not None and not split:
@@ -180,20 +231,36 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     if shapes is not None and n_samples > 1:
         first = dr.block_reduce(dr.ReduceOp.Min, shapes, n_samples)
         last = dr.block_reduce(dr.ReduceOp.Max, shapes, n_samples)
-    return radiance, first, last
+    estimates = None
+    if with_estimates:
+        low = high = colour
+        if n_samples > 1:
+            doubt = dr.block_sum(doubt, n_samples)
+            low = dr.block_reduce(dr.ReduceOp.Min, colour, n_samples)
+            high = dr.block_reduce(dr.ReduceOp.Max, colour, n_samples)
+        if split:        # summed and combined over the pixel's passes in NumPy
+            estimates = (doubt, dr.ravel(low, order="F"), dr.ravel(high, order="F"))
+        else:            # one mean doubt and one spread per pixel come back
+            spread = high - low
+            estimates = (mi.Float(doubt / mi.Float64(numbers.samples)),
+                         dr.maximum(dr.maximum(spread[0], spread[1]), spread[2]))
+    return radiance, first, last, estimates
 
 
 _traced_pass = Recorded(_trace_pass)
 
 
 def _accumulate(so_far, traced):
-    """A split pixel's (sums, first, last) after one more pass's ``traced`` (the same,
-    for that pass): sums added in pass order, from 0.0, in float64; shape ids by min and
-    max. ``so_far``: None at the pixel's first pass."""
+    """A split pixel's (sums, first, last[, doubt sums, low, high]) after one more pass's
+    ``traced`` (the same, for that pass): sums added in pass order, from 0.0, in float64;
+    shape ids and colours by min and max. ``so_far``: None at the pixel's first pass."""
     if so_far is None:
         so_far = (None if traced[0] is None else np.zeros_like(traced[0]),) + traced[1:]
+        if len(traced) > 3:                             # estimates: doubt sums from 0.0
+            so_far = so_far[:3] + (np.zeros_like(traced[3]),) + traced[4:]
+    combines = (np.add, np.minimum, np.maximum, np.add, np.minimum, np.maximum)
     return tuple(None if old is None else combine(old, new)
-                 for combine, old, new in zip((np.add, np.minimum, np.maximum), so_far, traced))
+                 for combine, old, new in zip(combines, so_far, traced))
 
 
 def _plan(pixels: int, spp: int, pass_samples: int):

@@ -103,6 +103,14 @@ class PixelTracer:
                 shape = self._shape(ray)
         return weight * radiance, shape
 
+    def trace_with_doubts(self, pixel, sub, numbers: PassNumbers):
+        """(weighted radiance, first shape hit or 0, weighted doubt) of each lane, from
+        ``whitted``'s ``shade`` with doubts (mimarble/mitsuba/adaptive.py)."""
+        ray, weight = self.ray(pixel, sub, numbers)
+        radiance, shape, doubt = self.integrator.shade(self.scene, ray, True, doubts=True)
+        largest = dr.maximum(dr.maximum(weight[0], weight[1]), weight[2])
+        return weight * radiance, shape, largest * doubt
+
     def first_shape(self, pixel, sub, numbers: PassNumbers):
         """The id of the first shape each (whitted) sample hits, 0 for a miss."""
         return self._shape(self.ray(pixel, sub, numbers)[0])

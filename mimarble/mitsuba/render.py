@@ -20,11 +20,13 @@ from .. import scene as scene_language
 from ..crop import as_integers, crop_problem
 from ..progress import report
 from ..scene.model import samples_per_axis
-from ..scene.rules import seed_problem, spp_problem
+from ..scene.rules import adaptive_problem, seed_problem, spp_problem
 from ..scene_edits import with_image_size
+from .adaptive import DEFAULT_MAX_SPP, render_adaptive
 from .passes import Target, trace_in_passes
 from .silhouettes import edge_sample_passes
 from .loaded_scenes import LOADED
+from .window import Window
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -32,7 +34,8 @@ dr, mi = environment.import_drjit_and_mitsuba()
 def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
            progress=False, tolerance: float | None = None, filter: str | None = None,
            edge_spp: int | None = None, seed: int = 0, width: int | None = None,
-           height: int | None = None, crop=None) -> np.ndarray:
+           height: int | None = None, crop=None, adaptive: float | None = None,
+           max_spp: int | None = None) -> np.ndarray:
     """Render a scene (model, path of a scene file — or, when no such file exists, a
     packaged scene's name such as ``"fig11a"``, as the command line takes it —, or a loaded
     ``mi.Scene``) → linear float32 (H, W, 3).
@@ -70,6 +73,11 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     filter (``none``, ``bandlimit``, ``prefilter``; default: each marble's own).
     ``edge_spp``: n² stratum-centre samples for pixels on a silhouette
     (:func:`render_in_passes`; whitted mode, JIT variants; default: none).
+    ``adaptive``: adaptive sampling (whitted mode, JIT variants): ``spp`` is the first pass,
+    then every pixel whose estimated error is above ``adaptive`` (linear colour units, at
+    1 spp; times n² at n² samples) is rendered again with twice the samples per
+    axis, up to ``max_spp`` (a perfect square; default 64) — mimarble/mitsuba/adaptive.py.
+    It refines silhouettes itself, so it does not take ``edge_spp``.
     """
     environment.require_rgb_variant()
     if isinstance(scene_or_path, mi.Scene):
@@ -80,10 +88,11 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
                              f"loaded mi.Scene renders at its film's size (its film's own "
                              f"crop_offset and crop_size crop it)")
         return _render_loaded(scene_or_path, spp, mode, progress, tolerance, filter,
-                              edge_spp, seed)
+                              edge_spp, seed, adaptive, max_spp)
     mode = "whitted" if mode is None else mode
     check_edge_spp(edge_spp, mode)
     check_filter(filter, mode)
+    check_adaptive(adaptive, max_spp, mode, edge_spp)
     problem = seed_problem(seed)
     if problem:
         raise ValueError(f"render: {problem}")
@@ -108,10 +117,15 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
         raise
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
+    if adaptive is not None and max_spp is None:
+        max_spp = max(DEFAULT_MAX_SPP, spp)
+    check_adaptive(adaptive, max_spp, mode, edge_spp, spp, scene.image.width, scene.image.height)
     if not dr.is_jit_v(mi.Float):
-        if edge_spp:
-            warnings.warn(f"edge samples need a JIT variant (llvm_ad_rgb, cuda_ad_rgb); "
-                          f"{mi.variant()} renders without them", stacklevel=2)
+        for asked, what in ((edge_spp, "edge samples"), (adaptive, "adaptive sampling")):
+            if asked:
+                warnings.warn(f"{what} need{'s' if what[-1] == 'g' else ''} a JIT variant "
+                              f"(llvm_ad_rgb, cuda_ad_rgb); {mi.variant()} renders without",
+                              stacklevel=2)
         done = report(progress, "render")
         done(0, total)
         image = np.array(mi.render(mitsuba_scene, seed=seed), dtype=np.float32)[..., :3]
@@ -121,7 +135,7 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
         # (whitted: by up to 6e-5, measured; path: a different sample stream).
         return image if crop is None else np.ascontiguousarray(image[_slices(crop)])
     return render_in_passes(mitsuba_scene, spp, mode, progress, edge_spp=edge_spp, seed=seed,
-                            crop=crop)
+                            crop=crop, adaptive=adaptive, max_spp=max_spp)
 
 
 def _slices(crop):
@@ -139,7 +153,8 @@ def _sized(scene, width, height):
         raise type(e)(f"render: {e}") from None
 
 
-def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_spp, seed):
+def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_spp, seed,
+                   adaptive, max_spp):
     """:func:`render` of a loaded ``mi.Scene``."""
     from .whitted import Whitted
     given = [name for name, value in (("tolerance", tolerance), ("filter", filter))
@@ -164,8 +179,13 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
     if problem:
         raise ValueError(f"render: {problem}")
     check_edge_spp(edge_spp, "whitted" if whitted else "path")
+    if adaptive is not None and max_spp is None:
+        max_spp = max(DEFAULT_MAX_SPP, spp)
+    check_adaptive(adaptive, max_spp, "whitted" if whitted else "path", edge_spp, spp, width,
+                   height)
     if whitted and dr.is_jit_v(mi.Float):   # its stratum centres, in passes (one kernel)
-        return render_in_passes(mitsuba_scene, spp, "whitted", progress, edge_spp=edge_spp)
+        return render_in_passes(mitsuba_scene, spp, "whitted", progress, edge_spp=edge_spp,
+                                adaptive=adaptive, max_spp=max_spp)
     # Any other integrator, film filter or AOV: Mitsuba's own render, as it would be.
     return np.array(mi.render(mitsuba_scene, spp=spp, seed=seed), dtype=np.float32)[..., :3]
 
@@ -190,6 +210,27 @@ def check_filter(filter, mode: str = "whitted") -> None:
                          f"Mitsuba's path integrator gives the marble none: leave filter out")
 
 
+def check_adaptive(adaptive, max_spp, mode: str = "whitted", edge_spp=None,
+                   spp: int | None = None, width: int = 1, height: int = 1) -> None:
+    """``adaptive`` None, or a threshold for whitted mode without ``edge_spp``, with a
+    ``max_spp`` that fits (``scene.rules.adaptive_problem``; checked against ``spp`` and
+    the image size once they are known); ``max_spp`` only with ``adaptive``."""
+    if adaptive is None:
+        if max_spp is not None:
+            raise ValueError("max_spp applies to adaptive sampling: give adaptive=THRESHOLD too")
+        return
+    problem = adaptive_problem(adaptive, None if spp is None else max_spp, spp or 1, width,
+                               height)
+    if problem:
+        raise ValueError(f"render: {problem}")
+    if mode != "whitted":
+        raise ValueError(f"adaptive sampling needs whitted mode (its stratum centres); mode is "
+                         f"{mode!r}")
+    if edge_spp is not None:
+        raise ValueError("adaptive sampling refines silhouettes itself: give adaptive or "
+                         "edge_spp, not both")
+
+
 def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
     """``edge_spp`` is None or a perfect square ≥ 1, in whitted mode (ValueError otherwise)."""
     if edge_spp is None:
@@ -205,7 +246,8 @@ def check_edge_spp(edge_spp, mode: str = "whitted") -> None:
 
 def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=False,
                      pass_samples: int | None = None, edge_spp: int | None = None,
-                     seed: int = 0, crop: tuple | None = None) -> np.ndarray:
+                     seed: int = 0, crop: tuple | None = None, adaptive: float | None = None,
+                     max_spp: int | None = None) -> np.ndarray:
     """What ``mi.render`` computes, in passes of at most ``pass_samples`` samples
     (default :data:`~mimarble.mitsuba.passes.PASS_SAMPLES`; :func:`trace_in_passes`).
 
@@ -226,6 +268,12 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     (so only an ``edge_spp`` above ``spp`` does anything; mimarble/mitsuba/silhouettes.py).
     Deterministic, like the rest.
 
+    ``adaptive`` (whitted mode; not with ``edge_spp``): the first pass at ``spp``, then
+    rounds that render again, with twice the samples per axis up to ``max_spp`` (default
+    64), the pixels whose estimated error is above the threshold
+    (:func:`~mimarble.mitsuba.adaptive.render_adaptive`, which also says each pixel's
+    samples and the samples traced).
+
     ``crop`` ``(x0, y0, x1, y1)`` (checked by the caller: :func:`~mimarble.crop.crop_problem`):
     only that window is traced, as a list of the full image's pixel indices, and the
     (y1 − y0, x1 − x0, 3) window comes back. Whitted mode gives exactly the full render's
@@ -245,12 +293,16 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     33² one each; something of the loaded Mitsuba scene bakes the film size in).
     """
     check_edge_spp(edge_spp, mode)
+    if adaptive is not None:
+        max_spp = max(DEFAULT_MAX_SPP, spp) if max_spp is None else max_spp
+        return render_adaptive(mitsuba_scene, spp, adaptive, max_spp, progress, crop,
+                               pass_samples).image
     if edge_spp is not None and edge_spp <= spp:
         edge_spp = None                                # fewer samples would not help a pixel
     target = Target.of(mitsuba_scene, mode, LOADED.parameters_of(mitsuba_scene))
     # What is traced: the whole image, or a window of it (with edge samples, the window
     # and a ring of one pixel, so that its silhouettes are found as in the whole image).
-    traced = _Window.of(target, crop, ring=1 if edge_spp else 0)
+    traced = Window.of(target, crop, ring=1 if edge_spp else 0)
     width, height = traced.width, traced.height
     pixels = width * height
     image = np.empty((pixels, 3), dtype=np.float32)   # the only full-size array
@@ -276,64 +328,6 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
             samples_done += samples
             done(samples_done, samples_total)
     return traced.window_of(image.reshape(height, width, 3))
-
-
-class _Window:
-    """The pixels a render traces: ``x0, y0`` and ``width`` × ``height`` of a ``columns``
-    wide image; ``inner``: the rows and columns of the asked-for window within them."""
-
-    def __init__(self, columns: int, x0: int, y0: int, width: int, height: int, inner):
-        self.columns, self.x0, self.y0, self.width, self.height = columns, x0, y0, width, height
-        self.inner = inner
-        self.whole = inner is None
-
-    @classmethod
-    def of(cls, target: Target, crop, ring: int) -> "_Window":
-        """The whole image of ``target`` (``crop`` None), or the window ``crop`` and a
-        ``ring`` of pixels around it, within the image."""
-        if crop is None:
-            return cls(target.width, 0, 0, target.width, target.height, None)
-        x0, y0, x1, y1 = crop
-        tx0, ty0 = max(x0 - ring, 0), max(y0 - ring, 0)
-        tx1, ty1 = min(x1 + ring, target.width), min(y1 + ring, target.height)
-        return cls(target.width, tx0, ty0, tx1 - tx0, ty1 - ty0,
-                   (slice(y0 - ty0, y1 - ty0), slice(x0 - tx0, x1 - tx0)))
-
-    @property
-    def pixels(self) -> np.ndarray | None:
-        """The traced pixels' indices in the whole image, row by row (None: all of them)."""
-        if self.whole:
-            return None
-        rows = np.arange(self.y0, self.y0 + self.height, dtype=np.uint32)[:, None]
-        columns = np.arange(self.x0, self.x0 + self.width, dtype=np.uint32)[None, :]
-        return (rows * np.uint32(self.columns) + columns).ravel()
-
-    def local(self, pixels):
-        """Whole-image pixel indices (a slice or an array) → indices into the traced pixels."""
-        if self.whole:
-            return pixels
-        pixels = np.asarray(pixels, dtype=np.int64)
-        return (pixels // self.columns - self.y0) * self.width + pixels % self.columns - self.x0
-
-    def global_(self, local: np.ndarray) -> np.ndarray:
-        """Indices into the traced pixels → the whole image's (uint32)."""
-        if self.whole:
-            return local
-        local = np.asarray(local, dtype=np.int64)
-        return ((local // self.width + self.y0) * self.columns
-                + local % self.width + self.x0).astype(np.uint32)
-
-    def contains(self, local: np.ndarray) -> np.ndarray:
-        """Which of the traced pixels ``local`` lie in the asked-for window (bool)."""
-        if self.whole:
-            return np.ones(len(local), dtype=bool)
-        rows, columns = np.divmod(np.asarray(local, dtype=np.int64), self.width)
-        (r, c) = self.inner
-        return (rows >= r.start) & (rows < r.stop) & (columns >= c.start) & (columns < c.stop)
-
-    def window_of(self, image: np.ndarray) -> np.ndarray:
-        """The asked-for window of the traced (height, width, 3) image."""
-        return image if self.whole else np.ascontiguousarray(image[self.inner])
 
 
 def _fill(image: np.ndarray, traced_passes, spp: int, shapes: np.ndarray | None = None,

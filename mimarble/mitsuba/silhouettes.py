@@ -42,7 +42,7 @@ def edge_sample_passes(target: Target, shapes: np.ndarray, edge_spp: int,
     ((2, pixels), as for :func:`silhouette_pixels`). ``passes`` traces ``edge_spp``
     stratum centres in every silhouette pixel (whitted mode), ``samples`` in all.
 
-    ``window`` (a crop: mimarble/mitsuba/render.py's ``_Window``): ``shapes`` are of its
+    ``window`` (a crop: mimarble/mitsuba/window.py's ``Window``): ``shapes`` are of its
     traced pixels, the crop and a ring of one pixel around it within the image, so that
     each crop pixel's 3×3 neighbourhood is the whole image's; only the crop's silhouette
     pixels are traced again."""

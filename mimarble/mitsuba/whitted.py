@@ -70,6 +70,11 @@ def _no_channels(si):
     return zero, zero, zero, mi.Float(1.0)
 
 
+def _no_channels_and_doubts(si):
+    zero = dr.zeros(mi.Color3f, dr.width(si.p))
+    return _no_channels(si) + (zero, zero, zero)
+
+
 #: Mitsuba 3.9's BSDF and emitter plugins by class (each ``src/*/NAME.cpp`` ends with
 #: ``MI_EXPORT_PLUGIN(CLASS)``): objects know their class, not the name a scene gave.
 #: Making each plugin to ask its class is no way to find out: some abort the process
@@ -105,6 +110,12 @@ def _material_channels(material, si, active):
     if isinstance(material, ChannelMaterial):
         return material.channels(si, active)
     return _no_channels(si)
+
+
+def _material_channels_and_doubts(material, si, active):
+    if isinstance(material, ChannelMaterial):
+        return material.channels_and_doubts(si, active)
+    return _no_channels_and_doubts(si)
 
 
 @plugin("integrator", "whitted")
@@ -181,15 +192,18 @@ class Whitted:
         return lights
 
     @staticmethod
-    def _channels(si, ray, hit):
-        """The hit material's channels: a symbolic call over materials in JIT variants.
+    def _channels(si, ray, hit, doubts=False):
+        """The hit material's channels (and with ``doubts`` their doubts): a symbolic
+        call over materials in JIT variants.
 
         A symbolic call traces *every* live BSDF instance of the variant (other
         scenes' too), so instances that are not channel materials give zeros.
         """
+        channels = _material_channels_and_doubts if doubts else _material_channels
         if dr.is_jit_v(mi.Float):
-            return dr.dispatch(si.bsdf(ray), _material_channels, si, hit)
-        return _material_channels(si.bsdf(ray), si, hit) if hit else _no_channels(si)
+            return dr.dispatch(si.bsdf(ray), channels, si, hit)
+        return channels(si.bsdf(ray), si, hit) if hit else \
+            (_no_channels_and_doubts if doubts else _no_channels)(si)
 
     def sample(self, scene, sampler, ray, medium=None, active=True):
         return self.sample_and_shape(scene, sampler, ray, medium, active)[:3]
@@ -199,6 +213,24 @@ class Whitted:
         first (its registry index; 0 for a miss), for edge samples: from the same
         intersection, so finding silhouettes costs no second ray (and nothing at all
         when the id is not used: Dr.Jit traces only what is evaluated)."""
+        radiance, shape, _ = self.shade(scene, ray, active)
+        return radiance, mi.Bool(True), [], shape
+
+    @staticmethod
+    def prepare_doubts(scene) -> None:
+        """Every channel material of ``scene`` makes what its marbles' second estimates
+        read, before :meth:`shade` with ``doubts`` is traced."""
+        for material in Whitted._materials(scene):
+            material.prepare_alternates()
+
+    def shade(self, scene, ray, active=True, doubts: bool = False):
+        """(radiance, first shape id or None, doubt or None) of each ray: ``sample``'s
+        radiance; the shape, as :meth:`sample_and_shape` gives it; with ``doubts`` (JIT
+        variants, rays with differentials, after :meth:`prepare_doubts`), the doubt of the
+        radiance: an upper bound of |L − L′| per lane (the largest of its three colours),
+        L′ the radiance shaded with each channel's second estimate — the marbles' own
+        estimate of how wrong a sample of them can be (``Marble.eval_and_alternate``),
+        carried through the same lights. 0 for a miss."""
         # Static facts about the scene decide which code is traced at all.
         materials = self._materials(scene)
         any_specular = any(m.has_channel("specular") for m in materials)
@@ -211,28 +243,39 @@ class Whitted:
         spheres = sphere_hit.SphereTable.for_trace(scene)
         p, n, on_sphere = sphere_hit.refine(spheres, ray, si, hit)
         si.p = p
-        if footprints:   # pixel footprints for filtered marbles, from the eye
+        if footprints or doubts:   # pixel footprints for filtered marbles, from the eye
             si.compute_uv_partials(differentials_from_the_eye(ray, scene))
+        if doubts:
+            one, none = (lambda si, on: materials[0].channels_and_doubts(si, on)), \
+                _no_channels_and_doubts
+        else:
+            one, none = (lambda si, on: materials[0].channels(si, on)), _no_channels
         if len({id(m) for m in materials}) == 1 and dr.is_jit_v(mi.Float):
             # One material: no symbolic call, and a symbolic `if` that lets packets of
             # missed rays skip the texture (measured: 9.5 → 7.8 ms for fig11a at 1 spp).
-            ka, kd, ks, shininess = dr.if_stmt(
-                (si, hit), hit, lambda si, on: materials[0].channels(si, on),
-                lambda si, on: _no_channels(si))
-        elif footprints:
-            ka, kd, ks, shininess = self._channels(si, ray, hit)
+            channels = dr.if_stmt((si, hit), hit, one, lambda si, on: none(si))
+        elif footprints or doubts:
+            channels = self._channels(si, ray, hit, doubts)
         else:   # other scenes' filtered marbles, traced too, are not this scene's concern
             with footprints_omitted_on_purpose():
-                ka, kd, ks, shininess = self._channels(si, ray, hit)
+                channels = self._channels(si, ray, hit)
+        ka, kd, ks, shininess = channels[:4]
+        dka, dkd, dks = channels[4:] if doubts else (None, None, None)
 
         v = -mi.Vector3f(ray.d)
         n = dr.select(dr.dot(n, v) < 0, -n, n)      # two-sided
 
         radiance = ka * self.ambient
+        doubt = dka * self.ambient if doubts else None
         for light in lights:
             if isinstance(light, StratifiedArea):   # n×n point lights, in a symbolic loop
-                radiance += light.shade(scene, spheres, si, p, n, v, on_sphere, hit, kd, ks,
-                                        shininess, any_specular, self.shadows)
+                shaded = light.shade(scene, spheres, si, p, n, v, on_sphere, hit, kd, ks,
+                                     shininess, any_specular, self.shadows,
+                                     doubts=(dkd, dks) if doubts else None)
+                if doubts:
+                    radiance, doubt = radiance + shaded[0], doubt + shaded[1]
+                else:
+                    radiance += shaded
                 continue
             ds, weight = light.sample_direction(si, mi.Point2f(0.5, 0.5), hit)
             intensity = weight * dr.square(ds.dist)   # undo the 1/d² falloff
@@ -243,9 +286,15 @@ class Whitted:
             shade = kd * n_dot_l
             if any_specular:
                 h = dr.normalize(ds.d + v)
-                shade += ks * dr.power(dr.maximum(dr.dot(n, h), 0.0), shininess)
+                highlight = dr.power(dr.maximum(dr.dot(n, h), 0.0), shininess)
+                shade += ks * highlight
             radiance += dr.select(lit, intensity * shade, 0.0)
+            if doubts:
+                doubt_shade = dkd * n_dot_l + (dks * highlight if any_specular else 0.0)
+                doubt += dr.select(lit, intensity * doubt_shade, 0.0)
 
-        shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), 0) \
-            if dr.is_jit_v(mi.Float) else None
-        return dr.select(hit, radiance, self.background), mi.Bool(True), [], shape
+        jit = dr.is_jit_v(mi.Float)
+        shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), 0) if jit else None
+        if doubts:
+            doubt = dr.select(hit, dr.maximum(dr.maximum(doubt[0], doubt[1]), doubt[2]), 0.0)
+        return dr.select(hit, radiance, self.background), shape, doubt

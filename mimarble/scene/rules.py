@@ -108,6 +108,26 @@ def spp_problem(spp, width: int, height: int) -> str | None:
     return None
 
 
+def adaptive_problem(threshold, max_spp, spp: int, width: int, height: int) -> str | None:
+    """Adaptive sampling's two numbers (``mimarble.render``'s ``adaptive`` and ``max_spp``,
+    the command line's ``--adaptive`` and ``--max-spp``): a threshold that is a finite
+    number > 0 (linear colour units), and a ``max_spp`` that is a perfect square ≥ the
+    first pass's ``spp``, within the sample limit (None: only the threshold is checked)."""
+    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) \
+            or not 0.0 < threshold < math.inf:
+        return f"adaptive={shortened(repr(threshold), 40)} must be a finite number > 0 " \
+               f"(the estimated error, in linear colour units, above which a pixel is refined)"
+    if max_spp is None:
+        return None
+    if isinstance(max_spp, bool) or not isinstance(max_spp, int) or max_spp < 1 \
+            or math.isqrt(max_spp) ** 2 != max_spp:
+        return f"max_spp={shortened(repr(max_spp), 40)} must be a perfect square ≥ 1 " \
+               f"(1, 4, 9, 16, …): the samples are an n×n grid"
+    if max_spp < spp:
+        return f"max_spp={max_spp} is below the first pass's spp={spp}"
+    return spp_problem(max_spp, width, height)
+
+
 def seed_problem(seed) -> str | None:
     """A sampler seed: a whole number in 0..2³²−1 (Mitsuba's seeds are 32-bit)."""
     if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed < 2 ** 32:

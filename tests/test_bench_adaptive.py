@@ -1,0 +1,201 @@
+"""The benchmark's adaptive modes and each mode's time to plain 16 and 64 spp's RMSE
+(mimarble/bench.py, reported by bench_report.py and bench_page.py, drawn by bench_plot.py).
+No timing is asserted: machines are shared."""
+
+import math
+
+import pytest
+
+from mimarble import bench, bench_page, bench_plot, bench_report
+from mimarble.bench import time_to_rmse, times_to_plain_rmse
+
+MACHINE = {"processor": "AMD EPYC", "cores": 2, "variant": "llvm_ad_rgb"}
+
+
+# ---------------------------------------------------------------------------
+# time_to_rmse: a curve of (run_ms, rmse) points, interpolated in log-log
+
+def test_the_crossing_is_interpolated_in_log_time_against_log_rmse():
+    curve = [(1.0, 0.1), (100.0, 0.001)]
+    assert time_to_rmse(curve, 0.01) == pytest.approx(10.0)          # halfway in log-log
+    assert time_to_rmse(curve, 0.1 * 10 ** -0.5) == pytest.approx(10 ** 0.5)
+    assert time_to_rmse(curve, 0.001) == pytest.approx(100.0)         # the last point itself
+
+
+def test_the_bracketing_neighbours_are_taken_in_the_curves_own_order():
+    # the target 0.004 lies between the 4 and 16 ms points, in log-log halfway
+    curve = [(1.0, 0.016), (4.0, 0.008), (16.0, 0.002), (64.0, 0.001)]
+    expected = math.exp(math.log(4) + 0.5 * (math.log(16) - math.log(4)))
+    assert time_to_rmse(curve, 0.004) == pytest.approx(expected)
+    # a noisy time does not reorder the settings: the crossing is still between the
+    # second and third settings, whose times are 30 and 16 ms
+    noisy = [(1.0, 0.016), (30.0, 0.008), (16.0, 0.002), (64.0, 0.001)]
+    assert time_to_rmse(noisy, 0.004) == pytest.approx(math.sqrt(30 * 16))
+
+
+def test_a_curve_that_never_reaches_the_target_has_no_time():
+    assert time_to_rmse([(1.0, 0.1), (4.0, 0.05), (16.0, 0.02)], 0.01) is None
+    assert time_to_rmse([], 0.01) is None
+
+
+def test_a_curve_whose_cheapest_point_reaches_it_takes_that_time():
+    assert time_to_rmse([(3.0, 0.005), (9.0, 0.001)], 0.01) == 3.0
+
+
+def test_a_curve_that_goes_back_up_is_crossed_the_first_time():
+    curve = [(1.0, 0.1), (2.0, 0.01), (4.0, 0.05), (8.0, 0.001)]
+    assert time_to_rmse(curve, 0.01) == pytest.approx(2.0)
+
+
+# ---------------------------------------------------------------------------
+# times_to_plain_rmse, the report, the page and the plot on synthetic runs
+
+def _run(scene, mode, run_ms, rmse, spp=1, threshold=None, mean_spp=None):
+    run = {"scene": scene, "mode": mode, "spp": spp, "edge_spp": None, "run_ms": run_ms,
+           "compile_ms": 1.0, "kernels_compiled": 0, "rmse": rmse, "psnr": -20 * math.log10(rmse),
+           "interior_rmse": rmse / 2, "mean_spp": float(spp if mean_spp is None else mean_spp)}
+    if threshold is not None:
+        run.update(threshold=threshold, max_spp=64)
+    return run
+
+
+def synthetic_runs():
+    """Plain: time ∝ spp, RMSE ∝ 1/√spp. Adaptive: RMSE halves per threshold at 1.5× the
+    time; on the fine-vein scene it stops short of plain 64 spp's RMSE."""
+    runs = []
+    for scene, floor in (("fig01a", None), ("fig11a", None), ("veins-p4-d4-s2", 0.003)):
+        for spp in (1, 4, 16, 64):
+            runs.append(_run(scene, "plain", 2.0 * spp, 0.016 / math.sqrt(spp), spp=spp))
+        for i, threshold in enumerate((0.01, 0.005, 0.0025, 0.00125)):
+            rmse = max(0.016 / 2 ** (i + 1), floor or 0)
+            runs.append(_run(scene, "adaptive", 3.0 * 1.5 ** i, rmse, threshold=threshold,
+                             mean_spp=1.2 * 2 ** i))
+    return runs
+
+
+def synthetic_results():
+    runs = synthetic_runs()
+    return {"machine": MACHINE, "date": "2026-12-02", "size": 32, "converged_spp": 256,
+            "repeats": 1, "tolerance": None, "runs": runs, "paper": [], "targets": {},
+            "modes": [{"name": "plain"}, {"name": "adaptive", "adaptive": True}],
+            "adaptive": {"thresholds": [0.01, 0.005, 0.0025, 0.00125], "first_spp": 1,
+                         "max_spp": 64},
+            "speedup_at_plain16_rmse": bench.speedups_at_equal_error(runs),
+            "time_to_rmse": times_to_plain_rmse(runs)}
+
+
+def test_time_to_plain_rmse_per_scene_with_means_and_missed_scenes():
+    ttr = times_to_plain_rmse(synthetic_runs())
+    assert ttr["targets"] == [16, 64]
+    fig = ttr["by_scene"]["fig01a"]
+    # plain reaches its own RMSE at its own time
+    assert fig["16"]["by_mode"]["plain"]["speedup"] == pytest.approx(1.0)
+    assert fig["64"]["by_mode"]["plain"]["ms"] == pytest.approx(128.0)
+    # plain 16 spp: RMSE 0.004, adaptive's second point (0.004 at 4.5 ms, 2.4 spp) exactly
+    assert fig["16"]["rmse"] == pytest.approx(0.004)
+    assert fig["16"]["by_mode"]["adaptive"]["ms"] == pytest.approx(4.5)
+    assert fig["16"]["by_mode"]["adaptive"]["speedup"] == pytest.approx(32 / 4.5)
+    assert fig["16"]["by_mode"]["adaptive"]["mean_spp"] == pytest.approx(2.4)
+    # plain 64: 0.002, adaptive's third point (6.75 ms)
+    assert fig["64"]["by_mode"]["adaptive"]["ms"] == pytest.approx(6.75)
+    # between two points: plain 16 spp's RMSE sits halfway (log-log) from 1 to 4 spp's
+    # adaptive points of a curve made for it
+    half = [_run("fig01a", "plain", 32.0, 0.004, spp=16),
+            _run("fig01a", "adaptive", 2.0, 0.008, threshold=0.01, mean_spp=1.0),
+            _run("fig01a", "adaptive", 8.0, 0.002, threshold=0.001, mean_spp=4.0)]
+    crossing = times_to_plain_rmse(half)["by_scene"]["fig01a"]["16"]["by_mode"]["adaptive"]
+    assert crossing["ms"] == pytest.approx(4.0) and crossing["mean_spp"] == pytest.approx(2.0)
+    assert crossing["speedup"] == pytest.approx(8.0)
+    veins = ttr["by_scene"]["veins-p4-d4-s2"]
+    assert veins["64"]["by_mode"]["adaptive"] is None              # stops at 0.003
+    paper = ttr["groups"]["paper"]
+    assert paper["scenes"] == ["fig01a", "fig11a"]
+    assert paper["16"]["adaptive"]["mean_speedup"] == pytest.approx(32 / 4.5)
+    assert paper["16"]["adaptive"]["reached"] == 2 and paper["16"]["adaptive"]["missed"] == []
+    alone = ttr["groups"]["veins-p4-d4-s2"]
+    assert alone["scenes"] == ["veins-p4-d4-s2"]
+    assert alone["64"]["adaptive"] == {"reached": 0, "of": 1, "missed": ["veins-p4-d4-s2"],
+                                       "mean_speedup": None, "worst_speedup": None,
+                                       "mean_ms": None, "mean_spp": None}
+
+
+def test_a_scene_without_plain_64_has_only_the_16_spp_target():
+    runs = [r for r in synthetic_runs() if not (r["mode"] == "plain" and r["spp"] == 64)]
+    ttr = times_to_plain_rmse(runs)
+    assert set(ttr["by_scene"]["fig01a"]) == {"16"}
+    assert "64" not in ttr["groups"]["paper"]
+
+
+def test_the_report_prints_the_time_to_rmse_tables_and_adaptive_runs():
+    text = bench_report.format_report(synthetic_results())
+    assert "Time to plain 16 spp's RMSE" in text and "Time to plain 64 spp's RMSE" in text
+    assert "paper scenes (mean of 2):" in text
+    assert "7.11× (worst 7.11×), 4.5 ms, 2.4 spp   target ≥ 4×" in text
+    assert "missed on all 1   target ≥ 6×" in text         # the fine veins at plain 64's
+    assert "threshold" in text and "mean spp" in text
+    row = next(line for line in text.splitlines()
+               if line.startswith("veins-p4-d4-s2") and "adaptive" in line and "0.0025" in line)
+    assert "4.80" in row                                    # its mean spp
+
+
+def test_the_page_has_the_time_to_rmse_table_and_paper_means(tmp_path):
+    text = bench_page.section(synthetic_results())
+    assert "**Time to plain 16 and 64 spp's RMSE**" in text
+    assert "| plain 16 spp | paper scenes (mean of 2) | 1.00× (worst 1.00×), 32.0 ms, 16.0 spp |" \
+        in text
+    assert "| plain 64 spp | veins-p4-d4-s2 | 1.00×, 128.0 ms, 64.0 spp | missed on all 1 |" in text
+    assert "means over 2 scenes" in text and "**veins-p4-d4-s2** (32²)" in text
+    assert "| adaptive | threshold 0.005 | 4.5 ms |" in text
+    assert "| plain | 16 | 32.0 ms | 0.0040 |" in text
+
+
+def test_the_plot_draws_adaptive_curves_and_plain_levels(tmp_path):
+    pytest.importorskip("matplotlib")
+    out = tmp_path / "plot.png"
+    bench_plot.plot_error_against_time(synthetic_results(), out)
+    assert out.stat().st_size > 10_000
+
+
+def test_the_default_modes_add_adaptive_sampling_of_plain_and_prefiltered_marble():
+    names = [m.name for m in bench.modes()]
+    assert names == ["plain", "bandlimit", "prefilter", "prefilter+edges", "adaptive",
+                     "adaptive+prefilter"]
+    assert [m.name for m in bench.modes(adaptive=False)] == names[:4]
+    assert [(m.name, m.filter, m.adaptive) for m in bench.modes("prefilter")] == [
+        ("prefilter", "prefilter", False), ("adaptive+prefilter", "prefilter", True)]
+    assert bench.DEFAULT_SPPS[-1] == 64 < bench.DEFAULT_CONVERGED_SPP
+
+
+# ---------------------------------------------------------------------------
+# One small benchmark, end to end
+
+def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
+    pytest.importorskip("mimarble.mitsuba.adaptive")
+    modes = (bench.Mode("plain"), bench.Mode("adaptive", adaptive=True))
+    results = bench.run_bench(["scenes/fine-veins/veins-p4-d4-s2.scene"], size=32,
+                              spps=(1, 4, 16, 64), converged_spp=16, repeats=1, paper=False,
+                              cache_dir=tmp_path, progress=False, modes=modes,
+                              thresholds=(0.01, 0.001), max_spp=16)
+    adaptive = [r for r in results["runs"] if r["mode"] == "adaptive"]
+    assert [r["threshold"] for r in adaptive] == [0.01, 0.001]
+    for r in adaptive:        # traced samples count the replaced ones: 1 + 4 + 16 at most
+        assert 1 <= r["final_spp"] <= r["max_spp"] == 16
+        assert r["final_spp"] <= r["mean_spp"] <= 1 + 4 + 16
+        assert r["rmse"] >= 0 and r["rounds"] >= 0
+    assert all(r["mean_spp"] == r["spp"] for r in results["runs"] if r["mode"] == "plain")
+    assert results["adaptive"] == {"thresholds": [0.01, 0.001], "first_spp": 1, "max_spp": 16}
+    ttr = results["time_to_rmse"]
+    assert set(ttr["by_scene"]["veins-p4-d4-s2"]) == {"16", "64"}
+    assert set(ttr["groups"]) == {"veins-p4-d4-s2"}
+    assert "Time to plain 16 spp's RMSE" in bench_report.format_report(results)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--max-spp", "8"], "--max-spp 8"),
+    (["--adaptive", "0.01", "0"], "--adaptive 0.0"),
+    (["--adaptive", "nan"], "finite number > 0"),
+])
+def test_bench_refuses_bad_adaptive_settings_before_measuring(args, message, capsys):
+    from mimarble.cli import main
+    assert main(["bench", *args]) == 2
+    assert message in capsys.readouterr().err
