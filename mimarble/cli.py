@@ -218,11 +218,17 @@ def _spp(args, scene) -> int:
         raise UsageError(f"--{problem}")
     if getattr(args, "adaptive", None) is not None:
         from .scene.rules import adaptive_problem
-        problem = adaptive_problem(args.adaptive, args.max_spp or max(64, spp), spp,
+        problem = adaptive_problem(args.adaptive, _max_spp(args, spp), spp,
                                    scene.image.width, scene.image.height)
         if problem:
-            raise UsageError(problem.replace("max_spp=", "--max-spp ").replace("spp=", "--spp "))
+            raise UsageError(problem.replace("max_spp=", "--max-spp "))
     return spp
+
+
+def _max_spp(args, spp: int) -> int:
+    """An adaptive render's most samples per pixel: ``--max-spp``, else the default (64, or
+    the first pass's spp when that is more: mimarble.render's rule)."""
+    return max(64, spp) if args.max_spp is None else args.max_spp
 
 
 def _write(out: Path, image, eight_bit: bool = False, quality: int | None = None,
@@ -241,7 +247,7 @@ def _write(out: Path, image, eight_bit: bool = False, quality: int | None = None
 def _render_to_file(args, renderer, description) -> int:
     """Load, check arguments, render, write whole, report: shared by render and reference.
 
-    ``description()`` names the renderer once it has started.
+    ``description(spp)`` names the renderer once it has started.
     """
     out = _output_path(args)
     quality = _quality(args, out)
@@ -258,7 +264,7 @@ def _render_to_file(args, renderer, description) -> int:
     if crop is not None:
         from .crop import crop_words
         size = f"{image.shape[1]}x{image.shape[0]} (--crop {crop_words(crop)} of {size})"
-    print(f"{out}: {size}, {spp} spp, {description()}, {seconds:.2f} s")
+    print(f"{out}: {size}, {spp} spp, {description(spp)}, {seconds:.2f} s")
     return 0
 
 
@@ -270,20 +276,20 @@ def _render(args) -> int:
         filter=args.filter, edge_spp=args.edge_spp,
         crop=None if args.crop is None else tuple(args.crop), adaptive=args.adaptive,
         max_spp=args.max_spp),
-        lambda: f"{args.mode} mode{_adaptive_words(args)}, {mimarble.mi.variant()}")
+        lambda spp: f"{args.mode} mode{_adaptive_words(args, spp)}, {mimarble.mi.variant()}")
 
 
-def _adaptive_words(args) -> str:
+def _adaptive_words(args, spp: int) -> str:
     """How an adaptive render is described after its mode ('' for none)."""
     if args.adaptive is None:
         return ""
-    return f", adaptive {args.adaptive:g} up to {args.max_spp or 64} spp"
+    return f", adaptive {args.adaptive:g} up to {_max_spp(args, spp)} spp"
 
 
 def _reference(args) -> int:
     from . import reference
     return _render_to_file(args, lambda scene, spp: reference.render(scene, spp=spp, progress=True),
-                           lambda: "reference tracer (NumPy float64)")
+                           lambda spp: "reference tracer (NumPy float64)")
 
 
 def _compare(args) -> int:
@@ -312,15 +318,21 @@ def _compare(args) -> int:
                            adaptive=args.adaptive, max_spp=args.max_spp)
     mitsuba_seconds = time.perf_counter() - start
     start = time.perf_counter()
-    ref = reference.render(scene, spp=spp, progress=True)
+    # An adaptive render is compared with the reference at its most samples per pixel.
+    reference_spp = spp if args.adaptive is None else _max_spp(args, spp)
+    ref = reference.render(scene, spp=reference_spp, progress=True)
     reference_seconds = time.perf_counter() - start
     metrics = image_metrics(ours, ref)
     metrics.update(scene=str(args.scene), spp=spp, variant=mimarble.mi.variant(),
                    mitsuba_seconds=mitsuba_seconds, reference_seconds=reference_seconds)
+    if args.adaptive is not None:
+        metrics.update(adaptive=args.adaptive, max_spp=reference_spp, reference_spp=reference_spp)
     if args.diff:
         _write(Path(args.diff), error_map_with_legend(ours, ref), eight_bit=True)
-    print(f"{args.scene}: {scene.image.width}x{scene.image.height}, {spp} spp, whitted "
-          f"({mimarble.mi.variant()}) vs reference (float64)")
+    against = "" if reference_spp == spp else f" at {reference_spp} spp"
+    print(f"{args.scene}: {scene.image.width}x{scene.image.height}, {spp} spp"
+          f"{_adaptive_words(args, spp)}, whitted ({mimarble.mi.variant()}) vs reference "
+          f"(float64){against}")
     print(f"  RMSE {metrics['rmse']:.3g}   PSNR {metrics['psnr']:.2f} dB   max |error| "
           f"{metrics['max_abs']:.3g}   pixels off by > 1/255: {100 * metrics['frac_over_1_255']:.3f} %")
     print(f"  time: Mitsuba {mitsuba_seconds:.2f} s, reference {reference_seconds:.2f} s")
@@ -347,6 +359,9 @@ def _bench(args) -> int:
     for threshold in args.adaptive or ():
         if not 0 < threshold < float("inf"):
             raise UsageError(f"--adaptive {threshold}: a threshold must be a finite number > 0")
+    if args.adaptive and args.no_adaptive:
+        raise UsageError("--adaptive gives the adaptive modes' thresholds; --no-adaptive "
+                         "skips those modes: give one of them")
     if args.repeats < 1:
         raise UsageError(f"--repeats {args.repeats}: must be at least 1")
     if args.json:

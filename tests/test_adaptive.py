@@ -64,8 +64,8 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
         plain = render_in_passes(m, spp)
         where = result.samples == spp
         np.testing.assert_array_equal(result.image[where], plain[where])
-    # The cost counts every sample traced: each pixel's levels, and a pass's padding.
-    assert result.traced >= sum(1 + (4 if k >= 4 else 0) + (16 if k >= 16 else 0)
+    # The cost counts every sample traced for a pixel: each of its levels.
+    assert result.traced == sum(1 + (4 if k >= 4 else 0) + (16 if k >= 16 else 0)
                                 for k in result.samples.ravel())
     # Deterministic, and the same in passes of any size (pixels split across passes too).
     again = adaptive.render_adaptive(m, 1, 0.002, 16, pass_samples=8)
@@ -117,7 +117,8 @@ def test_adaptive_numbers_are_checked():
     for bad in (0, 8, 2.0, True):
         assert "perfect square" in adaptive_problem(0.01, bad, 1, 10, 10)
     assert "below the first pass" in adaptive_problem(0.01, 4, 16, 10, 10)
-    assert "samples" in adaptive_problem(0.01, 16384 ** 2, 1, 16384, 16384)
+    assert adaptive_problem(0.01, 16384 ** 2, 1, 16384, 16384).startswith("max_spp=")
+    assert adaptive_problem(np.float32(0.01), np.int64(16), 1, 10, 10) is None
 
 
 def test_render_refuses_what_adaptive_sampling_cannot_do(llvm):
@@ -144,3 +145,17 @@ def test_the_command_line_renders_adaptively_and_says_what_is_wrong(tmp_path):
                        str(tmp_path / "b.png"))
     assert bad.returncode == 2 and "--adaptive" in bad.stderr and "> 0" in bad.stderr
     assert "Traceback" not in bad.stderr and not (tmp_path / "b.png").exists()
+    for wrong in (["--max-spp", "0"], ["--max-spp", "10"], ["--edge-spp", "16"],
+                  ["--mode", "path"]):
+        refused = mimarble_cli("render", "scenes/fig10d.scene", "--adaptive", "0.01", *wrong,
+                               "-o", str(tmp_path / "c.png"))
+        assert refused.returncode == 2 and "Traceback" not in refused.stderr, wrong
+        assert refused.stderr.startswith("mimarble:"), refused.stderr
+
+
+def test_progress_counts_the_samples_asked_for(llvm):
+    """A pass over a pixel list pads it; the padding is not reported as done."""
+    calls = []
+    adaptive.render_adaptive(loaded(small(size=24)), 1, 0.002, 16,
+                             progress=lambda done, total: calls.append((done, total)))
+    assert all(done <= total for done, total in calls) and calls[-1][0] == calls[-1][1]

@@ -20,10 +20,12 @@ three colours):
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
 ``doubt`` is the mean over the pixel's samples of whitted's doubt (``Whitted.shade``):
-the marbles' own estimate of how wrong one sample of them is there — |the filter's colour
-− its other view of the footprint| (mimarble/pixel_filter.py), large where the colour
-changes across the footprint, 0 where it is smooth enough for either estimate, so a pixel
-that one sample renders right is left alone. A silhouette pixel is one whose 3×3
+the marbles' own estimate of how wrong one sample of them can be there — |the filter's
+colour − its other view of the footprint| (mimarble/pixel_filter.py), large where the
+colour changes across the footprint, 0 where it is smooth. It says where a sample can be
+wrong, not whether the prefilter is: inside fine veins a prefiltered pixel is refined as a
+point-sampled one is, and only a marble without noise (linear phase, where the prefilter is
+exact) gives a prefiltered pixel no doubt. A silhouette pixel is one whose 3×3
 neighbourhood sees more than one first-hit shape (the edge samples' test,
 mimarble/mitsuba/silhouettes.py); its ``contrast`` is what its own samples and its
 neighbours disagree on — the larger of its samples' range (high − low) and the range of
@@ -65,7 +67,8 @@ DEFAULT_MAX_SPP = 64
 class AdaptiveRender(NamedTuple):
     """An adaptive render: ``image`` (H, W, 3) float32, as ``render_in_passes`` returns
     it; ``samples`` (H, W), each pixel's samples at the end; ``traced``, every sample
-    traced, replaced ones and a pass's padding included (the cost); ``rounds``, the
+    traced for a pixel, replaced ones included (the cost; not the few a pass over a pixel
+    list pads itself with, :func:`~mimarble.mitsuba.passes.padded_count`); ``rounds``, the
     passes over pixel lists after the first pass."""
     image: np.ndarray
     samples: np.ndarray

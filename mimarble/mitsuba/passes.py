@@ -74,7 +74,8 @@ def _sampler(scene, mode: str):
 
 
 class TracedPass(NamedTuple):
-    """The pixels one pass completed, and how many samples it traced.
+    """The pixels one pass completed, and how many of their samples it traced (a pass
+    over a pixel list also traces the few it pads the list with; they are not counted).
 
     ``pixels`` indexes the image's pixels (a slice, or an array of pixel
     indices); it is empty after a pass that took only some of a split pixel's
@@ -140,6 +141,7 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
             # recordings tell apart (a fresh buffer could record again).
             subset = mi.UInt32(padded) + dr.opaque(mi.UInt32, 0)
         lanes = traced_pixels * n_samples
+        asked = n_pixels * n_samples                 # the samples it reports (not the padding)
         split = n_samples < spp                      # one pixel, over several passes
         values, first, last, estimates = _traced_pass(
             (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
@@ -168,7 +170,7 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
                 traced = traced[:3] + ((doubt_sums / spp).astype(np.float32),
                                        (high - low).max(axis=-1).astype(np.float32))
         span = slice(p0, p0 + n_pixels)
-        yield TracedPass(span if pixels is None else pixels[span], lanes, *traced[:3],
+        yield TracedPass(span if pixels is None else pixels[span], asked, *traced[:3],
                          Estimates(*traced[3:]) if estimates is not None else None)
 
 

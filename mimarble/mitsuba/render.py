@@ -120,6 +120,8 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     if adaptive is not None and max_spp is None:
         max_spp = max(DEFAULT_MAX_SPP, spp)
     check_adaptive(adaptive, max_spp, mode, edge_spp, spp, scene.image.width, scene.image.height)
+    if adaptive is not None:                    # NumPy's numbers too, as Python's
+        adaptive, max_spp = float(adaptive), int(max_spp)
     if not dr.is_jit_v(mi.Float):
         for asked, what in ((edge_spp, "edge samples"), (adaptive, "adaptive sampling")):
             if asked:
@@ -183,6 +185,11 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
         max_spp = max(DEFAULT_MAX_SPP, spp)
     check_adaptive(adaptive, max_spp, "whitted" if whitted else "path", edge_spp, spp, width,
                    height)
+    if adaptive is not None:
+        adaptive, max_spp = float(adaptive), int(max_spp)
+        if not dr.is_jit_v(mi.Float):
+            warnings.warn(f"adaptive sampling needs a JIT variant (llvm_ad_rgb, cuda_ad_rgb); "
+                          f"{mi.variant()} renders without", stacklevel=3)
     if whitted and dr.is_jit_v(mi.Float):   # its stratum centres, in passes (one kernel)
         return render_in_passes(mitsuba_scene, spp, "whitted", progress, edge_spp=edge_spp,
                                 adaptive=adaptive, max_spp=max_spp)

@@ -12,6 +12,7 @@ Standard library only.
 from __future__ import annotations
 
 import math
+import numbers
 
 from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH,
                      MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES)
@@ -113,19 +114,20 @@ def adaptive_problem(threshold, max_spp, spp: int, width: int, height: int) -> s
     the command line's ``--adaptive`` and ``--max-spp``): a threshold that is a finite
     number > 0 (linear colour units), and a ``max_spp`` that is a perfect square ≥ the
     first pass's ``spp``, within the sample limit (None: only the threshold is checked)."""
-    if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) \
-            or not 0.0 < threshold < math.inf:
+    if isinstance(threshold, bool) or not isinstance(threshold, numbers.Real) \
+            or not 0.0 < float(threshold) < math.inf:
         return f"adaptive={shortened(repr(threshold), 40)} must be a finite number > 0 " \
                f"(the estimated error, in linear colour units, above which a pixel is refined)"
     if max_spp is None:
         return None
-    if isinstance(max_spp, bool) or not isinstance(max_spp, int) or max_spp < 1 \
-            or math.isqrt(max_spp) ** 2 != max_spp:
+    if isinstance(max_spp, bool) or not isinstance(max_spp, numbers.Integral) or max_spp < 1 \
+            or math.isqrt(int(max_spp)) ** 2 != max_spp:
         return f"max_spp={shortened(repr(max_spp), 40)} must be a perfect square ≥ 1 " \
                f"(1, 4, 9, 16, …): the samples are an n×n grid"
     if max_spp < spp:
-        return f"max_spp={max_spp} is below the first pass's spp={spp}"
-    return spp_problem(max_spp, width, height)
+        return f"max_spp={max_spp} is below the first pass's {spp} spp"
+    problem = spp_problem(int(max_spp), width, height)      # "spp=N: …"
+    return None if problem is None else "max_" + problem
 
 
 def seed_problem(seed) -> str | None:
