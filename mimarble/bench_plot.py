@@ -76,7 +76,7 @@ def plot_error_against_time(results: dict, path) -> None:
     which = "paper scene" if any(r["scene"].startswith("fig") for r in runs) else "scene"
     ax.set_title(f"mimarble: error against time, {scenes} {which}{'s' * (scenes != 1)} "
                  f"({results['size']}², {results['machine']['variant']})")
-    ax.legend(fontsize=8, loc="lower left")
+    ax.legend(fontsize=7, loc="upper right", framealpha=0.85)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
