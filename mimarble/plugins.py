@@ -40,6 +40,12 @@ def luminance(colour) -> float:
     return first_number(mi.luminance(mi.Color3f(colour)))
 
 
+def largest_component(colour):
+    """The largest of a colour's three components, per lane (what the adaptive estimates
+    compare against their threshold: the worst colour)."""
+    return dr.maximum(dr.maximum(colour[0], colour[1]), colour[2])
+
+
 def describe(class_name: str, fields: dict) -> str:
     """A plugin's ``to_string`` in Mitsuba's form: ``Name[`` then one ``key = value`` a
     line, indented (a nested object's own lines indented with it), then ``]``."""

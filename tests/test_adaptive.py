@@ -123,6 +123,8 @@ def test_adaptive_numbers_are_checked():
 
 def test_render_refuses_what_adaptive_sampling_cannot_do(llvm):
     scene = small(size=8)
+    with pytest.raises(ValueError, match="needs mimarble's 'whitted'"):
+        adaptive.render_adaptive(mi.load_dict(to_mitsuba(scene, mode="path", spp=1)), 1, 0.01)
     with pytest.raises(ValueError, match="whitted mode"):
         mimarble.render(scene, adaptive=0.01, mode="path")
     with pytest.raises(ValueError, match="not both"):

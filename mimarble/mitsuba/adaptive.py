@@ -111,13 +111,6 @@ def neighbourhood_range(image: np.ndarray, around: np.ndarray) -> np.ndarray:
     return (values.max(axis=0) - values.min(axis=0)).max(axis=-1)
 
 
-def on_silhouette(shapes: np.ndarray, around: np.ndarray) -> np.ndarray:
-    """Whether each neighbourhood of ``around`` sees more than one first-hit shape
-    (``shapes`` (2, pixels): each pixel's smallest and largest id; the edge samples'
-    test, mimarble/mitsuba/silhouettes.py, for a few pixels)."""
-    return shapes[0][around].min(axis=0) != shapes[1][around].max(axis=0)
-
-
 def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                     max_spp: int = DEFAULT_MAX_SPP, progress=False, crop=None,
                     pass_samples: int | None = None) -> AdaptiveRender:
@@ -130,6 +123,10 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     the first pass; a round's estimates at the window's border then see the ring's
     pixels only, so they can be refined otherwise than in the whole image. ``progress``:
     as ``mimarble.render`` takes it (the total grows with each round)."""
+    if not isinstance(mitsuba_scene.integrator(), Whitted):
+        raise ValueError(f"render_adaptive: the scene's integrator is "
+                         f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
+                         f"needs mimarble's 'whitted' (its stratum centres and doubts)")
     target = Target.of(mitsuba_scene, "whitted", LOADED.parameters_of(mitsuba_scene))
     Whitted.prepare_doubts(mitsuba_scene)
     facts = scene_facts(target.scene, target.params)
@@ -169,11 +166,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         rounds += level > 0
         if last:
             break
-        if level == 0:        # the whole image: its silhouettes at once
-            edge = np.zeros(count, dtype=bool)
-            edge[silhouette_pixels(shapes, width, height)] = True
-        else:                 # a few pixels: their own neighbourhoods
-            edge = on_silhouette(shapes, neighbourhoods(candidates, width, height))
+        edge = np.zeros(count, dtype=bool)
+        edge[silhouette_pixels(shapes, width, height)] = True
+        edge = edge[candidates]
         contrast = np.zeros(len(candidates), dtype=np.float32)
         edges = candidates[edge]
         contrast[edge] = np.maximum(

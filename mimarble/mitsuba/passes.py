@@ -26,6 +26,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import environment
+from ..plugins import largest_component
 from .pixel_tracer import PassNumbers, PixelTracer
 from .replay import Recorded, scene_facts
 
@@ -245,7 +246,7 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
         else:            # one mean doubt and one spread per pixel come back
             spread = high - low
             estimates = (mi.Float(doubt / mi.Float64(numbers.samples)),
-                         dr.maximum(dr.maximum(spread[0], spread[1]), spread[2]))
+                         largest_component(spread))
     return radiance, first, last, estimates
 
 

@@ -11,6 +11,7 @@ between renders (width, spp, the pass's seed) is opaque, so one kernel serves th
 from __future__ import annotations
 
 from .. import environment
+from ..plugins import largest_component
 from ..scene.model import samples_per_axis
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -108,8 +109,7 @@ class PixelTracer:
         ``whitted``'s ``shade`` with doubts (mimarble/mitsuba/adaptive.py)."""
         ray, weight = self.ray(pixel, sub, numbers)
         radiance, shape, doubt = self.integrator.shade(self.scene, ray, True, doubts=True)
-        largest = dr.maximum(dr.maximum(weight[0], weight[1]), weight[2])
-        return weight * radiance, shape, largest * doubt
+        return weight * radiance, shape, largest_component(weight) * doubt
 
     def first_shape(self, pixel, sub, numbers: PassNumbers):
         """The id of the first shape each (whitted) sample hits, 0 for a miss."""

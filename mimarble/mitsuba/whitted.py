@@ -45,7 +45,7 @@ light's code whatever their count); other emitters are an error.
 from __future__ import annotations
 
 from .. import environment
-from ..plugins import describe, numbers, plugin
+from ..plugins import describe, largest_component, numbers, plugin
 from ..texture_mapping import differentials_from_the_eye, footprints_omitted_on_purpose
 from . import sphere_hit
 from .area_light import StratifiedArea
@@ -296,5 +296,5 @@ class Whitted:
         jit = dr.is_jit_v(mi.Float)
         shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), 0) if jit else None
         if doubts:
-            doubt = dr.select(hit, dr.maximum(dr.maximum(doubt[0], doubt[1]), doubt[2]), 0.0)
+            doubt = dr.select(hit, largest_component(doubt), 0.0)
         return dr.select(hit, radiance, self.background), shape, doubt
