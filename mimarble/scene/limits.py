@@ -16,7 +16,9 @@ from __future__ import annotations
 from ..marble_parameters import BY_NAME
 
 __all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
-           "MAX_AREA_LIGHT_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES"]
+           "MAX_AREA_LIGHT_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES",
+           "MAX_PLANES", "MAX_BOXES", "MAX_MESHES", "MAX_MESH_TRIANGLES", "MAX_MESH_BYTES",
+           "MAX_TEXTURES"]
 
 #: The largest float32: the Mitsuba path is single precision, so every number of a scene
 #: must be at most this in magnitude.
@@ -55,6 +57,28 @@ MAX_AREA_LIGHT_SIZE = 1e18
 #: seconds and a gigabyte.
 MAX_SPHERES = 10_000
 
+#: Planes per scene. Each is a disk reaching far past the scene (geometry.plane_disk) that
+#: every ray is tested against; a scene needs a floor and a wall or two, not hundreds.
+MAX_PLANES = 64
+
+#: Boxes per scene: as spheres, parse time and render memory grow with them.
+MAX_BOXES = 10_000
+
+#: Mesh statements per scene (each a file read, and a shape in Mitsuba's scene).
+MAX_MESHES = 256
+
+#: Triangles over all the meshes of a scene (2²⁰, about a million): the reference tracer
+#: holds them in float64 with a bounding-volume hierarchy (~0.3 GB at the limit), and a
+#: mesh file's header is checked against it before anything is read past it.
+MAX_MESH_TRIANGLES = 1 << 20
+
+#: A mesh file's size, bytes (256 MiB): a million triangles fit in a tenth of it, in any
+#: of the PLY or OBJ encodings read here.
+MAX_MESH_BYTES = 1 << 28
+
+#: Named textures per scene (``texture "NAME" { … }``).
+MAX_TEXTURES = 10_000
+
 #: width × height × samples of the image (2²⁸, about 4 GiB of float32 RGBA samples), so
 #: that a typo cannot exhaust memory.
 MAX_IMAGE_SAMPLES = 1 << 28
@@ -73,4 +97,10 @@ LIMITS = {
     "max_light_samples": MAX_LIGHT_SAMPLES,
     "max_area_light_size": MAX_AREA_LIGHT_SIZE,
     "max_spheres": MAX_SPHERES,
+    "max_planes": MAX_PLANES,
+    "max_boxes": MAX_BOXES,
+    "max_meshes": MAX_MESHES,
+    "max_mesh_triangles": MAX_MESH_TRIANGLES,
+    "max_mesh_bytes": MAX_MESH_BYTES,
+    "max_textures": MAX_TEXTURES,
 }

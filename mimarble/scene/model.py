@@ -55,6 +55,11 @@ __all__ = [
     "Channel",
     "Material",
     "Sphere",
+    "Plane",
+    "Box",
+    "Mesh",
+    "SHAPE_TYPES",
+    "SPACES",
     "Scene",
     "FrozenMap",
     "ImageChannel",
@@ -397,6 +402,11 @@ class MarbleChannel(marble_parameters.MarbleParameters):
     ``tolerance`` allows are left out, ``None``: the scene's default,
     mimarble/error_budget.py); the reference tracer always renders the full marble.
 
+    ``space`` (keyword-only, the language's ``space world|object``): ``world`` (the
+    default, the paper's) evaluates the marble at the world point p; ``object`` at the
+    point in the object space of the shape it shades (mimarble/scene/geometry.py), so
+    that moving, turning or scaling the shape carries its pattern.
+
     ``transform`` (keyword-only, the language's ``transform { … }``) moves the pattern:
     steps ``(kind, (x, y, z))`` with kind ``translate``, ``rotate`` (degrees about x, then
     y, then z) or ``scale`` (POV-Ray's: 2 is twice as coarse), applied in order, so that
@@ -407,10 +417,14 @@ class MarbleChannel(marble_parameters.MarbleParameters):
 
     pos: Pos | None = _pos()
     transform: tuple = field(default=(), kw_only=True)
+    space: str = field(default="world", kw_only=True)
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        _store(self, transform=_transform_steps(self.transform))
+        if self.space not in SPACES:
+            raise ValueError(f"a marble's space is {' or '.join(SPACES)}, found "
+                             f"{_shown(self.space)}")
+        _store(self, transform=_transform_steps(self.transform, "MarbleChannel"))
 
     @property
     def axis_index(self) -> int:
@@ -424,20 +438,25 @@ class MarbleChannel(marble_parameters.MarbleParameters):
         return transforms.compose(self.transform)
 
 
-def _transform_steps(steps) -> tuple:
-    """A marble's transform steps, checked and stored as ``(kind, (x, y, z))`` tuples."""
+#: Where a marble is evaluated: at the world point, or in the shaded shape's object space.
+SPACES: tuple[str, ...] = ("world", "object")
+
+
+def _transform_steps(steps, owner: str) -> tuple:
+    """A transform's steps (a marble's, a box's, a mesh's: ``owner``), checked and stored
+    as ``(kind, (x, y, z))`` tuples."""
     if isinstance(steps, (str, bytes)) or not hasattr(steps, "__iter__"):
-        raise TypeError(f"MarbleChannel: transform must be a sequence of (step, < x y z >), "
+        raise TypeError(f"{owner}: transform must be a sequence of (step, < x y z >), "
                         f"found {_shown(steps)}")
     out = []
     for step in steps:
         try:
             kind, vector = step
         except (TypeError, ValueError):
-            raise TypeError(f"MarbleChannel: a transform step is (kind, < x y z >), found "
+            raise TypeError(f"{owner}: a transform step is (kind, < x y z >), found "
                             f"{_shown(step)}") from None
         if kind not in transforms.STEPS:
-            raise ValueError(f"MarbleChannel: a transform step is translate, rotate or scale, "
+            raise ValueError(f"{owner}: a transform step is translate, rotate or scale, "
                              f"found {_shown(kind)}")
         if kind == "scale" and isinstance(vector, numbers.Real):
             vector = (vector,) * 3
@@ -646,14 +665,106 @@ class Sphere:
         _store(self, center=_vector(self.center, "center"), radius=radius)
 
 
+def _material_name(shape) -> None:
+    if not isinstance(shape.material, str):
+        raise TypeError(f"a {type(shape).__name__.lower()}'s material is a material's name, "
+                        f"found {_shown(shape.material)}")
+
+
+@dataclass(frozen=True)
+class Plane:
+    """``plane { point <> normal <> material "name" }``: the infinite plane through
+    ``point`` perpendicular to ``normal`` (not zero; stored as given, the renderers
+    normalise it). Rendered as a disk reaching far past the scene
+    (mimarble/scene/geometry.py, ``plane_disk``); shaded with its normal facing the viewer,
+    as every surface."""
+
+    material: str
+    point: Vec3 = (0.0, 0.0, 0.0)
+    normal: Vec3 = (0.0, 1.0, 0.0)
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        _material_name(self)
+        normal = _vector(self.normal, "normal")
+        problem = rules.normal_problem(normal)
+        if problem:
+            raise ValueError(f"{problem}, found {_shown(self.normal)}")
+        _store(self, point=_vector(self.point, "point"), normal=normal)
+
+
+@dataclass(frozen=True)
+class Box:
+    """``box { min <> max <> transform { … } material "name" }``: the box between the
+    corners ``min`` and ``max`` (each coordinate of ``min`` below that of ``max``), in
+    its object space, placed in the world by ``transform`` (steps as a marble's:
+    mimarble/scene/transforms.py)."""
+
+    material: str
+    min: Vec3 = (-1.0, -1.0, -1.0)
+    max: Vec3 = (1.0, 1.0, 1.0)
+    transform: tuple = ()
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        _material_name(self)
+        lo, hi = _vector(self.min, "min"), _vector(self.max, "max")
+        problem = rules.box_problem(lo, hi)
+        if problem:
+            raise ValueError(f"{problem}, found min {_shown(lo)} max {_shown(hi)}")
+        _store(self, min=lo, max=hi, transform=_transform_steps(self.transform, "Box"))
+
+
+#: The mesh file formats, by file name ending.
+MESH_FORMATS: tuple[str, ...] = (".ply", ".obj")
+
+
+@dataclass(frozen=True)
+class Mesh:
+    """``mesh { file "vase.ply" transform { … } material "name" }``: the triangles of a
+    PLY or OBJ file (polygons split into fans), in its coordinates, placed in the world
+    by ``transform``. Shaded flat (each triangle's own normal, facing the viewer); its
+    texture coordinates, when the file has them, are the (u, v) of image maps and of
+    ``mimarble bake``. ``file`` is as written, ``path`` where the parser found it
+    (relative to the scene file; built in Python without ``path``, ``file`` is taken
+    from the working directory); ``pos`` is the file string's, where errors about the
+    file point."""
+
+    material: str
+    file: str
+    path: str | None = None
+    transform: tuple = ()
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        _material_name(self)
+        if not isinstance(self.file, str) or not self.file:
+            raise ValueError(f"Mesh: file={self.file!r:.60} must be a non-empty path")
+        if not self.file.lower().endswith(MESH_FORMATS):
+            raise ValueError(rules.mesh_format_problem(self.file))
+        _store(self, transform=_transform_steps(self.transform, "Mesh"))
+
+    @property
+    def location(self) -> str:
+        """The file to read: ``path`` when the parser found it, else ``file``."""
+        return self.path or self.file
+
+
+#: Every kind of shape, in the order a scene lists them (and Mitsuba's ids number them).
+SHAPE_TYPES = (Sphere, Plane, Box, Mesh)
+
+
 @dataclass(frozen=True)
 class Scene:
     """A whole scene file.
 
     ``materials`` maps names to materials in file order, each under its own name;
-    every ``Sphere.material`` is a key of it (the constructor checks it, as the parser
-    does). ``ambient`` is the global ambient light A. ``source`` is the file it came
-    from (None for text parsed without a file name); it takes no part in equality.
+    every shape's ``material`` is a key of it (the constructor checks it, as the parser
+    does). ``ambient`` is the global ambient light A. ``textures`` maps the names of the
+    file's ``texture "NAME" { … }`` to their channels (the materials hold the channels
+    themselves, so a texture used twice is one value, evaluated once). ``source`` is the
+    file it came from (None for text parsed without a file name); it takes no part in
+    equality.
     """
 
     image: Image = Image()
@@ -662,6 +773,10 @@ class Scene:
     lights: tuple[Light, ...] = ()
     materials: Mapping[str, Material] = field(default_factory=FrozenMap)
     spheres: tuple[Sphere, ...] = ()
+    planes: tuple[Plane, ...] = ()
+    boxes: tuple[Box, ...] = ()
+    meshes: tuple[Mesh, ...] = ()
+    textures: Mapping[str, Channel] = field(default_factory=FrozenMap)
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -675,9 +790,26 @@ class Scene:
             raise TypeError(f"image must be an Image, found {_shown(self.image)}")
         if not isinstance(self.camera, Camera):
             raise TypeError(f"camera must be a Camera, found {_shown(self.camera)}")
+        if not isinstance(self.textures, FrozenMap):
+            if not isinstance(self.textures, Mapping):
+                raise TypeError(f"textures must map names to channels, found "
+                                f"{_shown(self.textures)}")
+            object.__setattr__(self, "textures", FrozenMap(self.textures))
+        for name, channel in self.textures.items():
+            problem = rules.material_name_problem(name) if isinstance(name, str) else \
+                "a texture's name is a string"
+            if problem:
+                raise ValueError(problem.replace("material", "texture"))
+            if not isinstance(channel, CHANNEL_TYPES):
+                raise TypeError(f'texture "{rules.shortened(name)}" must be a channel, found '
+                                f"{_shown(channel)}")
         lights = _instances(self.lights, Light, "lights")
         spheres = _instances(self.spheres, Sphere, "spheres")
-        for kind, items in (("light", lights), ("sphere", spheres)):
+        planes = _instances(self.planes, Plane, "planes")
+        boxes = _instances(self.boxes, Box, "boxes")
+        meshes = _instances(self.meshes, Mesh, "meshes")
+        for kind, items in (("light", lights), ("sphere", spheres), ("plane", planes),
+                            ("box", boxes), ("mesh", meshes), ("texture", self.textures)):
             problem = rules.count_problem(kind, len(items))
             if problem:
                 raise ValueError(problem)
@@ -688,11 +820,33 @@ class Scene:
             if name != material.name:
                 raise ValueError(f'materials: the name "{rules.shortened(name)}" holds '
                                  f'material "{rules.shortened(material.name)}"')
-        for sphere in spheres:
-            problem = rules.unknown_material(sphere.material, self.materials)
+        for shape in spheres + planes + boxes + meshes:
+            problem = rules.unknown_material(shape.material, self.materials)
             if problem:
                 raise ValueError(problem)
-        _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, spheres=spheres)
+        _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, spheres=spheres,
+               planes=planes, boxes=boxes, meshes=meshes)
+
+    def shapes(self) -> tuple:
+        """``(id, shape)`` of every shape: spheres, planes, boxes, meshes, each kind in file
+        order, ids ``sphere_0``, ``plane_0``, ``box_0``, ``mesh_0``, … (the Mitsuba
+        scene's ids, ``mimarble bake --shape``'s)."""
+        return tuple((f"{kind}_{k}", shape)
+                     for kind, items in (("sphere", self.spheres), ("plane", self.planes),
+                                         ("box", self.boxes), ("mesh", self.meshes))
+                     for k, shape in enumerate(items))
+
+    def bounded_shapes(self) -> tuple:
+        """Every shape but the planes."""
+        return self.spheres + self.boxes + self.meshes
+
+    def shape(self, shape_id: str):
+        """The shape of id ``shape_id`` (:meth:`shapes`); KeyError naming the ids if none."""
+        found = dict(self.shapes())
+        if shape_id not in found:
+            raise KeyError(f"no shape {shape_id!r:.60} in the scene (its shapes: "
+                           f"{', '.join(found) or 'none'})")
+        return found[shape_id]
 
     def image_maps(self) -> tuple:
         """Every distinct image map the materials use."""
@@ -700,6 +854,6 @@ class Scene:
                  for c in walk(ch) if isinstance(c, ImageChannel)]
         return tuple(dict.fromkeys(found))
 
-    def material_of(self, sphere: Sphere) -> Material:
-        """The material a sphere refers to."""
-        return self.materials[sphere.material]
+    def material_of(self, shape) -> Material:
+        """The material a shape refers to."""
+        return self.materials[shape.material]

@@ -15,13 +15,15 @@ import math
 import numbers
 
 from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH,
-                     MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES)
+                     MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES,
+                     MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES)
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
            "light_samples_problem", "area_axes_problem", "area_radius_problem", "cross",
-           "depth_problem", "listed_names", "shortened"]
+           "depth_problem", "listed_names", "shortened", "normal_problem",
+           "box_problem", "mesh_format_problem"]
 
 
 def shortened(text: str, most: int = 60) -> str:
@@ -202,15 +204,40 @@ def unknown_material(name: str, materials) -> str | None:
 
 
 _COUNTS = {"light": (MAX_LIGHTS, "the whitted integrator unrolls its loop over the lights"),
-           "sphere": (MAX_SPHERES, "the renderers' memory and time grow with them")}
+           "sphere": (MAX_SPHERES, "the renderers' memory and time grow with them"),
+           "plane": (MAX_PLANES, "every ray is tested against every plane"),
+           "box": (MAX_BOXES, "the renderers' memory and time grow with them"),
+           "mesh": (MAX_MESHES, "each is a file read and a shape of its own"),
+           "texture": (MAX_TEXTURES, "each is a channel kept by name")}
 
 
 def count_problem(kind: str, count: int) -> str | None:
-    """Lights and spheres per scene, within their limits (``kind``: light, sphere)."""
+    """Lights, shapes and named textures per scene, within their limits (``kind``: light,
+    sphere, plane, box, mesh, texture)."""
     most, why = _COUNTS[kind]
     if count <= most:
         return None
-    return f"too many {kind}s: a scene holds at most {most} ({why}; docs/scene-language.md, Limits)"
+    plural = "boxes" if kind == "box" else "meshes" if kind == "mesh" else f"{kind}s"
+    return f"too many {plural}: a scene holds at most {most} ({why}; docs/scene-language.md, Limits)"
+
+
+def normal_problem(normal) -> str | None:
+    """A plane's normal: not zero (nor so small that its length underflows)."""
+    length = math.sqrt(sum(c * c for c in normal))
+    return None if length > 1e-30 and math.isfinite(length) else "a plane's normal must not be zero"
+
+
+def box_problem(lo, hi) -> str | None:
+    """A box's corners: ``min`` below ``max`` on every axis."""
+    if all(a < b for a, b in zip(lo, hi)):
+        return None
+    return "a box's min must be below its max on every axis (x, y and z)"
+
+
+def mesh_format_problem(name: str) -> str:
+    """The sentence for a mesh file that is neither PLY nor OBJ (by its name's ending)."""
+    return (f"a mesh file is PLY (.ply) or Wavefront OBJ (.obj), found "
+            f"{shortened(repr(name))}")
 
 
 def depth_problem(depth: int) -> str | None:
