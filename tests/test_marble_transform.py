@@ -97,8 +97,8 @@ def test_refusals_are_at_their_place():
     e = error("transform { } transform { }")
     assert e.column == 49 and e.message.startswith("duplicate 'transform' in 'marble' block")
     e = error("transform { spin < 1 2 3 > }")
-    assert e.message == ("unknown keyword 'spin' in 'transform' block; allowed: 'scale', "
-                         "'translate' or 'rotate'")
+    assert e.message == ("unknown keyword 'spin' in 'transform' block; allowed: 'translate', "
+                         "'rotate' or 'scale'")
 
 
 def test_the_model_refuses_what_the_parser_refuses():

@@ -173,7 +173,7 @@ def test_unknown_keyword_in_marble():
 
 
 def test_unknown_statement():
-    assert_error_at("\n\nplane { }", 3, 1, "unknown statement 'plane'")
+    assert_error_at("\n\ncone { }", 3, 1, "unknown statement 'cone'")
 
 
 def test_missing_closing_brace_at_eof_names_the_opening():

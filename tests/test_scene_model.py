@@ -251,8 +251,9 @@ def test_marble_rules_and_keys_are_written_from_the_parameter_table():
 PNG = str(Path(__file__).resolve().parent.parent / "scenes" / "future-work" / "maps" / "flagstones.png")
 
 
-def test_block_keys_table_matches_the_grammar():
+def test_block_keys_table_matches_the_grammar(tmp_path):
     # Every keyword listed for a block is accepted there (a tiny, valid use of each).
+    (tmp_path / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
     samples = {
         "width": "1", "height": "1", "samples": "1", "background": "<0 0 0>",
         "eye": "<0 0 5>", "lookat": "<0 0 0>", "up": "<0 1 0>", "fov": "30",
@@ -264,7 +265,9 @@ def test_block_keys_table_matches_the_grammar():
         "center": "<0 0 0>", "radius": "1",
         "area": "{ radius 1 }", "axis1": "<1 0 0> axis2 <0 1 0>", "axis2": "<0 1 0> axis1 <1 0 0>",
         "material": '"m"',
-        "transform": "{ }", "translate": "<1 0 0>", "rotate": "<0 0 90>",
+        "transform": "{ }", "translate": "<1 0 0>", "rotate": "<0 0 90>", "space": "object",
+        "point": "<0 0 0>", "normal": "<0 0 1>", "min": "<0 0 0>", "max": "<1 1 1>",
+        "file": f'"{tmp_path / "a.obj"}"',
     }
     wrap = {
         "image": "image {{ {} }}", "camera": "camera {{ {} }}", "light": "light {{ position <0 0 0> {} }}",
@@ -272,15 +275,20 @@ def test_block_keys_table_matches_the_grammar():
         "sphere": 'material "m" {{ }} sphere {{ material "m" {} }}',
         "area": 'light {{ position <0 0 0> area {{ {} }} }}',
         "transform": 'material "m" {{ diffuse {{ marble {{ transform {{ {} }} }} }} }}',
+        "plane": 'material "m" {{ }} plane {{ material "m" {} }}',
+        "box": 'material "m" {{ }} box {{ material "m" {} }}',
+        "mesh": 'material "m" {{ }} mesh {{ material "m" {} }}',
     }
     one = {"color": "color <0 0 0>", "marble": "marble { }", "weight": "weight 0.5",
            "image": f'image {{ file "{PNG}" }}', "add": "add { color <0 0 0> color <0 0 0> }",
            "multiply": "multiply { color <0 0 0> color <0 0 0> }",
-           "mix": "mix { color <0 0 0> color <0 0 0> weight 0.5 }"}
+           "mix": "mix { color <0 0 0> color <0 0 0> weight 0.5 }", "texture": 'texture "t"'}
+    texture = 'texture "t" { color <0 0 0> } '
     for block, keys in S.BLOCK_KEYS.items():
-        if block in ("ambient", "diffuse", "specular"):
+        if block in ("ambient", "diffuse", "specular", "texture"):
             for ch in keys:
-                parse(f'material "m" {{ {block} {{ {one[ch]} }} }}')
+                parse(texture + (f'material "m" {{ {block} {{ {one[ch]} }} }}' if block != "texture"
+                                 else f'texture "u" {{ {one[ch]} }}'))
             continue
         if block in ("add", "multiply", "mix", "image_map"):
             for key in keys:
@@ -291,11 +299,15 @@ def test_block_keys_table_matches_the_grammar():
                 else:
                     operands = f"{one[key]} {one[key]}" + (" weight 0.5" if block == "mix" else "")
                     inner = f"{block} {{ {operands} }}"
-                parse(f'material "m" {{ diffuse {{ {inner} }} }}')
+                parse(texture + f'material "m" {{ diffuse {{ {inner} }} }}')
             continue
         for key in keys:
-            if (block, key) in (("light", "position"), ("sphere", "material")):
+            if (block, key) in (("light", "position"), ("sphere", "material"), ("plane", "material"),
+                                ("box", "material"), ("mesh", "material")):
                 continue  # required keys, already in the wrapper
+            if block == "mesh" and key != "file":       # a mesh needs its file too
+                parse(wrap[block].format(f"{key} {samples[key]} file {samples['file']}"))
+                continue
             if (block, key) == ("area", "samples"):     # with a shape: radius or the axes
                 parse(wrap[block].format("radius 1 samples 4"))
                 continue

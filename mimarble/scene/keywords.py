@@ -4,23 +4,29 @@ Read by the builder (which keys a block may hold), by the syntax-error wording (
 keywords to list, in what order) and by whoever documents or tests the language. The
 marble block's keys are the rows of the marble's parameter table
 (mimarble/marble_parameters.py), as its grammar rules are (grammar.py), then the
-language's own ``transform`` block (the pattern's translate / rotate / scale).
+language's own keys (grammar.LANGUAGE_MARBLE_KEYS: ``transform``, the pattern's
+translate / rotate / scale, and ``space``).
 """
 
 from __future__ import annotations
 
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
 from ..marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+from .grammar import LANGUAGE_MARBLE_KEYS
 
 __all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BLOCK_KEYS"]
 
 #: Top-level statements, in documentation order.
-STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "material", "sphere")
+STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "material", "texture",
+                               "sphere", "plane", "box", "mesh")
 
-#: The keywords that start a channel.
-CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multiply", "mix")
-#: The blocks whose contents are channels.
-CHANNEL_BLOCKS: tuple[str, ...] = ("ambient", "diffuse", "specular", "add", "multiply", "mix")
+#: The keywords that start a channel (``texture "NAME"``: a named texture's channel).
+CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multiply", "mix",
+                                     "texture")
+#: The blocks whose contents are channels (``texture``: the top-level ``texture "NAME" {
+#: CHANNEL }``, which holds one).
+CHANNEL_BLOCKS: tuple[str, ...] = ("ambient", "diffuse", "specular", "add", "multiply", "mix",
+                                   "texture")
 
 #: The keywords allowed in each kind of block (keyed by the block's rule name: an image
 #: map is ``image_map``, written ``image { file "…" }`` like the image statement).
@@ -37,7 +43,11 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "multiply": CHANNEL_KEYWORDS,
     "mix": CHANNEL_KEYWORDS + ("weight",),
     "image_map": ("file",),
-    "marble": tuple(p.name for p in PARAMETERS) + ("transform",),
-    "transform": ("translate", "rotate", "scale"),   # inside marble: transforms.STEPS
+    "texture": CHANNEL_KEYWORDS,                     # texture "NAME" { CHANNEL }
+    "marble": tuple(p.name for p in PARAMETERS) + LANGUAGE_MARBLE_KEYS,
+    "transform": ("translate", "rotate", "scale"),   # marble, box, mesh: transforms.STEPS
     "sphere": ("center", "radius", "material"),
+    "plane": ("point", "normal", "material"),
+    "box": ("min", "max", "transform", "material"),
+    "mesh": ("file", "transform", "material"),
 }

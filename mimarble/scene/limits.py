@@ -16,7 +16,7 @@ from __future__ import annotations
 from ..marble_parameters import BY_NAME
 
 __all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
-           "MAX_AREA_LIGHT_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES",
+           "MAX_AREA_LIGHT_SIZE", "MAX_CHANNEL_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES",
            "MAX_PLANES", "MAX_BOXES", "MAX_MESHES", "MAX_MESH_TRIANGLES", "MAX_MESH_BYTES",
            "MAX_TEXTURES"]
 
@@ -38,6 +38,12 @@ MAX_IMAGE_MAP_PIXELS = 1 << 26
 #: one). The parser, the translator and both renderers walk a channel recursively, and
 #: Python's stack runs out a few hundred levels down. 64 is far past any written by hand.
 MAX_CHANNEL_DEPTH = 64
+
+#: Channels in one channel, expanded: a named texture counts again at each use. A texture
+#: of textures doubles at each level (``texture "b" { add { texture "a" texture "a" } }``),
+#: so sixty lines could stand for 2⁶⁰ channels; the model's hashing and comparison, and
+#: the renderers' walks, visit each use. 4096 is far past any written by hand.
+MAX_CHANNEL_SIZE = 4096
 
 #: Lights per scene. The whitted integrator unrolls its loop over the lights into the
 #: kernel, whose compilation grows faster than linearly with them. An area light counts
@@ -93,6 +99,7 @@ LIMITS = {
     "max_scene_bytes": MAX_SCENE_BYTES,
     "max_image_map_pixels": MAX_IMAGE_MAP_PIXELS,
     "max_channel_depth": MAX_CHANNEL_DEPTH,
+    "max_channel_size": MAX_CHANNEL_SIZE,
     "max_lights": MAX_LIGHTS,
     "max_light_samples": MAX_LIGHT_SAMPLES,
     "max_area_light_size": MAX_AREA_LIGHT_SIZE,

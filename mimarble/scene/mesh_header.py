@@ -1,14 +1,86 @@
 """What a mesh file holds, read from its header (PLY) or its lines (OBJ), within the limits.
 
-STUB (interface only; the full module replaces it): ``mesh_facts(path)`` returns
-:class:`MeshFacts` or raises :class:`MeshFileError` with one sentence.
+``mesh_facts(path)`` returns :class:`MeshFacts` (format, vertices, triangles, has_uv) or
+raises :class:`MeshFileError` with one sentence (no file name: the caller names the file;
+an OBJ's sentence begins with its line number, ``line 12: a face needs 3 or more
+vertices``). The scene language checks every mesh with it while it parses; the reference
+tracer's reader (mimarble/reference/mesh_file.py) reads the PLY header with
+:func:`ply_header` and the OBJ lines with :func:`obj_statements`, so both see one grammar
+and one set of limits. Standard library only.
+
+Limits, each checked before anything in proportion to it is read or allocated:
+
+* the file is a regular file (reading.py) of at most
+  :data:`~mimarble.scene.limits.MAX_MESH_BYTES`, from its size, before it is read;
+* **PLY**: the header ends (``end_header``) within :data:`MAX_PLY_HEADER_BYTES`; its face
+  count is at most :data:`~mimarble.scene.limits.MAX_MESH_TRIANGLES` and its vertex count
+  at most :data:`MAX_MESH_VERTICES`, and the file is large enough for what the header
+  declares (the fewest bytes each record can take), so a 100-byte file claiming 10¹²
+  faces is refused from its header. A face count is a lower bound of the triangles (a
+  polygon of n corners is n − 2 of them): the reader counts them and refuses past the limit;
+* **OBJ**: the lines are streamed; the triangles (Σ (n − 2) over the faces) are refused the
+  line they pass the limit, the ``v`` and ``vt`` lines past :data:`MAX_MESH_VERTICES`.
+
+What is read (and what is refused, in one sentence each):
+
+* **PLY** (``format ascii``, ``binary_little_endian`` or ``binary_big_endian``, version 1.0,
+  the property types Mitsuba 3.9's ``ply`` plugin knows): ``element vertex`` with float or
+  double ``x y z`` and optionally ``u v``, ``texture_u texture_v`` or ``s t`` (Mitsuba's
+  order of preference), other properties skipped; ``element face`` with an integer
+  ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference); other
+  elements skipped. Integer coordinates are refused: Mitsuba reads an integer property as a
+  fraction of its type's range, so the two renderers would place the mesh differently.
+* **OBJ**: ``v x y z`` (further numbers ignored), ``vt u v``, ``vn x y z``, ``f`` with 3 or
+  more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, indices from 1, or negative
+  (relative: −1 is the last one defined so far), each referring to an element defined
+  before the face; everything after ``#`` is a comment; other statements (``o``, ``g``,
+  ``s``, ``usemtl``, ``mtllib``, ``l``, …) are ignored. A line is at most
+  :data:`MAX_OBJ_LINE_BYTES` bytes (Mitsuba's OBJ reader refuses longer ones).
+  ``has_uv`` when every corner of every face names a ``vt``.
 """
 
 from __future__ import annotations
 
+import math
+import os
 from dataclasses import dataclass
 
-__all__ = ["MeshFacts", "MeshFileError", "mesh_facts"]
+from .limits import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
+from .reading import NotRegularFile, open_regular
+from .rules import shortened
+
+__all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "MAX_PLY_HEADER_BYTES",
+           "MAX_MESH_VERTICES", "MAX_OBJ_LINE_BYTES", "PLY_TYPES", "PlyProperty", "PlyElement",
+           "PlyHeader", "ply_header", "obj_statements", "open_mesh"]
+
+#: A PLY header's size, bytes: a header lists a few elements and properties, so 64 KiB is
+#: far past any real one, and a file without ``end_header`` is not read on and on.
+MAX_PLY_HEADER_BYTES = 1 << 16
+
+#: Vertices of a mesh file (PLY vertex records, OBJ ``v`` and ``vt`` lines): three per
+#: triangle of :data:`~mimarble.scene.limits.MAX_MESH_TRIANGLES`, the most a mesh within that
+#: limit can use.
+MAX_MESH_VERTICES = 3 * MAX_MESH_TRIANGLES
+
+#: An OBJ line's length, bytes, without its newline: Mitsuba's OBJ reader copies each line
+#: into a buffer of 1025 bytes and refuses a line of 1024 or more.
+MAX_OBJ_LINE_BYTES = 1023
+
+#: PLY property types (Mitsuba 3.9's names, src/shapes/ply.h) -> (kind, bytes): kind "i"
+#: signed integer, "u" unsigned, "f" floating point (NumPy's type codes).
+PLY_TYPES: dict[str, tuple[str, int]] = {
+    "char": ("i", 1), "uchar": ("u", 1), "short": ("i", 2), "ushort": ("u", 2),
+    "int": ("i", 4), "uint": ("u", 4), "float": ("f", 4), "double": ("f", 8),
+    "int8": ("i", 1), "uint8": ("u", 1), "int16": ("i", 2), "uint16": ("u", 2),
+    "int32": ("i", 4), "uint32": ("u", 4), "long": ("i", 8), "ulong": ("u", 8),
+    "half": ("f", 2), "float16": ("f", 2), "float32": ("f", 4), "float64": ("f", 8),
+}
+
+_PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
+#: The texture coordinate pairs of a PLY vertex, in Mitsuba's order of preference.
+_PLY_UV_NAMES = (("u", "v"), ("texture_u", "texture_v"), ("s", "t"))
+#: The face's list of vertex indices, in Mitsuba's order of preference.
+_PLY_FACE_LISTS = ("vertex_index", "vertex_indices")
 
 
 class MeshFileError(ValueError):
@@ -17,8 +89,10 @@ class MeshFileError(ValueError):
 
 @dataclass(frozen=True)
 class MeshFacts:
-    """``format`` "ply" or "obj"; ``vertices``; ``triangles`` (polygons split into fans);
-    ``has_uv``: texture coordinates on every vertex."""
+    """``format`` "ply" or "obj"; ``vertices`` (PLY: vertex records; OBJ: ``v`` lines);
+    ``triangles`` (polygons split into fans; PLY: the face count, exact for a triangle mesh,
+    a lower bound otherwise); ``has_uv``: texture coordinates on every vertex (PLY) or
+    every face corner (OBJ)."""
 
     format: str
     vertices: int
@@ -26,5 +100,345 @@ class MeshFacts:
     has_uv: bool
 
 
+@dataclass(frozen=True)
+class PlyProperty:
+    """One property of a PLY element: ``type`` a key of :data:`PLY_TYPES`; a list has the
+    type of its length in ``count_type`` (None: a scalar)."""
+
+    name: str
+    type: str
+    count_type: str | None = None
+
+
+@dataclass(frozen=True)
+class PlyElement:
+    name: str
+    count: int
+    properties: tuple[PlyProperty, ...]
+
+    def property(self, name: str) -> PlyProperty | None:
+        return next((p for p in self.properties if p.name == name), None)
+
+
+@dataclass(frozen=True)
+class PlyHeader:
+    """A PLY header, checked: ``format`` one of ascii, binary_little_endian,
+    binary_big_endian; ``elements`` in file order; ``size`` the header's bytes (the body
+    starts there); ``uv`` the vertex properties read as (u, v) or None; ``face_list`` the
+    face's list of vertex indices."""
+
+    format: str
+    elements: tuple[PlyElement, ...]
+    size: int
+    uv: tuple[str, str] | None
+    face_list: str
+
+    def element(self, name: str) -> PlyElement:
+        return next(e for e in self.elements if e.name == name)
+
+
+def open_mesh(path):
+    """``path`` opened for binary reading, with its size: a regular file of at most
+    MAX_MESH_BYTES, else MeshFileError (the sentences of image maps' checks)."""
+    where = shortened(os.fspath(path), 1024)
+    try:
+        f = open_regular(path)
+    except FileNotFoundError:
+        raise MeshFileError(f"no such file (looked for {where})") from None
+    except IsADirectoryError:
+        raise MeshFileError(f"it is a directory ({where})") from None
+    except PermissionError:
+        raise MeshFileError(f"permission denied ({where})") from None
+    except NotRegularFile as e:
+        raise MeshFileError(f"{e} ({where})") from None
+    except OSError as e:
+        raise MeshFileError(f"cannot read it: {e.strerror or e} ({where})") from None
+    size = os.fstat(f.fileno()).st_size
+    if size > MAX_MESH_BYTES:
+        f.close()
+        raise MeshFileError(f"a mesh file of {size} bytes; mesh files hold at most "
+                            f"{MAX_MESH_BYTES} bytes")
+    return f, size
+
+
 def mesh_facts(path: str) -> MeshFacts:
-    raise MeshFileError("mesh files are not read yet (stub)")
+    """What the mesh file at ``path`` holds (module docstring), or MeshFileError. PLY: from
+    its header alone; OBJ: from all its lines, each checked."""
+    fmt = _format_of(path)
+    f, size = open_mesh(path)
+    with f:
+        if fmt == "ply":
+            header = ply_header(f, size)
+            return MeshFacts("ply", header.element("vertex").count,
+                             header.element("face").count, header.uv is not None)
+        vertices = triangles = 0
+        has_uv = True
+        for kind, value in obj_statements(f):
+            if kind == "v":
+                vertices += 1
+            elif kind == "f":
+                triangles += len(value) - 2
+                has_uv = has_uv and all(t >= 0 for _, t in value)
+        return MeshFacts("obj", vertices, triangles, has_uv)
+
+
+def _format_of(path) -> str:
+    name = os.fspath(path).lower()
+    if name.endswith(".ply"):
+        return "ply"
+    if name.endswith(".obj"):
+        return "obj"
+    raise MeshFileError("a mesh file is PLY (.ply) or Wavefront OBJ (.obj), by its name's "
+                        "ending")
+
+
+# ---------------------------------------------------------------------------
+# PLY
+
+def ply_header(f, size: int) -> PlyHeader:
+    """The header of the PLY file open as ``f`` (binary, at its start) of ``size`` bytes,
+    checked (module docstring); ``f`` is left just past it."""
+    head = f.read(MAX_PLY_HEADER_BYTES)
+    if not head.startswith((b"ply\n", b"ply\r\n")):
+        raise MeshFileError('not a PLY file (it does not begin with the line "ply")')
+    end = _header_end(head)
+    f.seek(end)
+    try:
+        text = head[:end].decode("ascii")
+    except UnicodeDecodeError:
+        raise MeshFileError("the PLY header holds bytes that are not ASCII text") from None
+    fmt = None
+    elements: list[tuple[str, int, list[PlyProperty]]] = []
+    for number, line in enumerate(text.split("\n")[1:], start=2):
+        words = line.split()
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        keyword = words[0]
+        if keyword == "end_header":
+            break
+        if keyword == "format":
+            fmt = _ply_format(words, fmt)
+        elif keyword == "element":
+            elements.append(_ply_element(words, elements))
+        elif keyword == "property":
+            if fmt is None or not elements:
+                raise MeshFileError(f"PLY header line {number}: a property before the "
+                                    f"{'format' if fmt is None else 'first element'} line")
+            elements[-1][2].append(_ply_property(words, elements[-1]))
+        else:
+            raise MeshFileError(f"PLY header line {number}: unknown keyword "
+                                f"'{shortened(keyword, 40)}'")
+    if fmt is None:
+        raise MeshFileError("the PLY header has no format line")
+    header = _ply_checked(fmt, tuple(PlyElement(n, c, tuple(p)) for n, c, p in elements), end)
+    _ply_fits(header, size)
+    return header
+
+
+def _header_end(head: bytes) -> int:
+    """The offset just past the ``end_header`` line."""
+    at = 0
+    while True:
+        nl = head.find(b"\n", at)
+        if nl < 0:
+            raise MeshFileError(f"the PLY header does not end: no end_header line within its "
+                                f"first {MAX_PLY_HEADER_BYTES} bytes")
+        if head[at:nl].strip() == b"end_header":
+            return nl + 1
+        at = nl + 1
+
+
+def _ply_format(words, seen) -> str:
+    if seen is not None:
+        raise MeshFileError("the PLY header has two format lines")
+    if len(words) != 3 or words[1] not in _PLY_FORMATS:
+        found = shortened(" ".join(words[1:]), 60)
+        raise MeshFileError(f"unknown PLY format '{found}' (ascii, binary_little_endian or "
+                            f"binary_big_endian, version 1.0)")
+    if words[2] != "1.0":
+        raise MeshFileError(f"PLY version {shortened(words[2], 20)}; Mitsuba reads version "
+                            f"1.0")
+    return words[1]
+
+
+def _ply_element(words, elements):
+    if len(words) != 3 or not words[2].isdigit():
+        raise MeshFileError(f"a PLY element line is 'element NAME COUNT', found "
+                            f"'{shortened(' '.join(words), 60)}'")
+    name = words[1]
+    if any(e[0] == name for e in elements):
+        raise MeshFileError(f"the PLY header declares the element '{shortened(name, 40)}' "
+                            f"twice")
+    return name, int(words[2]), []
+
+
+def _ply_type(word) -> str:
+    if word not in PLY_TYPES:
+        raise MeshFileError(f"unknown PLY property type '{shortened(word, 40)}'")
+    return word
+
+
+def _ply_property(words, element) -> PlyProperty:
+    if len(words) == 5 and words[1] == "list":
+        prop = PlyProperty(words[4], _ply_type(words[3]), _ply_type(words[2]))
+        if PLY_TYPES[prop.count_type][0] == "f":
+            raise MeshFileError(f"the PLY list '{shortened(prop.name, 40)}' has a "
+                                f"floating-point length")
+    elif len(words) == 3 and words[1] != "list":
+        prop = PlyProperty(words[2], _ply_type(words[1]))
+    else:
+        raise MeshFileError(f"a PLY property line is 'property TYPE NAME' or 'property list "
+                            f"TYPE TYPE NAME', found '{shortened(' '.join(words), 60)}'")
+    if any(p.name == prop.name for p in element[2]):
+        raise MeshFileError(f"the PLY element '{shortened(element[0], 40)}' declares the "
+                            f"property '{shortened(prop.name, 40)}' twice")
+    return prop
+
+
+def _ply_checked(fmt, elements, end) -> PlyHeader:
+    names = [e.name for e in elements]
+    if "vertex" not in names:
+        raise MeshFileError("the PLY file has no vertex element")
+    if "face" not in names or elements[names.index("face")].count == 0:
+        raise MeshFileError("the PLY file has no faces")
+    vertex, face = elements[names.index("vertex")], elements[names.index("face")]
+    if vertex.count > MAX_MESH_VERTICES:
+        raise MeshFileError(f"the PLY header declares {vertex.count} vertices; a mesh file "
+                            f"holds at most {MAX_MESH_VERTICES}")
+    if face.count > MAX_MESH_TRIANGLES:
+        raise MeshFileError(f"the PLY header declares {face.count} faces; a scene's meshes "
+                            f"hold at most {MAX_MESH_TRIANGLES} triangles")
+    uv = next((pair for pair in _PLY_UV_NAMES
+               if vertex.property(pair[0]) and vertex.property(pair[1])), None)
+    for name in ("x", "y", "z") + (uv or ()):
+        prop = vertex.property(name)
+        if prop is None:
+            raise MeshFileError("the PLY vertex element has no x, y and z properties")
+        if prop.count_type is not None or PLY_TYPES[prop.type][0] != "f":
+            kind = "a list" if prop.count_type else prop.type
+            raise MeshFileError(f"the PLY vertex property {name} is {kind}; coordinates are "
+                                f"float or double (Mitsuba reads an integer as a fraction of "
+                                f"its type's range)")
+    face_list = next((n for n in _PLY_FACE_LISTS if face.property(n)), None)
+    prop = face.property(face_list) if face_list else None
+    if prop is None or prop.count_type is None:
+        raise MeshFileError("the PLY face element has no list property vertex_indices "
+                            "(or vertex_index)")
+    if PLY_TYPES[prop.type][0] == "f":
+        raise MeshFileError(f"the PLY face list {face_list} holds floating-point numbers; "
+                            f"vertex indices are integers")
+    return PlyHeader(fmt, elements, end, uv, face_list)
+
+
+def _ply_fits(header: PlyHeader, size: int) -> None:
+    """The body can hold what the header declares: every record takes at least its scalars'
+    bytes and its lists' lengths (binary), or two bytes a number (ascii: a digit and a
+    separator); a face's list at least 3 indices."""
+    ascii_ = header.format == "ascii"
+    least = 0
+    for element in header.elements:
+        record = 0
+        for prop in element.properties:
+            fewest = 3 if element.name == "face" and prop.name == header.face_list else 0
+            if ascii_:
+                record += 2 * (1 + fewest) if prop.count_type else 2
+            else:
+                record += PLY_TYPES[prop.count_type][1] + fewest * PLY_TYPES[prop.type][1] \
+                    if prop.count_type else PLY_TYPES[prop.type][1]
+        least += element.count * record
+    if least > size - header.size + (1 if ascii_ else 0):   # ascii: no last separator
+        counts = ", ".join(f"{e.count} {e.name}" for e in header.elements[:4])
+        raise MeshFileError(f"the PLY header declares more than the file holds ({counts} "
+                            f"records need at least {least} bytes, the file has "
+                            f"{size - header.size} after its header)")
+
+
+# ---------------------------------------------------------------------------
+# OBJ
+
+def obj_statements(f):
+    """The OBJ file open as ``f`` (binary), statement by statement, checked (module
+    docstring): yields ``("v", (x, y, z))``, ``("vt", (u, v))`` as written, and ``("f",
+    ((v, t), …))`` with 0-based indices resolved (negative ones against the elements
+    defined so far), t = −1 where a corner names no ``vt``. Normals are checked and counted,
+    not yielded. MeshFileError ``line N: …`` on the first malformed line or the first
+    past a limit; ``the file has no faces`` at the end when it has none."""
+    counts = {b"v": 0, b"vt": 0, b"vn": 0}
+    triangles = 0
+    number = 0
+    for number, line in enumerate(f, start=1):
+        if len(line.rstrip(b"\n")) > MAX_OBJ_LINE_BYTES:
+            raise MeshFileError(f"line {number} is longer than {MAX_OBJ_LINE_BYTES} bytes, the "
+                                f"most Mitsuba's OBJ reader takes")
+        words = line.split(b"#", 1)[0].split()
+        if not words:
+            continue
+        keyword = words[0]
+        if keyword in counts:
+            numbers = _obj_numbers(words, number)
+            counts[keyword] += 1
+            if keyword == b"vn":
+                if len(numbers) < 3 or not any(numbers[:3]):
+                    raise MeshFileError(f"line {number}: a normal (vn) needs three numbers, "
+                                        f"not all 0")
+                continue
+            need = 3 if keyword == b"v" else 2
+            if len(numbers) < need:
+                what = "a vertex (v)" if keyword == b"v" else "a texture coordinate (vt)"
+                raise MeshFileError(f"line {number}: {what} needs {need} numbers")
+            if counts[keyword] > MAX_MESH_VERTICES:
+                raise MeshFileError(f"line {number}: more than {MAX_MESH_VERTICES} "
+                                    f"{keyword.decode()} lines, the most a mesh file holds")
+            yield keyword.decode(), numbers[:need]
+        elif keyword == b"f":
+            corners = tuple(_obj_corner(w, number, counts) for w in words[1:])
+            if len(corners) < 3:
+                raise MeshFileError(f"line {number}: a face needs 3 or more vertices")
+            triangles += len(corners) - 2
+            if triangles > MAX_MESH_TRIANGLES:
+                raise MeshFileError(f"line {number}: the faces pass {MAX_MESH_TRIANGLES} "
+                                    f"triangles, the most a scene's meshes hold")
+            yield "f", corners
+    if triangles == 0:
+        raise MeshFileError("the OBJ file has no faces (f lines)")
+
+
+def _obj_numbers(words, number) -> tuple[float, ...]:
+    try:
+        if any(b"_" in w for w in words[1:]):     # Python's float takes 1_0; C's strtof not
+            raise ValueError
+        values = tuple(float(w) for w in words[1:])
+    except ValueError:
+        raise MeshFileError(f"line {number}: '{shortened(words[0].decode('latin-1'), 8)}' "
+                            f"is followed by something that is not a number") from None
+    if not all(math.isfinite(v) for v in values):
+        raise MeshFileError(f"line {number}: a number that is not finite")
+    return values
+
+
+_OBJ_ELEMENTS = ((b"v", "vertex"), (b"vt", "texture coordinate"), (b"vn", "normal"))
+
+
+def _obj_corner(word: bytes, number: int, counts) -> tuple[int, int]:
+    """(v, t) of one face corner ``v``, ``v/t``, ``v//n`` or ``v/t/n``, 0-based (t = −1:
+    none); n is checked only."""
+    parts = word.split(b"/")
+    if len(parts) > 3 or not parts[0]:
+        raise MeshFileError(f"line {number}: a face corner is v, v/vt, v//vn or v/vt/vn, "
+                            f"found '{shortened(word.decode('latin-1'), 40)}'")
+    out = []
+    for part, (keyword, what) in zip(parts, _OBJ_ELEMENTS):
+        if not part:                     # v//n: no texture coordinate
+            out.append(-1)
+            continue
+        digits = part[1:] if part[:1] == b"-" else part
+        if not digits.isdigit():
+            raise MeshFileError(f"line {number}: a face index is a whole number, found "
+                                f"'{shortened(part.decode('latin-1'), 40)}'")
+        index, defined = int(part), counts[keyword]
+        resolved = index - 1 if index > 0 else defined + index
+        if index == 0 or not 0 <= resolved < defined:
+            raise MeshFileError(f"line {number}: {what} {index} does not exist (OBJ counts "
+                                f"from 1, or back from -1; {defined} defined so far)")
+        out.append(resolved)
+    return out[0], (out[1] if len(out) > 1 else -1)

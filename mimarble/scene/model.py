@@ -71,6 +71,7 @@ __all__ = [
     "walk",
     "replace_marbles",
     "depth",
+    "size",
     "MarbleFunction",
     "Axis",
     "FIG5_RAMP",
@@ -514,13 +515,22 @@ def depth(channel) -> int:
     return channel.__dict__.get("_depth", 1)
 
 
+def size(channel) -> int:
+    """How many channels a channel holds, itself included, each use of a shared one
+    counted again (at most ``LIMITS["max_channel_size"]``)."""
+    return channel.__dict__.get("_size", 1)
+
+
 def _nest(expression) -> None:
-    """Note an expression's depth (its operands', plus one), within the limit."""
+    """Note an expression's depth (its operands', plus one) and size (theirs, plus one),
+    within the limits."""
     level = 1 + max(depth(c) for c in expression.operands)
-    problem = rules.depth_problem(level)
+    count = 1 + sum(size(c) for c in expression.operands)
+    problem = rules.depth_problem(level) or rules.size_problem(count)
     if problem:
         raise ValueError(problem)
-    object.__setattr__(expression, "_depth", level)   # not a field: no part of ==, hash
+    object.__setattr__(expression, "_depth", level)   # not fields: no part of ==, hash
+    object.__setattr__(expression, "_size", count)
 
 
 @dataclass(frozen=True)

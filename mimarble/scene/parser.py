@@ -14,12 +14,14 @@ Two stages:
    an unknown word is reported as such, at its first character.
 
    The tokens are fed to Lark one by one (its interactive parser), so that the
-   statements past a limit (lights, spheres: limits.py) are refused at the first one
-   too many, before the rest of the file is parsed.
+   statements past a limit (lights, shapes, textures: limits.py) are refused at the
+   first one too many, before the rest of the file is parsed.
 
 2. :class:`_Builder` walks the tree into the frozen model, checking what the
    grammar does not: duplicates, arity, ranges, names, references, how deep channels
-   nest. The values are checked by the rules the model's constructors apply
+   nest; named textures are resolved into the channels they name (a texture defined
+   anywhere in the file, none using itself), and mesh files' headers read
+   (mesh_header.py). The values are checked by the rules the model's constructors apply
    (rules.py), here with the token's position; a marble's by the parameter table's
    own rules (``Parameter.check``).
 
@@ -43,7 +45,7 @@ from lark.exceptions import UnexpectedInput
 from .. import marble_parameters
 from ..marble_parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter,
                                  ParameterError, hex_colour, hex_colour_problem)
-from . import rules, transforms
+from . import mesh_header, rules, transforms
 from .comments import blanked
 from .errors import SceneError
 from .grammar import grammar_text
@@ -52,7 +54,10 @@ from .keywords import CHANNEL_KEYWORDS
 from .limits import LIMITS, MAX_IMAGE_SAMPLES, MAX_SCENE_BYTES
 from .reading import NotRegularFile, open_regular
 from .model import (
+    MESH_FORMATS,
+    SPACES,
     Add,
+    Box,
     ImageChannel,
     Mix,
     Multiply,
@@ -64,12 +69,17 @@ from .model import (
     Light,
     MarbleChannel,
     Material,
+    Mesh,
+    Plane,
     Pos,
     RectangleArea,
     Scene,
     Sphere,
     SphereArea,
+    EXPRESSIONS,
 )
+from .model import depth as depth_of
+from .model import size as size_of
 from .syntax_errors import decoded, povray_hint, syntax_error
 
 __all__ = ["parse", "load", "LIMITS"]
@@ -85,8 +95,17 @@ _TOO_LARGE = (f"the scene is larger than 4 MiB ({MAX_SCENE_BYTES} bytes), the mo
 _LINEAR_COLOUR = "< r g b >"
 
 # Rule names whose keyword differs from the rule name.
-_RULE_KEYWORD = {"sphere_material": "material", "ambient_light": "ambient", "image_map": "image",
-                 "transform_scale": "scale"}
+_RULE_KEYWORD = {"shape_material": "material", "ambient_light": "ambient", "image_map": "image",
+                 "transform_scale": "scale", "texture_definition": "texture",
+                 "texture_use": "texture"}
+
+#: The statements whose count is limited (rules.count_problem), counted as the tokens are
+#: fed. ``texture`` is counted where it starts a statement (a definition, outside every
+#: block), not where it names a channel.
+_COUNTED = ("light", "sphere", "plane", "box", "mesh", "texture")
+
+#: What each kind of shape lacks for an image map: texture coordinates (u, v).
+_NO_UV = {"plane": "a plane", "box": "a box", "mesh": "this mesh's file"}
 
 
 def _parser_cache_file(grammar: str) -> str | bool:
@@ -137,10 +156,10 @@ def _keyword_terminals() -> dict[str, str]:
 @functools.lru_cache(maxsize=None)
 def _watched_terminals() -> tuple[dict[str, str], frozenset, frozenset]:
     """The terminals :func:`_tree` watches: the statements whose count is limited
-    (terminal -> ``light`` or ``sphere``, keywords that are statements and nothing
-    else), the expressions' keywords (``add``, ``multiply``, ``mix``) and every channel's."""
+    (terminal -> its keyword, :data:`_COUNTED`), the expressions' keywords (``add``,
+    ``multiply``, ``mix``) and every channel's (``texture`` among them)."""
     words = _keyword_terminals()
-    counted = {name: word for name, word in words.items() if word in ("light", "sphere")}
+    counted = {name: word for name, word in words.items() if word in _COUNTED}
     expressions = frozenset(name for name, word in words.items()
                             if word in ("add", "multiply", "mix"))
     channels = frozenset(name for name, word in words.items() if word in CHANNEL_KEYWORDS)
@@ -150,9 +169,11 @@ def _watched_terminals() -> tuple[dict[str, str], frozenset, frozenset]:
 def _tree(text: str, filename: str) -> Tree:
     """Lark's tree of ``text`` (its comments blanked out: comments.py; the messages quote
     the text as written), fed token by token, refusing at its keyword, before the
-    rest is parsed, a statement past its count limit and a channel nested past the depth
-    limit (its depth: the expression blocks open around it, plus one; the builder checks
-    the same on its way down), and a colour ``#…`` that is not ``#rrggbb``. Lark's errors
+    rest is parsed, a statement past its count limit (a counted keyword outside every
+    block: ``texture`` there defines one, inside a block it names a channel), a channel
+    nested past the depth limit (its depth: the expression blocks open around it, plus
+    one; the builder checks the same on its way down, and a named texture's own depth
+    where it is used), and a colour ``#…`` that is not ``#rrggbb``. Lark's errors
     become SceneErrors."""
     counted, expressions, channels = _watched_terminals()
     counts = dict.fromkeys(counted.values(), 0)
@@ -164,7 +185,7 @@ def _tree(text: str, filename: str) -> Tree:
         for last in parser.iter_parse():
             kind = last.type
             problem = None
-            if kind in counted:
+            if kind in counted and not braces:
                 counts[counted[kind]] += 1
                 problem = rules.count_problem(counted[kind], counts[counted[kind]])
             elif kind in channels and open_expressions:
@@ -242,26 +263,49 @@ def load(path: str | os.PathLike) -> Scene:
         raise SceneError(f"cannot read scene file: {e.strerror or e}", filename=filename) from None
     key = (os.path.abspath(filename), filename, hashlib.blake2b(data, digest_size=16).digest())
     kept = _PARSED.get(key)
-    # The parser also checks the image maps' headers: a map changed since is read again.
-    if kept is None or kept[1] != _image_files(kept[0]):
+    # The parser also checks the image maps' and mesh files' headers: a file changed
+    # since is read again.
+    if kept is None or kept[1] != _file_facts(kept[0]):
         scene = parse(data, filename=filename, source=filename)   # errors are not kept
         if len(_PARSED) >= _PARSED_KEPT:
             _PARSED.pop(next(iter(_PARSED)))
-        kept = _PARSED[key] = (scene, _image_files(scene))
+        kept = _PARSED[key] = (scene, _file_facts(scene))
     return kept[0]
 
 
-def _image_files(scene) -> tuple:
-    """(size, modification and change times, inode) of each image map's file (None:
-    unreadable)."""
+def _file_facts(scene) -> tuple:
+    """(size, modification and change times, inode) of each image map's and mesh's file
+    (None: unreadable)."""
     facts = []
-    for channel in scene.image_maps():
+    for located in _image_maps(scene.materials.values()) + scene.meshes:
         try:
-            found = os.stat(channel.location)
+            found = os.stat(located.location)
             facts.append((found.st_size, found.st_mtime_ns, found.st_ctime_ns, found.st_ino))
         except OSError:
             facts.append(None)
     return tuple(facts)
+
+
+def _parts(channels) -> list:
+    """Every distinct channel inside ``channels``, each once (by identity), outermost
+    first. A texture used many times is one object: walking it at each use (model.walk)
+    takes time exponential in how deep textures of textures nest (``texture "t2" { add {
+    texture "t1" texture "t1" } }`` …), this walk time linear in the distinct channels."""
+    seen, found, stack = set(), [], list(channels)[::-1]
+    while stack:
+        channel = stack.pop()
+        if id(channel) not in seen:
+            seen.add(id(channel))
+            found.append(channel)
+            if isinstance(channel, EXPRESSIONS):
+                stack.extend(channel.operands[::-1])
+    return found
+
+
+def _image_maps(materials) -> tuple:
+    """Every distinct image map of ``materials`` (Scene.image_maps, walked by :func:`_parts`)."""
+    return tuple(dict.fromkeys(c for m in materials for c in _parts(m.channels().values())
+                               if isinstance(c, ImageChannel)))
 
 
 def parse(text: str | bytes, filename: str = "<string>", *, source: str | None = None) -> Scene:
@@ -298,12 +342,29 @@ def _pos_of(tree: Tree) -> Pos:
     return Pos(tree.meta.line, tree.meta.column)
 
 
+def _name(tok: Token) -> str:
+    """A STRING token's text without its quotes."""
+    return str(tok)[1:-1]
+
+
+def _vector_text(v) -> str:
+    """A vector as the language writes it: ``< 1 0 -0.5 >``."""
+    return "< " + " ".join(repr(x).removesuffix(".0") for x in v) + " >"
+
+
 class _Builder:
     def __init__(self, text: str, filename: str, source: str | None = None) -> None:
         self.text = text
         self.filename = filename
-        # Image maps are found relative to the scene file (else the working directory).
+        # Image maps and meshes are found relative to the scene file (else the working
+        # directory).
         self.folder = os.path.dirname(os.path.abspath(source)) if source else os.getcwd()
+        #: The texture definitions, by name (the first of a name), and the channels of
+        #: those resolved so far.
+        self.definitions: dict[str, Tree] = {}
+        self.resolved: dict[str, object] = {}
+        #: The triangles of the meshes read so far (the limit is on their sum).
+        self.triangles = 0
 
     # -- errors ---------------------------------------------------------------
     def error(self, where, message: str) -> SceneError:
@@ -343,6 +404,10 @@ class _Builder:
     def point(self, tree: Tree, what: str) -> tuple[float, float, float]:
         return self.vector(tree, what)[0]
 
+    def point_of(self, f: dict[str, Tree], key: str, default) -> tuple[float, float, float]:
+        """The vector of the block's ``key`` (``f``: its fields), or ``default`` without it."""
+        return self.point(f[key].children[0], key) if key in f else default
+
     def color(self, tree: Tree | Token, what: str) -> tuple[float, float, float]:
         """A colour: ``< r g b >`` (linear, each ≥ 0) or a ``#rrggbb`` token (sRGB-encoded,
         decoded as the marble plugin decodes its ramp's: ``hex_colour``; its form was
@@ -376,7 +441,13 @@ class _Builder:
         lights: list[Light] = []
         materials: dict[str, Material] = {}
         material_at: dict[str, Token] = {}
-        spheres: list[tuple[Sphere, Token]] = []
+        # Every shape, in file order: (shape, its material's name token, whether it has
+        # texture coordinates for image maps).
+        shapes: list[tuple[object, Token, bool]] = []
+        # Textures may be used before they are defined, as materials may.
+        for st in tree.children:
+            if st.data == "texture_definition":
+                self.definitions.setdefault(_name(st.children[0]), st)
         for st in tree.children:
             kind = st.data
             if kind in ("image", "camera", "ambient_light"):
@@ -409,23 +480,108 @@ class _Builder:
                     )
                 materials[mat.name] = mat
                 material_at[mat.name] = name_tok
-            elif kind == "sphere":
-                spheres.append(self.sphere(st))
+            elif kind == "texture_definition":
+                self.texture_definition(st)
+            elif kind in ("sphere", "plane", "box", "mesh"):
+                shapes.append(getattr(self, kind)(st))
             else:  # pragma: no cover - grammar and builder out of step
                 raise self.error(st, f"internal error: unhandled statement {kind}")
-        for sphere, name_tok in spheres:
-            problem = rules.unknown_material(sphere.material, materials)
+        imaged = {m.name for m in materials.values() if _image_maps([m])}
+        for shape, name_tok, has_uv in shapes:
+            problem = rules.unknown_material(shape.material, materials)
             if problem:
                 raise self.error(name_tok, problem)
+            if not has_uv and shape.material in imaged:
+                kind = type(shape).__name__.lower()
+                raise self.error(name_tok, rules.image_map_uv_problem(shape.material,
+                                                                      _NO_UV[kind]))
+        of = {kind: tuple(s for s, _, _ in shapes if isinstance(s, kind))
+              for kind in (Sphere, Plane, Box, Mesh)}
         return Scene(
             image=image,
             camera=camera,
             ambient=ambient,
             lights=tuple(lights),
             materials=FrozenMap(materials),
-            spheres=tuple(s for s, _ in spheres),
+            spheres=of[Sphere],
+            planes=of[Plane],
+            boxes=of[Box],
+            meshes=of[Mesh],
+            textures=FrozenMap((name, self.resolved[name]) for name in self.definitions),
             source=source,
         )
+
+    # -- named textures ---------------------------------------------------------
+    def texture_definition(self, st: Tree) -> None:
+        """``texture "NAME" { CHANNEL }``: its name (the material name rule; unique: a
+        second definition is refused at its name), and its channel, resolved."""
+        name_tok = st.children[0]
+        name = _name(name_tok)
+        problem = rules.texture_name_problem(name)
+        if problem:
+            raise self.error(name_tok, problem)
+        first = self.definitions[name]
+        if first is not st:
+            at = first.children[0]
+            raise self.error(name_tok, f"duplicate texture {rules.shortened(name_tok)} (first "
+                                       f"defined at {at.line}:{at.column})")
+        self.texture(name_tok)
+
+    def texture(self, name_tok: Token):
+        """The channel the texture named by ``name_tok`` (a use, or a definition's name)
+        stands for. Its definition and those it uses, directly or through others, are
+        built once, those it uses first (:meth:`texture_order`), so that building one
+        finds every texture it uses already built: no recursion through the uses."""
+        name = _name(name_tok)
+        if name not in self.resolved:
+            for each in self.texture_order(name_tok):
+                self.resolved[each] = self.channel(self.definitions[each], f'texture "{each}"')
+        return self.resolved[name]
+
+    def texture_order(self, name_tok: Token) -> list[str]:
+        """The textures not yet built that the texture ``name_tok`` names needs, itself
+        last, each after those it uses: a depth-first walk of the uses (an explicit
+        stack: a chain of thousands of textures is within the limits). An unknown name
+        is refused at the use's name; a use that closes a cycle at its name, naming the
+        cycle."""
+        self.known(name_tok)
+        first = _name(name_tok)
+        order: list[str] = []
+        walked = set(self.resolved)
+        stack = [(first, self.uses(first))]           # the path walked, each its uses left
+        on_path = {first}
+        while stack:
+            current, uses = stack[-1]
+            for use in uses:
+                used = _name(self.known(use))
+                if used in on_path:
+                    path = [n for n, _ in stack]
+                    cycle = " -> ".join(rules.shortened(n, 30)
+                                        for n in path[path.index(used):] + [used])
+                    raise self.error(use, f'texture "{rules.shortened(used)}" uses itself: '
+                                          f"{cycle}")
+                if used not in walked:
+                    stack.append((used, self.uses(used)))
+                    on_path.add(used)
+                    break
+            else:
+                stack.pop()
+                on_path.discard(current)
+                walked.add(current)
+                order.append(current)
+        return order
+
+    def uses(self, name: str):
+        """The name tokens of the textures the definition of ``name`` uses, in text order."""
+        return (t.children[0] for t in self.definitions[name].iter_subtrees_topdown()
+                if t.data == "texture_use")
+
+    def known(self, name_tok: Token) -> Token:
+        """``name_tok``, when it names a defined texture; else an error at it."""
+        if _name(name_tok) not in self.definitions:
+            raise self.error(name_tok, f"unknown texture {rules.shortened(name_tok)} (defined: "
+                                       f"{rules.listed_names(self.definitions)})")
+        return name_tok
 
     def image(self, st: Tree) -> Image:
         f = self.fields(st, "'image' block")
@@ -508,7 +664,7 @@ class _Builder:
 
     def material(self, st: Tree) -> Material:
         name_tok = st.children[0]
-        name = str(name_tok)[1:-1]
+        name = _name(name_tok)
         problem = rules.material_name_problem(name)
         if problem:
             raise self.error(name_tok, problem)
@@ -541,7 +697,20 @@ class _Builder:
             return self.marble(ch)
         if ch.data == "image_map":
             return self.image_map(ch)
+        if ch.data == "texture_use":
+            return self.texture_use(ch, depth)
         return self.expression(ch, what, depth)
+
+    def texture_use(self, ch: Tree, depth: int):
+        """``texture "NAME"`` at ``depth``: the texture's channel, whose own levels count
+        from there (refused at the use when the deepest goes past the limit)."""
+        (name_tok,) = ch.children
+        channel = self.texture(name_tok)
+        problem = rules.depth_problem(depth - 1 + depth_of(channel))
+        if problem:
+            raise self.error(ch, f"{problem}: texture {rules.shortened(name_tok)} nests "
+                                 f"{depth_of(channel)} levels and is used at level {depth}")
+        return channel
 
     def expression(self, st: Tree, what: str, depth: int = 1):
         """add / multiply / mix: their operands, counted and placed."""
@@ -571,11 +740,20 @@ class _Builder:
             weight = self.number(value) if isinstance(value, Token) \
                 else self.channel_of(value, f"{inside} weight", depth + 1)
             a, b = (self.channel_of(c, inside, depth + 1) for c in operands)
+            self.sized(st, (a, b) + (() if isinstance(weight, float) else (weight,)))
             return Mix(a, b, weight, pos=_pos_of(st))
         if len(operands) < 2:
             raise self.error(st, f"'{kind}' needs two or more channels, found {len(operands)}")
         channels = tuple(self.channel_of(c, inside, depth + 1) for c in operands)
+        self.sized(st, channels)
         return (Add if kind == "add" else Multiply)(channels, pos=_pos_of(st))
+
+    def sized(self, st: Tree, operands) -> None:
+        """An expression of ``operands`` within the channel size limit (named textures
+        counted at each use), else an error at its keyword."""
+        problem = rules.size_problem(1 + sum(size_of(c) for c in operands))
+        if problem:
+            raise self.error(st, problem)
 
     def image_map(self, st: Tree) -> ImageChannel:
         """``image { file "…" }``: the file must be there and be an 8-bit PNG or JPEG."""
@@ -583,15 +761,22 @@ class _Builder:
         if "file" not in f:
             raise self.error(st, 'image channel has no \'file\'; write image { file "maps/x.png" }')
         tok = f["file"].children[0]
-        name = str(tok)[1:-1]
-        if not name:
-            raise self.error(tok, "an image file name must not be empty")
+        name = _name(tok)
+        self.file_name(tok, "an image")
         path = os.path.normpath(os.path.join(self.folder, name))
         problem = image_file_sentence(name, path)
         if problem:
             raise self.error(tok, problem)
         # Its position is the file string's, where every error about the file points.
         return ImageChannel(name, path, pos=Pos(tok.line, tok.column))
+
+    def file_name(self, tok: Token, kind: str) -> None:
+        """A file's name (``kind``: an image, a mesh) is not empty and holds no NUL
+        character (which no system's paths take)."""
+        if not _name(tok):
+            raise self.error(tok, f"{kind} file name must not be empty")
+        if "\0" in tok:
+            raise self.error(tok, f"{kind} file name must not hold a NUL character")
 
     def marble(self, st: Tree) -> MarbleChannel:
         """``marble { … }``: each key given, read as its kind is written and checked by
@@ -613,7 +798,13 @@ class _Builder:
                     raise self.error(where, str(e)) from None
                 raise self.error(where, f"{e}, found {rules.shortened(where)}") from None
         steps = self.transform(f["transform"]) if "transform" in f else ()
-        return MarbleChannel(**values, transform=steps, pos=_pos_of(st))
+        space = "world"
+        if "space" in f:
+            (tok,) = f["space"].children
+            space = str(tok)
+            self.refuse(tok, None if space in SPACES else
+                        f"a marble's space is {' or '.join(SPACES)}")
+        return MarbleChannel(**values, transform=steps, space=space, pos=_pos_of(st))
 
     def transform(self, st: Tree) -> tuple:
         """``transform { translate <> rotate <> scale s|<> … }``: its steps in the order
@@ -683,16 +874,76 @@ class _Builder:
             raise self.error(written[min(k, len(written) - 1)], sentence)
         return positions
 
-    def sphere(self, st: Tree) -> tuple[Sphere, Token]:
-        f = self.fields(st, "'sphere' block")
+    # -- shapes: each (shape, its material's name token, whether it has (u, v)) ---
+    def shape_fields(self, st: Tree) -> tuple[dict[str, Tree], Token]:
+        """A shape block's keys and its material's name token (required)."""
+        kind = str(st.data)
+        f = self.fields(st, f"'{kind}' block")
         if "material" not in f:
-            raise self.error(st, "sphere has no 'material'; add material \"name\"")
-        name_tok = f["material"].children[0]
+            raise self.error(st, f"{kind} has no 'material'; add material \"name\"")
+        return f, f["material"].children[0]
+
+    def sphere(self, st: Tree) -> tuple[Sphere, Token, bool]:
+        f, name_tok = self.shape_fields(st)
         d = Sphere("")
-        center = self.point(f["center"].children[0], "center") if "center" in f else d.center
+        center = self.point_of(f, "center", d.center)
         radius = d.radius
         if "radius" in f:
             tok = f["radius"].children[0]
             radius = self.number(tok)
             self.refuse(tok, rules.radius_problem(radius))
-        return Sphere(str(name_tok)[1:-1], center, radius, pos=_pos_of(st)), name_tok
+        return Sphere(_name(name_tok), center, radius, pos=_pos_of(st)), name_tok, True
+
+    def plane(self, st: Tree) -> tuple[Plane, Token, bool]:
+        """``plane { point <> normal <> material "m" }``: a zero normal is refused at its
+        vector."""
+        f, name_tok = self.shape_fields(st)
+        d = Plane("")
+        point, normal = self.point_of(f, "point", d.point), self.point_of(f, "normal", d.normal)
+        problem = rules.normal_problem(normal)
+        if problem:
+            raise self.error(f["normal"].children[0], f"{problem}, found {_vector_text(normal)}")
+        return Plane(_name(name_tok), point, normal, pos=_pos_of(st)), name_tok, False
+
+    def box(self, st: Tree) -> tuple[Box, Token, bool]:
+        """``box { min <> max <> transform { … } material "m" }``: corners out of order
+        are refused at ``max`` (else ``min``); the transform is a marble's."""
+        f, name_tok = self.shape_fields(st)
+        d = Box("")
+        lo, hi = self.point_of(f, "min", d.min), self.point_of(f, "max", d.max)
+        problem = rules.box_problem(lo, hi)
+        if problem:
+            raise self.error(f.get("max") or f["min"], f"{problem}, found min "
+                                                       f"{_vector_text(lo)} max {_vector_text(hi)}")
+        steps = self.transform(f["transform"]) if "transform" in f else ()
+        return Box(_name(name_tok), lo, hi, steps, pos=_pos_of(st)), name_tok, False
+
+    def mesh(self, st: Tree) -> tuple[Mesh, Token, bool]:
+        """``mesh { file "…" transform { … } material "m" }``: the file, relative to the
+        scene file, is checked at its string — a PLY or OBJ name, then what
+        mesh_header.mesh_facts says of it (a regular file there, within the size limit,
+        in the image maps' words; its header; each sentence after ``mesh file 'NAME':``)
+        — and its triangles counted toward the scene's limit; the mesh is refused at its
+        file string when they pass it."""
+        f, name_tok = self.shape_fields(st)
+        if "file" not in f:
+            raise self.error(st, "mesh has no 'file'; write mesh { file \"models/vase.ply\" "
+                                 "material \"m\" }")
+        tok = f["file"].children[0]
+        name = _name(tok)
+        self.file_name(tok, "a mesh")
+        if not name.lower().endswith(MESH_FORMATS):
+            raise self.error(tok, rules.mesh_format_problem(name))
+        path = os.path.normpath(os.path.join(self.folder, name))
+        try:
+            facts = mesh_header.mesh_facts(path)
+        except mesh_header.MeshFileError as e:
+            raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': {e}") from None
+        self.triangles += facts.triangles
+        problem = rules.mesh_triangles_problem(self.triangles)
+        if problem:
+            raise self.error(tok, problem)
+        steps = self.transform(f["transform"]) if "transform" in f else ()
+        # Its position is the file string's, where every error about the file points.
+        mesh = Mesh(_name(name_tok), name, path, steps, pos=Pos(tok.line, tok.column))
+        return mesh, name_tok, facts.has_uv

@@ -14,16 +14,17 @@ from __future__ import annotations
 import math
 import numbers
 
-from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH,
+from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
                      MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES,
-                     MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES)
+                     MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES, MAX_MESH_TRIANGLES)
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
            "light_samples_problem", "area_axes_problem", "area_radius_problem", "cross",
-           "depth_problem", "listed_names", "shortened", "normal_problem",
-           "box_problem", "mesh_format_problem"]
+           "depth_problem", "size_problem", "listed_names", "shortened", "normal_problem",
+           "box_problem", "mesh_format_problem", "texture_name_problem",
+           "mesh_triangles_problem", "image_map_uv_problem"]
 
 
 def shortened(text: str, most: int = 60) -> str:
@@ -221,6 +222,15 @@ def count_problem(kind: str, count: int) -> str | None:
     return f"too many {plural}: a scene holds at most {most} ({why}; docs/scene-language.md, Limits)"
 
 
+def size_problem(count: int) -> str | None:
+    """A channel holds at most :data:`MAX_CHANNEL_SIZE` channels, each use of a named
+    texture counted again."""
+    if count <= MAX_CHANNEL_SIZE:
+        return None
+    return (f"channel too large: at most {MAX_CHANNEL_SIZE} channels, counting a named "
+            f"texture again at each use (this one holds {count})")
+
+
 def normal_problem(normal) -> str | None:
     """A plane's normal: not zero (nor so small that its length underflows)."""
     length = math.sqrt(sum(c * c for c in normal))
@@ -238,6 +248,30 @@ def mesh_format_problem(name: str) -> str:
     """The sentence for a mesh file that is neither PLY nor OBJ (by its name's ending)."""
     return (f"a mesh file is PLY (.ply) or Wavefront OBJ (.obj), found "
             f"{shortened(repr(name))}")
+
+
+def texture_name_problem(name: str) -> str | None:
+    """A texture's name: the material name rule, in a texture's words."""
+    problem = material_name_problem(name)
+    return problem and problem.replace("material", "texture")
+
+
+def mesh_triangles_problem(total: int) -> str | None:
+    """The triangles of all the meshes of a scene, together, within
+    :data:`MAX_MESH_TRIANGLES`."""
+    if total <= MAX_MESH_TRIANGLES:
+        return None
+    return (f"too many triangles: the meshes of a scene hold at most {MAX_MESH_TRIANGLES} "
+            f"together, these {total} (the reference tracer keeps them all in double "
+            f"precision; docs/scene-language.md, Limits)")
+
+
+def image_map_uv_problem(material: str, shape: str) -> str:
+    """The sentence for a material holding an image map on a shape without texture
+    coordinates (``shape``: ``a plane``, ``a box``, ``this mesh's file``)."""
+    return (f'material "{shortened(material)}" holds an image map, which is read at texture '
+            f"coordinates (u, v), and {shape} has none: image maps go on spheres and on "
+            f"meshes whose file has texture coordinates")
 
 
 def depth_problem(depth: int) -> str | None:

@@ -16,7 +16,8 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
-from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, STATEMENTS
+from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
+from .model import SPACES
 from .rules import shortened
 
 __all__ = ["syntax_error", "decoded", "POVRAY_HINTS", "povray_hint"]
@@ -52,8 +53,9 @@ POVRAY_HINTS: dict[str, str] = {
     ";": "nothing ends with ';' here: leave it out",
     "pigment": "POV-Ray's pigment is a channel of a material here: material \"m\" { diffuse "
                "{ color < 1 0 0 > } }, or marble { … } or image { file \"…\" } in its place",
-    "texture": "POV-Ray's texture is a material here, named in the sphere: material \"m\" "
-               "{ diffuse { … } specular { … } } and sphere { … material \"m\" }",
+    "texture": "POV-Ray's texture is a material here, named in the shape: material \"m\" "
+               "{ diffuse { … } specular { … } } and sphere { … material \"m\" }; texture "
+               "\"NAME\" { … } names a channel",
     "finish": "POV-Ray's finish is the material's components here: material \"m\" { "
               "ambient { … } diffuse { … } specular { color < 0.3 0.3 0.3 > } shininess 32 }",
     "rgb": "write the colour alone: color < 1 0 0 > is linear RGB (POV-Ray's rgb), "
@@ -85,9 +87,10 @@ POVRAY_HINTS: dict[str, str] = {
                         "translate < 1 0 0 > rotate < 0 0 30 > scale 2 } }",
     "marble rotate": "a marble's pattern turns inside transform: marble { transform { "
                      "rotate < 0 0 30 > } }",
-    "translate": "only a marble's pattern moves, in marble { transform { translate < x y z > } }; "
-                 "a sphere is placed by its center",
-    "rotate": "only a marble's pattern turns, in marble { transform { rotate < x y z > } }",
+    "translate": "a marble's pattern, a box and a mesh move in transform { translate < x y z > }; "
+                 "a sphere is placed by its center, a plane by its point",
+    "rotate": "a marble's pattern, a box and a mesh turn in transform { rotate < x y z > }; a "
+              "plane by its normal",
     "global_settings": "the ambient light is the statement ambient < r g b >; there are no "
                        "other global settings",
     "background": "the background is in the image statement: image { background < r g b > }",
@@ -158,10 +161,12 @@ def _describe(tok: Token, keywords: dict[str, str]) -> str:
     return f"'{shortened(tok)}'"
 
 
-def _expected_list(names, keywords: dict[str, str]) -> str:
-    """The terminals ``names`` in words, keywords first in the language's order:
+def _expected_list(names, keywords: dict[str, str], block: str | None = None) -> str:
+    """The terminals ``names`` in words, keywords first in the language's order — the
+    order of ``block``'s keys (a key of BLOCK_KEYS) when given, else the statements' —
     ``'eye', 'lookat', 'up', 'fov' or '}'``."""
-    order = [k for ks in ((STATEMENTS,) + tuple(BLOCK_KEYS.values())) for k in ks]
+    first = (BLOCK_KEYS.get(block, ()),) if block else ()
+    order = [k for ks in (first + (STATEMENTS,) + tuple(BLOCK_KEYS.values())) for k in ks]
     words = sorted((keywords[n] for n in names if n in keywords), key=lambda w: (order.index(w) if w in order else 99, w))
     words = list(dict.fromkeys(words))
     rest = [_PUNCT.get(n, n) for n in sorted(names) if n not in keywords]
@@ -188,7 +193,8 @@ def _open_blocks(state) -> list[tuple[Token, str]]:
         elif item.type == "LBRACE" and i > 0:
             opener = stack[i - 1]
             if isinstance(opener, Token) and opener.type == "STRING" and i > 1:
-                blocks.append((stack[i - 2], f"material {shortened(opener)}"))
+                # material "m" { or texture "t" {
+                blocks.append((stack[i - 2], f"{stack[i - 2]} {shortened(opener)}"))
             elif isinstance(opener, Token):
                 blocks.append((opener, f"'{opener}' block"))
     return blocks
@@ -216,11 +222,17 @@ def _unclosed_note(tok: Token, blocks) -> str:
     return f" (is the '}}' of {the}{name}, opened at {opener.line}:{opener.column}, missing?)"
 
 
+#: What a quoted string after a keyword is, by the keyword (tried first: the innermost
+#: open block and the keyword); a material's name otherwise (material, and every shape's
+#: material key).
+_STRING_AFTER = {"texture": 'texture name like "veins"', "file": 'file name like "maps/veins.png"',
+                 "mesh file": 'file name like "models/vase.ply"'}
+
 #: What is said at a bracket that is no part of the language, where a vector goes.
 _BRACKETS = {"(": ")", "[": "]"}
 #: Keywords followed by a colour, and by a point or direction.
 _COLOUR_KEYS = ("color", "background", "ambient")
-_VECTOR_KEYS = ("eye", "lookat", "up", "position", "center")
+_VECTOR_KEYS = ("eye", "lookat", "up", "position", "center", "point", "normal", "min", "max")
 
 
 def _bracket_sentence(text: str, pos: int, ch: str) -> str:
@@ -339,7 +351,8 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
     keys = {n for n in expected if n in keywords}
     if keys and expected <= keys | {"RBRACE", "$END"}:
         # A keyword is expected: top-level statement or a key inside a block.
-        allowed = _expected_list(keys, keywords)
+        allowed = _expected_list(keys, keywords,
+                                 _block_rule(blocks, len(blocks) - 1) if blocks else None)
         if not blocks:
             if tok.type == "WORD":
                 return at(line, col, f"unknown statement '{shortened(tok)}'; a statement is one of "
@@ -348,7 +361,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
         opener, name = blocks[-1]
         if opener in CHANNEL_BLOCKS:
             what = ("a channel: 'color < r g b >', 'marble { ... }', 'image { file \"...\" }', "
-                    "'add { ... }', 'multiply { ... }' or 'mix { ... }'")
+                    "'add { ... }', 'multiply { ... }', 'mix { ... }' or 'texture \"NAME\"'")
             if opener == "mix":
                 what += ", or 'weight W' last"
             if tok.type == "RBRACE":
@@ -370,8 +383,12 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
     if expected == {"RBRACE"} and blocks:
         opener, name = blocks[-1]
         msg = f"expected '}}' to close {name} opened at {opener.line}:{opener.column}, found {found}"
-        if opener in ("ambient", "diffuse", "specular") and not _unclosed_note(tok, blocks):
+        # A second channel (else a keyword that a block around takes: a '}' missing).
+        second = str(tok) in CHANNEL_KEYWORDS or not _unclosed_note(tok, blocks)
+        if opener in ("ambient", "diffuse", "specular") and second:
             msg += " (a component takes exactly one channel)"
+        elif opener == "texture" and second:
+            msg += " (a texture holds exactly one channel)"
         return at(line, col, msg)
 
     after = f" after '{prev}'" if isinstance(prev, Token) and prev.type in keywords else ""
@@ -388,7 +405,11 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
         return at(line, col, f"expected a colour '< r g b >' or '#rrggbb', or '}}', in ramp, "
                              f"found {found}")
     if expected == {"STRING"}:
-        return at(line, col, f'expected a quoted material name like "marble"{after}, found {found}')
+        keys = [f"{blocks[-1][0]} {prev}"] if after and blocks else []
+        keys += [str(prev)] if after else []
+        what = next((_STRING_AFTER[k] for k in keys if k in _STRING_AFTER),
+                    'material name like "marble"')
+        return at(line, col, f"expected a quoted {what}{after}, found {found}")
     if expected == {"LBRACE"}:
         return at(line, col, f"expected '{{'{after}, found {found}")
     if expected == {"WORD"}:
@@ -396,5 +417,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
         if parameter is not None and parameter.kind in (CHOICE, BOOLEAN):
             # The same sentence as for a wrong word (the builder's), at the token.
             return at(line, col, f"{parameter.name} {parameter.requirement}, found {found}")
+        if after and str(prev) == "space":                  # the builder's sentence
+            return at(line, col, f"a marble's space is {' or '.join(SPACES)}, found {found}")
         return at(line, col, f"expected a name{after}, found {found}")
     return at(line, col, f"unexpected {found}; expected {_expected_list(expected, keywords)}")
