@@ -1,6 +1,7 @@
 """POV-Ray 3.7, the peer a user would otherwise pick, timed on a comparable marble sphere.
 
-:func:`scene_text` writes a paper scene in POV-Ray's language: the same spheres,
+:func:`scene_text` writes a paper scene in POV-Ray's language (spheres only: planes,
+boxes, meshes and object-space marbles are refused in one sentence): the same spheres,
 camera, point lights and ambient light, each material's first marble channel as
 POV-Ray's ``marble`` pattern and the ramp as its ``color_map``, the paper's Phong
 channels as ``finish { ambient diffuse specular roughness }``. It is comparable,
@@ -64,7 +65,19 @@ def _pigment(channel) -> str:
 
 
 def scene_text(scene: model.Scene, size: int) -> str:
-    """The scene in POV-Ray 3.7's language (see the module docstring)."""
+    """The scene in POV-Ray 3.7's language (see the module docstring); a scene with planes,
+    boxes or meshes, or a ``space object`` marble, is refused (ValueError, one sentence):
+    the comparison is of a marble sphere in world space."""
+    others = [kind for kind, shapes in (("planes", scene.planes), ("boxes", scene.boxes),
+                                        ("meshes", scene.meshes)) if shapes]
+    if others:
+        raise ValueError(f"POV-Ray export takes spheres only, not {' or '.join(others)} "
+                         f"(the benchmark's comparison is a marble sphere, fig11a)")
+    if any(isinstance(c, model.MarbleChannel) and c.space == "object"
+           for material in scene.materials.values() for channel in material.channels().values()
+           for c in model.walk(channel)):
+        raise ValueError("POV-Ray export takes world-space marbles only, not 'space object' "
+                         "(the benchmark's comparison is a marble sphere, fig11a)")
     cam = scene.camera
     lines = ["#version 3.7;", "global_settings { assumed_gamma 1.0 "
              f"ambient_light rgb {_vec(scene.ambient, False)} }}",

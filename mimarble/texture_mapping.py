@@ -10,7 +10,8 @@ from the ray differentials the integrator stored in ``si.duv_dx``, ``si.duv_dy``
 then they are literal zeros, :func:`without_footprint`, and every filter is ``none``).
 Mitsuba's perspective camera starts the differential rays at the near clip plane, not
 at the eye; :func:`differentials_from_the_eye` moves them back, for the integrator to
-apply before ``compute_uv_partials`` (docs/design-decisions.md, "Filtering the pixel").
+apply before ``compute_uv_partials`` (docs/design-decisions.md, "Filtering the pixel"),
+or before :func:`compute_uv_partials_scaled`, the same solve safe on a plane's disk.
 """
 
 from __future__ import annotations
@@ -197,6 +198,28 @@ def differentials_from_the_eye(ray, scene):
     fixed.d_x, fixed.d_y = ray.d_x, ray.d_y
     fixed.has_differentials = True
     return fixed
+
+
+def compute_uv_partials_scaled(si, ray) -> None:
+    """``si.compute_uv_partials(ray)`` with ``si.dp_du`` and ``si.dp_dv`` divided by their
+    lengths L_u, L_v while it solves, and ``si.duv_dx``, ``si.duv_dy`` multiplied back by
+    1/L_u, 1/L_v: the same footprint dp/dx = dp_du·du/dx + dp_dv·dv/dx, to rounding.
+
+    Mitsuba's least squares forms det = |dp_du|²·|dp_dv|² − (dp_du·dp_dv)², of the
+    size L_u²·L_v², in float32. On a plane's disk (``disk``: dp_du is a radius R long,
+    dp_dv 2π·|p − c|, both of the scene's extent times 10⁴) it overflows from an extent of
+    about 10⁷, and the partials come out 0 (Mitsuba's guard against an infinite 1/det:
+    no footprint, every filter ``none``) or, larger still, NaN. With unit tangents det
+    is at most 1 and stays a normal float32 unless they are nearly parallel; a tangent of
+    length 0 (the disk's centre) keeps Mitsuba's answer, 0."""
+    du, dv = dr.norm(si.dp_du), dr.norm(si.dp_dv)
+    du, dv = dr.select(du > 0, du, 1.0), dr.select(dv > 0, dv, 1.0)
+    dp_du, dp_dv = mi.Vector3f(si.dp_du), mi.Vector3f(si.dp_dv)   # copies, not views of si
+    si.dp_du, si.dp_dv = dp_du / du, dp_dv / dv
+    si.compute_uv_partials(ray)
+    si.duv_dx = mi.Vector2f(si.duv_dx.x / du, si.duv_dx.y / dv)
+    si.duv_dy = mi.Vector2f(si.duv_dy.x / du, si.duv_dy.y / dv)
+    si.dp_du, si.dp_dv = dp_du, dp_dv
 
 
 def check_invertible(matrix: np.ndarray) -> None:

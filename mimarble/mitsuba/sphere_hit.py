@@ -55,6 +55,12 @@ EPS_REL = 1e-4
 SHADOW_END_REL = 2.0 ** -20
 
 
+def spheres_only(scene) -> bool:
+    """Whether every shape of the Mitsuba scene is a ``sphere`` (a static fact: what
+    code is traced may depend on it)."""
+    return all(shape.shape_type() == mi.ShapeType.Sphere for shape in scene.shapes())
+
+
 def _sphere_geometry(shape):
     """(centre, radius) of a Mitsuba sphere as float64 Python numbers, else None."""
     if shape.shape_type() != mi.ShapeType.Sphere:

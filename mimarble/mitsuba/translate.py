@@ -25,19 +25,33 @@ lights, the ``whitted`` integrator, a non-jittered ``stratified`` sampler and a
 * the background colour is not rendered in path mode (misses are black).
 
 Every distinct marble channel becomes one top-level texture referenced by id,
-so a marble used for both ambient and diffuse is one texture, evaluated once.
+so a marble used for both ambient and diffuse is one texture, evaluated once; a
+channel that is one of the file's named textures (``Scene.textures``) has its name
+as the id (made a valid one: ``white_veins``), the others ``texture_0``, ….
 Constant channels are plain ``rgb`` textures: no noise code is generated for them.
+
+Shapes (:func:`shape_dict`): a sphere → ``sphere``, a plane → ``disk`` (the disk it is
+rendered as, ``geometry.plane_disk``), a box → ``cube``, a mesh → ``ply``/``obj``, each
+under the id ``Scene.shapes()`` gives it. A material whose channels hold a ``space
+object`` marble becomes one BSDF per shape, its object-space textures placed by the
+shape's object space (``to_world`` = S·M, v = scale·(S·M)⁻¹·p); in path mode planes,
+boxes and meshes get their BSDF wrapped in ``twosided`` (docs/rendering-model.md,
+"Planes, boxes and meshes"; docs/mitsuba-scene.md).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import os
+import re
 import warnings
+
+import numpy as np
 
 from .. import error_budget
 from ..marble_parameters import checked
-from ..scene import model
+from ..scene import geometry, model
 from ..scene.image_header import check_image_maps
 from ..scene.rules import cross, spp_problem
 
@@ -116,14 +130,45 @@ def _marble_gains(scene: model.Scene) -> dict:
 _NEAREST_HIT_REL = 1e-6
 
 
+def _box_distance(point, corners) -> float:
+    """The distance from ``point`` to the axis-aligned box around ``corners`` (0 inside)."""
+    gaps = [max(min(c[i] for c in corners) - point[i], 0.0, point[i] - max(c[i] for c in corners))
+            for i in range(3)]
+    return math.sqrt(math.fsum(g * g for g in gaps))
+
+
+def _shape_reach(scene: model.Scene) -> tuple[list[float], list[float]]:
+    """(nearest, farthest): for every shape but the meshes, how near to the eye its surface
+    may come and how far from it it reaches (``clip_planes``)."""
+    eye = scene.camera.eye
+    distances = [math.dist(s.center, eye) for s in scene.spheres]
+    nearest = [abs(d - s.radius) for d, s in zip(distances, scene.spheres)]
+    farthest = [d + s.radius for d, s in zip(distances, scene.spheres)]
+    for plane in scene.planes:
+        centre, radius = geometry.plane_disk(scene, plane)
+        height = math.dist(centre, eye)       # the disk's centre is the eye's foot on it
+        nearest.append(height)
+        farthest.append(math.hypot(height, radius))     # its rim
+    for box in scene.boxes:
+        corners = geometry.box_corners(box)
+        nearest.append(_box_distance(eye, corners))
+        farthest.append(max(math.dist(c, eye) for c in corners))
+    return nearest, farthest
+
+
 def clip_planes(scene: model.Scene) -> tuple[float, float]:
-    """(near_clip, far_clip) that keep every sphere in view.
+    """(near_clip, far_clip) that keep every shape in view.
 
     Mitsuba's defaults (0.01, 10 000) drop geometry the scene language allows.
     A sphere of centre c and radius r lies between ||c − e| − r| and |c − e| + r
-    of the eye e (inside it too), so: far just past the farthest of these, near
-    half the nearest — never below the reference tracer's smallest hit distance,
-    so an eye on a surface still sees what the reference sees.
+    of the eye e (inside it too); a plane, rendered as a disk of radius R around the
+    eye's foot on it (``geometry.plane_disk``), between the eye's height h above it and
+    √(h² + R²), its rim; a box between the eye's distance to its world bounding box (0
+    inside) and its farthest corner. So: far just past the farthest of these, near half
+    the nearest — never below the reference tracer's smallest hit distance, so an eye on
+    a surface still sees what the reference sees. A mesh's vertices are in its file, not
+    known before Mitsuba loads it: a scene with meshes gets that floor as its near and
+    the cap below as its far (which costs nothing, see next).
 
     How ``perspective`` uses them (src/sensors/perspective.cpp): a ray starts on
     the near plane, o = e + d·near/d_z, with maxt = (far − near)/d_z, and its
@@ -133,17 +178,18 @@ def clip_planes(scene: model.Scene) -> tuple[float, float]:
     no precision however large it is. What float32 does not tolerate is an
     infinite far (> 3.4e38): the inverse's term (near − far)/(far·near) becomes
     inf/inf = NaN and so does every ray. So far is capped at 2¹²⁵ (4.3e37); only
-    a sphere beyond Embree's ±1.8e18 (warned about below) gets near it. Near is
+    a shape beyond Embree's ±1.8e18 (warned about below) gets near it. Near is
     at least 1e-6, far at least 2·near, both normal float32 numbers.
     """
     eye = scene.camera.eye
-    if not scene.spheres:
+    if not scene.shapes():
         return 0.01, 1e4   # Mitsuba's defaults: nothing to see either way
-    distances = [math.dist(s.center, eye) for s in scene.spheres]
-    farthest = max(d + s.radius for d, s in zip(distances, scene.spheres))
-    nearest = min(abs(d - s.radius) for d, s in zip(distances, scene.spheres))
-    near = max(0.5 * nearest, _NEAREST_HIT_REL * (1.0 + max(map(abs, eye))))
-    far = min(max(farthest * (1.0 + 1e-3), 2.0 * near), _FAR_CLIP_MAX)
+    floor = _NEAREST_HIT_REL * (1.0 + max(map(abs, eye)))
+    if scene.meshes:
+        return floor, _FAR_CLIP_MAX
+    nearest, farthest = _shape_reach(scene)
+    near = max(0.5 * min(nearest), floor)
+    far = min(max(max(farthest) * (1.0 + 1e-3), 2.0 * near), _FAR_CLIP_MAX)
     return near, far
 
 
@@ -152,7 +198,7 @@ _FAR_CLIP_MAX = 2.0 ** 125
 
 
 class Float32RangeWarning(UserWarning):
-    """A sphere, eye or light beyond what Mitsuba's float32 (and Embree's) arithmetic reaches."""
+    """A shape, eye or light beyond what Mitsuba's float32 (and Embree's) arithmetic reaches."""
 
 
 # float32's unit roundoff·2: the scale of Mitsuba's intersection error on a sphere is
@@ -173,47 +219,98 @@ _EMBREE_LIMIT = 1.8e18
 _LIGHT_DISTANCE_LIMIT = 2.0 ** 62
 
 
+# A triangle's normal is normalize(e₁ × e₂) in float32: its squared length overflows once
+# |e₁ × e₂| (twice the triangle's area) reaches √FLT_MAX ≈ 1.8e19, and the normal is 0.
+_FACE_LIMIT = 2.0 ** 64
+
+
 def _where(scene: model.Scene, node) -> str:
     return f"{scene.source or '<scene>'}:{node.pos or '?'}"
 
 
-def float32_range_problems(scene: model.Scene) -> list[str]:
-    """One message per sphere, eye or light that Mitsuba cannot place precisely enough.
-
-    A sphere whose float32 intersection error reaches the eye's distance to it, or
-    which reaches past Embree's coordinate range; an eye past that range; a light so
-    far from the spheres that its float32 1/d² underflows.
-    """
-    problems = []
-    eye = scene.camera.eye
-    if max(map(abs, eye)) > _EMBREE_LIMIT:
-        problems.append(
-            f"{_where(scene, scene.camera)}: the eye at {max(map(abs, eye)):g} from the origin is "
-            f"beyond ±{_EMBREE_LIMIT:g}, the coordinates Mitsuba's CPU ray tracer (Embree) "
-            f"accepts: its rays meet nothing there (docs/rendering-model.md)")
-    for sphere in scene.spheres:
-        extent = max(map(abs, sphere.center)) + sphere.radius
-        error = _FLOAT32_ERROR_SCALE * extent
-        distance = abs(math.dist(sphere.center, eye) - sphere.radius)
-        if extent > _EMBREE_LIMIT:
-            problems.append(
-                f"{_where(scene, sphere)}: sphere of radius {sphere.radius:g} reaches "
-                f"{extent:g} from the origin, beyond ±{_EMBREE_LIMIT:g}, the coordinates "
-                f"Mitsuba's CPU ray tracer (Embree) accepts: Mitsuba drops it "
+def _reach_problem(where: str, what: str, extent: float, placed: float, error: float,
+                   distance: float | None) -> str | None:
+    """The message of one shape (``what``) reaching ``extent`` from the origin (its
+    coordinates' largest magnitude ``placed``), whose float32 placement error ``error``
+    may reach the eye's distance to it (None: not checked): Embree's range first."""
+    if extent > _EMBREE_LIMIT:
+        return (f"{where}: {what} reaches {extent:g} from the origin, beyond ±{_EMBREE_LIMIT:g}, "
+                f"the coordinates Mitsuba's CPU ray tracer (Embree) accepts: Mitsuba drops it "
                 f"(docs/rendering-model.md)")
-        elif error > distance:
-            problems.append(
-                f"{_where(scene, sphere)}: sphere of radius {sphere.radius:g} at "
-                f"{max(map(abs, sphere.center)):g} from the origin is beyond float32's reach from "
+    if distance is not None and error > distance:
+        return (f"{where}: {what} at {placed:g} from the origin is beyond float32's reach from "
                 f"this eye: Mitsuba's intersection error (~{error:.3g}) exceeds the eye's distance "
                 f"to its surface ({distance:.3g}), so the Mitsuba image may be wrong there (the "
                 f"reference tracer is float64; docs/rendering-model.md)")
+    return None
+
+
+def _largest(v) -> float:
+    return max(map(abs, v))
+
+
+def float32_range_problems(scene: model.Scene) -> list[str]:
+    """One message per shape, eye or light that Mitsuba cannot place precisely enough.
+
+    A shape which reaches past Embree's coordinate range — a sphere, a plane's disk
+    (``geometry.plane_disk``), a box's corners, a mesh's origin (its vertices are in its
+    file) — or whose float32 intersection error reaches the eye's distance to it: a
+    sphere's, 2⁻²³·(max|c_k| + r); a plane's, 2⁻²³·max|c_k| of its disk's centre c
+    (where Mitsuba's float32 numbers put the plane), against the eye's height above it;
+    a box's, 2⁻²³ times its largest corner coordinate, against the eye's distance to its
+    bounding box (not checked from inside it), or whose faces are so large that Mitsuba's
+    float32 normal of them overflows; an eye past that range; a light so far from the
+    shapes that its float32 1/d² underflows.
+    """
+    problems = []
+    eye = scene.camera.eye
+    if _largest(eye) > _EMBREE_LIMIT:
+        problems.append(
+            f"{_where(scene, scene.camera)}: the eye at {_largest(eye):g} from the origin is "
+            f"beyond ±{_EMBREE_LIMIT:g}, the coordinates Mitsuba's CPU ray tracer (Embree) "
+            f"accepts: its rays meet nothing there (docs/rendering-model.md)")
+    lit = []        # (point, radius) around which each shape lies, for the lights' check
+    for sphere in scene.spheres:
+        extent = _largest(sphere.center) + sphere.radius
+        problems.append(_reach_problem(
+            _where(scene, sphere), f"sphere of radius {sphere.radius:g}", extent,
+            _largest(sphere.center), _FLOAT32_ERROR_SCALE * extent,
+            abs(math.dist(sphere.center, eye) - sphere.radius)))
+        lit.append((sphere.center, sphere.radius))
+    for plane in scene.planes:
+        centre, radius = geometry.plane_disk(scene, plane)
+        problems.append(_reach_problem(
+            _where(scene, plane), f"plane (rendered as a disk of radius {radius:.3g})",
+            _largest(centre) + radius, _largest(centre), _FLOAT32_ERROR_SCALE * _largest(centre),
+            math.dist(centre, eye)))
+        lit.append((centre, 0.0))
+    for box in scene.boxes:
+        corners = geometry.box_corners(box)
+        extent = max(map(_largest, corners))
+        distance = _box_distance(eye, corners)
+        problems.append(_reach_problem(_where(scene, box), "box", extent, extent,
+                                       _FLOAT32_ERROR_SCALE * extent,
+                                       distance if distance > 0 else None))
+        edges = [[a - b for a, b in zip(corners[k], corners[0])] for k in (4, 2, 1)]  # x, y, z
+        face = max(math.sqrt(sum(c * c for c in cross(edges[k], edges[k - 1])))
+                   for k in range(3))
+        if face >= _FACE_LIMIT:
+            problems.append(
+                f"{_where(scene, box)}: box with a face of {face:.3g} square units: Mitsuba's "
+                f"float32 face normal (the cross product of two edges, normalised through its "
+                f"square) overflows from {_FACE_LIMIT:.3g}, so that face is shaded black "
+                f"(docs/rendering-model.md)")
+        lit += [(corner, 0.0) for corner in corners]
+    for mesh in scene.meshes:
+        origin, _ = geometry.sphere_bounds(mesh)
+        problems.append(_reach_problem(_where(scene, mesh), "mesh (its transform's origin)",
+                                       _largest(origin), _largest(origin), 0.0, None))
+    problems = [problem for problem in problems if problem]
     for light in scene.lights:
-        farthest = max((math.dist(light.position, s.center) + s.radius for s in scene.spheres),
-                       default=0.0)
+        farthest = max((math.dist(light.position, c) + r for c, r in lit), default=0.0)
         if farthest >= _LIGHT_DISTANCE_LIMIT:
             problems.append(
-                f"{_where(scene, light)}: light {farthest:.3g} from the farthest sphere point it "
+                f"{_where(scene, light)}: light {farthest:.3g} from the farthest shape point it "
                 f"may light: from {2 * _LIGHT_DISTANCE_LIMIT:.3g} on, Mitsuba's float32 point "
                 f"light (intensity/distance²) underflows to zero, so it may light nothing there "
                 f"(docs/rendering-model.md)")
@@ -277,25 +374,46 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
 
     out: dict = {"type": "scene"}
-    textures: dict = {}            # channel value -> texture id (dedupes equal channels)
+    # (channel value, its shape's object-to-world for a channel with an object-space
+    # marble, else None) -> texture id: equal channels are one texture.
+    textures: dict = {}
+    bases: dict = {}        # channel value -> its texture's id (placed: id_SHAPE)
+    # Top-level ids, so that a named texture's id (Scene.textures) takes none of them.
+    taken = {"type", "integrator", "sensor", "ambient"} | {i for i, _ in scene.shapes()} \
+        | {f"light_{k}" for k in range(len(scene.lights))}
+    names: dict = {}
+    for name, channel in scene.textures.items():
+        names.setdefault(channel, name)
 
     gains = _marble_gains(scene)
 
-    def ref(channel):
+    def ref(channel, placement=None):
         """A reference to the channel's texture, declared once for equal channels (an
-        expression's operands first, so that they are declared before it)."""
+        expression's operands first, so that they are declared before it). ``placement``:
+        ``(shape id, object-to-world)`` of the shape it shades, which places the channel's
+        object-space marbles (a channel without one ignores it, and stays shared)."""
         if isinstance(channel, model.ColorChannel):   # a constant: inline, nothing to share
             return texture_dict(channel)
+        placement = placement if placement is not None and in_object_space(channel) else None
+        named = names.get(channel)
         marble = isinstance(channel, model.MarbleChannel)
         budget = marble_tolerance(scene, channel, tolerance, gains.get(channel, 1.0)) \
             if marble else None
         if marble and filter is not None:
             channel = dataclasses.replace(channel, filter=filter)
-        if channel not in textures:
-            texture = texture_dict(channel, budget, operand=ref)
-            textures[channel] = f"texture_{len(textures)}"
-            out[textures[channel]] = texture
-        return {"type": "ref", "id": textures[channel]}
+        key = (channel, None if placement is None else placement[1])
+        if key not in textures:
+            texture = texture_dict(channel, budget, operand=lambda inner: ref(inner, placement))
+            if placement is not None and marble:
+                # v = scale·(S·M)⁻¹·p: the shape's object space S, then the pattern's own M.
+                texture["to_world"] = _transform(_product(placement[1], channel.to_world))
+            if channel not in bases:      # one name for the channel, placed or not
+                bases[channel] = _unused(_texture_id(named) if named is not None
+                                         else f"texture_{len(bases)}", taken)
+            textures[key] = bases[channel] if placement is None else \
+                _unused(f"{bases[channel]}_{placement[0]}", taken)
+            out[textures[key]] = texture
+        return {"type": "ref", "id": textures[key]}
 
     if mode == "whitted":
         out["integrator"] = {"type": "whitted", "ambient": list(scene.ambient),
@@ -306,19 +424,39 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         sampler = {"type": "independent", "sample_count": spp}
     out["sensor"] = _sensor(scene, sampler)
 
-    materials = {}
-    for name, material in scene.materials.items():
-        if mode == "whitted":
-            bsdf = {"type": "channel_material", "shininess": material.shininess}
-            for channel_name, channel in material.channels().items():
-                bsdf[channel_name] = ref(channel)
-        else:
-            bsdf = _path_bsdf(material, ref)
-        materials[name] = bsdf
+    bsdfs: dict = {}       # (material name, placement's matrix or None) -> its BSDF
 
-    for k, sphere in enumerate(scene.spheres):
-        out[f"sphere_{k}"] = {"type": "sphere", "center": list(sphere.center),
-                              "radius": sphere.radius, "bsdf": materials[sphere.material]}
+    def bsdf_of(name, placement=None):
+        """The material's BSDF: one for every shape that uses it, or with object-space
+        marbles one per placement (``placement`` as for ``ref``)."""
+        material = scene.materials[name]
+        if not any(in_object_space(c) for c in material.channels().values()):
+            placement = None
+        key = (name, None if placement is None else placement[1])
+        if key not in bsdfs:
+            if mode == "whitted":
+                bsdf = {"type": "channel_material", "shininess": material.shininess}
+                for channel_name, channel in material.channels().items():
+                    bsdf[channel_name] = ref(channel, placement)
+            else:
+                bsdf = _path_bsdf(material, lambda channel: ref(channel, placement))
+            bsdfs[key] = bsdf
+        return bsdfs[key]
+
+    for name, material in scene.materials.items():   # their textures, in the file's order
+        if not any(in_object_space(c) for c in material.channels().values()):
+            bsdf_of(name)                 # (object-space ones: per shape, below)
+
+    two_sided: dict = {}       # id of a path BSDF -> the one twosided wrapper of it
+    for shape_id, shape in scene.shapes():
+        placement = (shape_id, geometry.object_to_world(shape))
+        bsdf = bsdf_of(shape.material, placement)
+        if mode == "path" and not isinstance(shape, model.Sphere):
+            # Mitsuba's BSDFs reflect on the side their normal points to; planes, boxes
+            # and meshes are shaded on either side (whitted flips n to the viewer).
+            bsdf = two_sided.setdefault(id(bsdf), {"type": "twosided", "bsdf": bsdf})
+        out[shape_id] = shape_dict(scene, shape)
+        out[shape_id]["bsdf"] = bsdf
 
     for k, light in enumerate(scene.lights):
         if light.area is not None:
@@ -334,6 +472,91 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     if mode == "path" and any(scene.ambient):
         out["ambient"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(scene.ambient)}}
     return out
+
+
+def in_object_space(channel) -> bool:
+    """Whether the channel holds a ``space object`` marble (evaluated in the object space
+    of the shape it shades, so that each shape needs its own texture of it)."""
+    return any(isinstance(c, model.MarbleChannel) and c.space == "object"
+               for c in model.walk(channel))
+
+
+def _product(a, b):
+    """The 4×4 product a·b, in double precision (rows)."""
+    return (np.asarray(a, dtype=np.float64) @ np.asarray(b, dtype=np.float64)).tolist()
+
+
+def _transform(matrix):
+    """A double-precision 4×4 (rows) as Mitsuba's transform: rounded once, to float32."""
+    import mitsuba as mi   # imported here: the module itself stays importable without it
+    return mi.ScalarTransform4f([list(map(float, row)) for row in matrix])
+
+
+def _texture_id(name: str) -> str:
+    """A named texture's id: its name with every run of characters other than ASCII
+    letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), at
+    most 64 characters, starting with a letter (else after ``texture_``)."""
+    text = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_")[:64]
+    return text if text[:1].isalpha() else f"texture_{text}".rstrip("_")
+
+
+def _unused(candidate: str, taken: set) -> str:
+    """``candidate``, or ``candidate_2``, ``_3``, … the first not in ``taken`` (then taken)."""
+    found, k = candidate, 2
+    while found in taken:
+        found, k = f"{candidate}_{k}", k + 1
+    taken.add(found)
+    return found
+
+
+def disk_to_world(scene: model.Scene, plane: model.Plane):
+    """The ``to_world`` (4×4 rows, double precision) of the Mitsuba ``disk`` that renders
+    ``plane``: the unit disk (z = 0, normal +z) scaled by the radius R in its plane and
+    centred as ``geometry.plane_disk`` says, its x, y, z axes the plane frame's
+    bitangent, tangent and normal (``geometry.plane_frame``; right-handed, as bitangent ×
+    tangent = normal). The normal is not scaled: Mitsuba inverts the matrix in float32,
+    through its determinant, R² here (R³ would overflow from R ≈ 7·10¹², a scene's extent
+    of 7·10⁸), and local z is then the height above the plane in world units."""
+    centre, radius = geometry.plane_disk(scene, plane)
+    tangent, normal, bitangent = geometry.plane_frame(plane.normal)
+    return [[radius * bitangent[i], radius * tangent[i], normal[i], centre[i]]
+            for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
+
+
+def cube_to_world(box: model.Box):
+    """The ``to_world`` (4×4 rows, double precision) of the Mitsuba ``cube`` ([−1, 1]³)
+    that renders ``box``: its transform · translate(centre) · scale(half extents)."""
+    centre = [(lo + hi) / 2 for lo, hi in zip(box.min, box.max)]
+    half = [(hi - lo) / 2 for lo, hi in zip(box.min, box.max)]
+    placed = [[half[i] if j == i else 0.0 for j in range(3)] + [centre[i]] for i in range(3)]
+    return _product(geometry.object_to_world(box), placed + [[0.0, 0.0, 0.0, 1.0]])
+
+
+def shape_dict(scene: model.Scene, shape) -> dict:
+    """The Mitsuba shape (without its BSDF) of one shape of ``scene``.
+
+    * sphere → ``sphere`` (centre, radius);
+    * plane → ``disk``, an analytic shape (its hit is the ray's, at the t where it meets
+      the plane, accurate at any radius; ``rectangle`` is a two-triangle mesh whose hit is
+      re-interpolated from its corners, ulp(R) off at radius R), placed by
+      :func:`disk_to_world`;
+    * box → ``cube``, a mesh of 12 triangles, placed by :func:`cube_to_world`;
+    * mesh → ``ply`` or ``obj`` (by the file's ending), placed by its transform, with
+      ``face_normals`` (flat shading, as the reference) and ``flip_tex_coords`` said out
+      loud at Mitsuba's defaults (OBJ: v → 1 − v, so that an OBJ's v = 0 is an image's
+      bottom row; PLY: as written). Mitsuba's loaders change nothing else: positions are
+      the file's through ``to_world`` (rounded to float32), faces as given.
+    """
+    if isinstance(shape, model.Sphere):
+        return {"type": "sphere", "center": list(shape.center), "radius": shape.radius}
+    if isinstance(shape, model.Plane):
+        return {"type": "disk", "to_world": _transform(disk_to_world(scene, shape))}
+    if isinstance(shape, model.Box):
+        return {"type": "cube", "to_world": _transform(cube_to_world(shape))}
+    kind = os.path.splitext(shape.file)[1].lower()[1:]
+    return {"type": kind, "filename": shape.location,
+            "to_world": _transform(geometry.object_to_world(shape)), "face_normals": True,
+            "flip_tex_coords": kind == "obj"}
 
 
 def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:

@@ -11,14 +11,18 @@ falloff, and V the paper's ``shadowHit``: n·l > 0 and Mitsuba's any-hit
 ``ray_test`` finds nothing between p + ε·n (ε = 1e-4·(1 + max|p_k|), as the
 reference tracer) and the light. On large spheres, where Mitsuba's float32 hit
 is off by more than ε, p and n are first refined in float64 and a shadow ray's
-false hit on its own sphere is checked again (``sphere_hit.py``). Every light
+false hit on its own sphere is checked again (``sphere_hit.py``). Every other shape
+(a plane's ``disk``, a box's ``cube``, a mesh) keeps Mitsuba's hit and is shaded flat,
+with its geometric normal ``si.n`` (docs/rendering-model.md, "Planes, boxes and
+meshes"). Every light
 contributes (no light is picked at random). A miss returns the background colour. The
 integrator draws no random numbers: with a non-jittered ``stratified`` sampler
 and a ``box`` filter the image is deterministic (docs/rendering-model.md).
 
 What the scene does not need is not computed: the specular half-vector and
-power only where some material has a specular channel, shadow rays only for
-lanes that face the light, no channel evaluation for absent channels.
+power only where some material has a specular channel, no lights at all where no
+material has a diffuse or specular one, shadow rays only for lanes that face the
+light, no channel evaluation for absent channels.
 
 .. list-table::
    :header-rows: 1
@@ -46,7 +50,8 @@ from __future__ import annotations
 
 from .. import environment
 from ..plugins import describe, largest_component, numbers, plugin
-from ..texture_mapping import differentials_from_the_eye, footprints_omitted_on_purpose
+from ..texture_mapping import (compute_uv_partials_scaled, differentials_from_the_eye,
+                               footprints_omitted_on_purpose)
 from . import sphere_hit
 from .area_light import StratifiedArea
 from .material import ChannelMaterial
@@ -236,6 +241,11 @@ class Whitted:
         any_specular = any(m.has_channel("specular") for m in materials)
         footprints = any(m.needs_differentials() for m in materials)
         lights = self._lights(scene)
+        # Lights add kd·(n·l) + ks·(n·h)^s: nothing where no material has either. (Traced
+        # anyway, a lone ambient-only material made Dr.Jit 1.5 emit invalid LLVM IR — "does
+        # not dominate all uses" — and abort the process.)
+        if not any_specular and not any(m.has_channel("diffuse") for m in materials):
+            lights = []
 
         si = scene.ray_intersect(ray, active)
         hit = mi.Bool(active) & si.is_valid()
@@ -244,7 +254,11 @@ class Whitted:
         p, n, on_sphere = sphere_hit.refine(spheres, ray, si, hit)
         si.p = p
         if footprints or doubts:   # pixel footprints for filtered marbles, from the eye
-            si.compute_uv_partials(differentials_from_the_eye(ray, scene))
+            from_the_eye = differentials_from_the_eye(ray, scene)
+            if sphere_hit.spheres_only(scene):   # as always: Mitsuba's, bit for bit
+                si.compute_uv_partials(from_the_eye)
+            else:   # a plane's disk, R = 10⁴·extent long, would overflow Mitsuba's solve
+                compute_uv_partials_scaled(si, from_the_eye)
         if doubts:
             one, none = (lambda si, on: materials[0].channels_and_doubts(si, on)), \
                 _no_channels_and_doubts
