@@ -178,11 +178,12 @@ def _load_scene(args):
                 raise UsageError(f"--{option} {value}: must be in {lo}..{hi}")
             size[option] = value
     scene = with_image_size(scene, **size)
-    if not scene.spheres:
-        warnings.warn(f"{args.scene}: the scene has no spheres: the image is the background")
+    if not scene.shapes():
+        warnings.warn(f"{args.scene}: the scene has no shapes (no spheres, planes, boxes or "
+                      f"meshes): the image is the background")
     elif not scene.lights and not any(scene.ambient):
         warnings.warn(f"{args.scene}: the scene has no lights and no ambient light: "
-                      f"the spheres are black")
+                      f"the shapes are black")
     return scene
 
 
@@ -528,6 +529,69 @@ def _sweep(args) -> int:
     return 1 if failed else 0
 
 
+def _export(args) -> int:
+    """``mimarble export``: the scene's Mitsuba dict as XML (or --python: a Python file)."""
+    from .export import PYTHON_SUFFIXES, XML_SUFFIXES
+    suffixes = PYTHON_SUFFIXES if args.python else XML_SUFFIXES
+    out = Path(args.output) if args.output else Path(Path(args.scene).stem + suffixes[0])
+    _check_suffix(_check_folder(out), suffixes, "export")
+    scene = _load_scene(args)
+    spp = _spp(args, scene)
+    _start(args)
+    from .export import ExportError, export
+    command = "mimarble " + " ".join(shlex.quote(a) for a in args.argv)
+    try:
+        export(scene, out, mode=args.mode, spp=spp, python=args.python, command=command)
+    except ExportError as e:
+        raise UsageError(f"{out}: {e}") from None
+    except OSError as e:
+        raise UsageError(f"{out}: could not write it: {e.strerror or e}") from None
+    what = "Python (mi.load_dict)" if args.python else "Mitsuba XML (mi.load_file)"
+    print(f"{out}: {what}, {args.mode} mode, {spp} spp, "
+          f"{scene.image.width}x{scene.image.height}; `import mimarble` first, for its plugins")
+    return 0
+
+
+def _bake(args) -> int:
+    """``mimarble bake``: a shape's channel into an image through its (u, v), or a volume."""
+    from . import scene as scene_language
+    from .bake import (DEFAULT_IMAGE_SIZE, DEFAULT_VOLUME_SIZE, IMAGE_SUFFIXES, VOLUME_SUFFIXES,
+                       BakeError, chosen, size_problem)
+    volume = args.volume
+    out = _check_suffix(_check_folder(args.output), VOLUME_SUFFIXES if volume
+                        else IMAGE_SUFFIXES, "volume" if volume else "baked image")
+    size = args.size if args.size is not None else \
+        DEFAULT_VOLUME_SIZE if volume else DEFAULT_IMAGE_SIZE
+    problem = size_problem(size, volume)
+    if problem:
+        raise UsageError(problem)
+    scene = scene_language.load(_scene_path(args.scene))
+    try:
+        _, channel, _ = chosen(scene, args.shape, args.channel, volume)
+    except BakeError as e:
+        raise UsageError(str(e)) from None
+    from . import bake
+    start = time.perf_counter()
+    what = f"{args.shape}'s {channel} channel"
+    try:
+        if volume:
+            lo, hi = bake.bake_volume(scene, args.shape, out, size, channel, progress=True)
+            box = " to ".join("<" + " ".join(f"{c:g}" for c in b) + ">" for b in (lo, hi))
+            print(f"{out}: {size}x{size}x{size} voxels of {what} over {box}, "
+                  f"{time.perf_counter() - start:.1f} s (Mitsuba: gridvolume, use_grid_bbox)")
+            return 0
+        image = bake.bake_image(scene, args.shape, size, channel, progress=True)
+    except BakeError as e:
+        raise UsageError(str(e)) from None
+    except OSError as e:
+        raise UsageError(f"{out}: could not write it: {e.strerror or e}") from None
+    _start(args)                       # the image writer is Mitsuba's
+    _write(out, image)
+    print(f"{out}: {size}x{size} texels of {what} through its (u, v), "
+          f"{time.perf_counter() - start:.1f} s")
+    return 0
+
+
 #: How a SCENE argument may also be given (mimarble/packaged_scenes.py's rule).
 PACKAGED_NAME = "or a packaged scene's name when no such file exists (`mimarble scenes`)"
 
@@ -730,6 +794,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--copy", metavar="DIR", help="copy every packaged scene into DIR, made if "
                                                  "missing (files there are never overwritten)")
     p.set_defaults(run=_scenes)
+
+    p = sub.add_parser("export", help="write the scene as Mitsuba 3 XML (or --python: a Python "
+                                      "file) that Mitsuba renders as mimarble does")
+    p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
+    p.add_argument("-o", "--output", help="OUT.xml, or OUT.py with --python (default: the "
+                                          "scene's name with .xml or .py, here)")
+    p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
+                   help="the rendering model translated (default whitted; see render --mode)")
+    p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
+    p.add_argument("--python", action="store_true",
+                   help="write a Python file that builds the scene dict (mi.load_dict), "
+                        "instead of XML (mi.load_file); both need `import mimarble` first, "
+                        "which registers its plugins")
+    add_size(p)
+    add_variant(p)
+    p.set_defaults(run=_export)
+
+    from .bake import (CHANNELS, DEFAULT_IMAGE_SIZE, DEFAULT_VOLUME_SIZE, MAX_IMAGE_SIZE,
+                       MAX_VOLUME_SIZE)
+    p = sub.add_parser("bake", help="evaluate a shape's channel into an image through its "
+                                    "(u, v), or --volume: into a volume grid over its bounds")
+    p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
+    p.add_argument("--shape", required=True, metavar="ID",
+                   help="the shape: sphere_0, mesh_0, box_0, … (each kind numbered in file "
+                        "order)")
+    p.add_argument("-o", "--output", required=True,
+                   help="OUT.png (8-bit sRGB) or OUT.exr (linear float); OUT.vol with --volume")
+    p.add_argument("--size", type=int, metavar="N",
+                   help=f"texels along a side of the image (default {DEFAULT_IMAGE_SIZE}, at "
+                        f"most {MAX_IMAGE_SIZE}), or voxels along a side of the volume "
+                        f"(default {DEFAULT_VOLUME_SIZE}, at most {MAX_VOLUME_SIZE})")
+    p.add_argument("--channel", choices=CHANNELS,
+                   help="the material's channel (default: diffuse, else the first it has)")
+    p.add_argument("--volume", action="store_true",
+                   help="bake the channel on an N×N×N grid over the shape's world bounding box, "
+                        "as a Mitsuba volume grid (.vol: gridvolume); spheres, boxes, meshes")
+    add_variant(p)
+    p.set_defaults(run=_bake)
 
     p = sub.add_parser("doctor", help="show the libLLVM, variant, versions and kernel cache "
                                       "in use; --warm: compile the scenes' kernels now")

@@ -487,9 +487,15 @@ def _product(a, b):
 
 
 def _transform(matrix):
-    """A double-precision 4×4 (rows) as Mitsuba's transform: rounded once, to float32."""
+    """A double-precision 4×4 (rows) as Mitsuba's transform: its entries rounded once to
+    float32, and their inverse computed in double precision and rounded once — as Mitsuba's
+    XML parser makes a ``<matrix>`` (src/core/parser.cpp), so an exported scene renders
+    bit for bit as this dict (mimarble/export.py), and a disk R wide, whose float32
+    determinant R² would be far off, keeps an exact inverse."""
     import mitsuba as mi   # imported here: the module itself stays importable without it
-    return mi.ScalarTransform4f([list(map(float, row)) for row in matrix])
+    single = mi.ScalarMatrix4f([list(map(float, row)) for row in matrix])
+    inverse = mi.ScalarTransform4d(mi.ScalarMatrix4d(single)).inverse_transpose
+    return mi.ScalarTransform4f(single, mi.ScalarMatrix4f(inverse))
 
 
 def _texture_id(name: str) -> str:
