@@ -1,9 +1,11 @@
 """The reference tracer: the paper's ray tracer rebuilt in float64 NumPy.
 
 The project's ground truth for the Mitsuba path. It shares nothing with it but
-the parsed scene model (:mod:`mimarble.scene`): its own Perlin noise (Shirley's
-sum-of-ω form, :mod:`.noise`), its own marble (:mod:`.marble`), its own
-camera, sphere intersection, ``shadowHit`` and shading (:mod:`.tracer`), its own
+the parsed scene model (:mod:`mimarble.scene`, with its geometry and its checks of mesh
+files): its own Perlin noise (Shirley's sum-of-ω form, :mod:`.noise`), its own marble
+(:mod:`.marble`), its own camera, intersection of spheres, planes and boxes, ``shadowHit``
+and shading (:mod:`.tracer`), its own mesh file reader (:mod:`.mesh_file`) and triangle
+hierarchy (:mod:`.triangles`), its own
 channel expressions, sphere (u, v) and image maps (:mod:`.channels`, :mod:`.image_map`:
 Pillow decodes, the sRGB curve and bilinear lookup are here). Its modules import only
 NumPy, Pillow, the standard library, ``mimarble.scene`` and ``mimarble.progress``
@@ -24,8 +26,9 @@ from mimarble.scene import Scene, SceneError, load
 from mimarble.scene.image_header import check_image_maps
 from mimarble.scene.rules import spp_problem
 
-from . import image_map, marble, noise, tracer
+from . import image_map, marble, mesh_file, noise, tracer, triangles
 from .marble import marble_color, ramp, stripe
+from .mesh_file import MeshData, read_mesh
 from .noise import fractal, fractal3, noise3
 from .tracer import (
     EPS_REL,
@@ -34,12 +37,14 @@ from .tracer import (
     camera_rays,
     closest_hit,
     hit,
+    occluded,
     prepare,
     sample_positions,
     shade,
     shadow_hit,
     trace,
 )
+from .triangles import TriangleBVH
 from .tracer import render as _render
 
 __all__ = [
@@ -47,6 +52,12 @@ __all__ = [
     "noise",
     "marble",
     "tracer",
+    "mesh_file",
+    "triangles",
+    "read_mesh",
+    "MeshData",
+    "TriangleBVH",
+    "occluded",
     "noise3",
     "fractal",
     "fractal3",

@@ -3,8 +3,9 @@
 A channel gives a colour at each point of a surface (the paper's class Channel)::
 
     ColorChannel(rgb)        the constant rgb
-    MarbleChannel(...)       the marble at the world-space point (:mod:`.marble`)
-    ImageChannel(file)       the image at the sphere's (u, v) (:mod:`.image_map`)
+    MarbleChannel(...)       the marble at the world-space point (:mod:`.marble`), or, with
+                             space "object", at the point in the shaded shape's object space
+    ImageChannel(file)       the image at the shape's (u, v) (:mod:`.image_map`)
     Add(c1, c2, …)           c1 + c2 + …              componentwise, left to right
     Multiply(c1, c2, …)      c1 · c2 · …              componentwise, left to right
     Mix(a, b, weight)        a·(1 − w) + b·w          w: the weight channel's colour
@@ -66,11 +67,14 @@ def needs_uv(channel) -> bool:
     return any(isinstance(c, ImageChannel) for c in walk(channel))
 
 
-def channel_color(channel, points, uv=None) -> np.ndarray:
-    """A channel's colour at (k, 3) world-space points with (k, 2) texture coordinates -> (k, 3).
+def channel_color(channel, points, uv=None, object_points=None) -> np.ndarray:
+    """A channel's colour at (k, 3) world-space points with (k, 2) texture coordinates and
+    (k, 3) object-space points -> (k, 3).
 
     ``uv`` is needed only when the channel contains an image map (see
-    :func:`sphere_uv`). Equal sub-channels of one expression are evaluated once.
+    :func:`sphere_uv`), ``object_points`` (the points in the object space of the shape
+    they lie on) only when it contains a marble with space "object". Equal sub-channels
+    of one expression are evaluated once.
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if uv is not None:
@@ -78,19 +82,29 @@ def channel_color(channel, points, uv=None) -> np.ndarray:
         if uv.shape[0] != points.shape[0]:
             raise ValueError(f"channel_color: {uv.shape[0]} texture coordinates "
                              f"for {points.shape[0]} points")
-    return _color(channel, points, uv, {})
+    if object_points is not None:
+        object_points = np.asarray(object_points, dtype=np.float64).reshape(-1, 3)
+        if object_points.shape[0] != points.shape[0]:
+            raise ValueError(f"channel_color: {object_points.shape[0]} object-space points "
+                             f"for {points.shape[0]} points")
+    return _color(channel, (points, object_points), uv, {})
 
 
 def _color(channel, points, uv, memo) -> np.ndarray:
-    """The colour, evaluated once per distinct channel (``memo``); callers must not write to it."""
+    """The colour, evaluated once per distinct channel (``memo``); callers must not write to it.
+    ``points``: (world, object space or None)."""
     hit = memo.get(channel)
     if hit is not None:
         return hit
-    k = points.shape[0]
+    k = points[0].shape[0]
     if isinstance(channel, ColorChannel):
         out = np.broadcast_to(np.array(channel.rgb, dtype=np.float64), (k, 3)).copy()
     elif isinstance(channel, MarbleChannel):
-        out = marble_color(points, channel)
+        at = points[1] if channel.space == "object" else points[0]
+        if at is None:
+            raise ValueError("a marble in object space needs the object-space points "
+                             "(object_points)")
+        out = marble_color(at, channel)
     elif isinstance(channel, ImageChannel):
         if uv is None:
             raise ValueError(f"the image map {channel.location!r} needs texture coordinates (uv)")

@@ -10,14 +10,21 @@ In short:
   from the eye; ``fov`` is the full vertical angle, aspect = W/H.
 * **Sampling**: n×n samples per pixel (spp = n²) at the stratum centres
   x = (i + (a + ½)/n)/W, y = (j + (b + ½)/n)/H; the pixel is their plain mean.
-* **Intersection**: the closest sphere hit with t > T_MIN_REL·(1 + max_k |o_k|)
-  (:data:`T_MIN_REL` = 1e-6), by the numerically stable quadratic; miss →
-  background.
+* **Intersection**: the closest hit over every shape with t > T_MIN_REL·(1 + max_k |o_k|)
+  (:data:`T_MIN_REL` = 1e-6); miss → background. Spheres by the numerically stable
+  quadratic; planes t = n·(p₀ − o)/(n·d), kept only within the disk
+  :func:`mimarble.scene.geometry.plane_disk` (|p − centre| ≤ radius); boxes by the slab
+  test in the box's object space (o and d taken there by the inverse of its transform,
+  in float64; t is the same parameter in both spaces), the normal of the face hit
+  carried back by the inverse transpose and normalised; meshes (their vertices placed in
+  the world by the transform, in float64) by the hierarchy of :mod:`.triangles`, the
+  normal the world triangle's own (flat shading). Every normal faces the viewer
+  (two-sided).
 * **Shading** (two-sided normal, all lights, no falloff)::
 
       L = ka(p)⊙A + Σ_l V(p,l)·I_l⊙(kd(p)·max(0, n·l̂) + ks(p)·max(0, n·ĥ)^shininess)
 
-  with V(p,l) = 1 iff n·l̂ > 0 and no sphere meets the open segment from
+  with V(p,l) = 1 iff n·l̂ > 0 and no shape meets the open segment from
   p' = p + ε·n, ε = EPS_REL·(1 + max_k |p_k|) (:data:`EPS_REL` = 1e-4), to
   the light (the paper's ``shadowHit``: any hit, early out).
 * **Area lights** (:func:`area_samples`, :func:`area_sample_points`): n×n point lights
@@ -26,16 +33,23 @@ In short:
   facing each shaded point; each is a light of the formula above.
 
 The **hit record** (:class:`HitRecord`) is the paper's "passing back" (§3.1):
-the hit routine returns where and what was hit, and the record carries the
-material's channel colours ka, kd, ks at the hit point back to the shader, each
-distinct channel evaluated once per batch and only where its value is used.
+the hit routine returns where and what was hit (which shape: its index in
+``scene.shapes()`` order), and the record carries the material's channel colours
+ka, kd, ks at the hit point back to the shader, each distinct channel evaluated once
+per batch and only where its value is used. A channel reads the world point p, a
+``space object`` marble the point in the hit shape's object space,
+object_to_world(shape)⁻¹·p (:func:`mimarble.scene.geometry.object_to_world`), and an
+image map the shape's (u, v): a sphere's (:func:`.channels.sphere_uv`), or a mesh's
+vertex texture coordinates interpolated with the hit's barycentrics.
 
 Channels (colours, marbles, image maps and their sums, products and mixes) are
 evaluated by :mod:`.channels`; :func:`channel_color` is re-exported here.
 
 Everything is vectorised over batches of rays; Python loops run over spheres,
-lights, channels and chunks only. Imports NumPy, the standard library,
-:mod:`mimarble.scene` (the model) and this package's own channels, marble and noise.
+planes, boxes, lights, channels and chunks only (the triangles of all meshes are one
+hierarchy). Imports NumPy, the standard library, :mod:`mimarble.scene` (the model, its
+geometry and mesh files' checks) and this package's own channels, marble, noise, mesh
+files and triangles.
 """
 
 from __future__ import annotations
@@ -45,9 +59,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from mimarble.scene.model import Scene, samples_per_axis
+from mimarble.scene import geometry
+from mimarble.scene.errors import SceneError
+from mimarble.scene.limits import MAX_MESH_TRIANGLES
+from mimarble.scene.mesh_header import MeshFileError, mesh_facts
+from mimarble.scene.model import MarbleChannel, Scene, samples_per_axis, walk
+from mimarble.scene.rules import shortened
 
 from .channels import channel_color, needs_uv, sphere_uv
+from .mesh_file import read_mesh
+from .triangles import TriangleBVH
 
 __all__ = [
     "T_MIN_REL",
@@ -63,6 +84,8 @@ __all__ = [
     "intersect_spheres",
     "closest_hit",
     "shadow_hit",
+    "occluded",
+    "read_meshes",
     "area_samples",
     "area_sample_points",
     "hit",
@@ -106,10 +129,181 @@ class PreparedScene:
     ambient: np.ndarray            # (3,)
     background: np.ndarray         # (3,)
     light_areas: tuple = ()        # (L,) None, or area_samples' pattern of an area light
+    shape_material: np.ndarray | None = None   # (n,) int: every shape's, scene.shapes() order
+    planes: "PlaneArrays | None" = None
+    boxes: "BoxArrays | None" = None
+    meshes: "MeshArrays | None" = None
+    from_world: np.ndarray | None = None       # (n, 3, 4): object_to_world⁻¹, when needed
+
+    @property
+    def first_plane(self) -> int:
+        """The global shape index of plane 0 (spheres come first, then planes, boxes, meshes)."""
+        return len(self.radii)
+
+    @property
+    def first_box(self) -> int:
+        return self.first_plane + (0 if self.planes is None else len(self.planes.radius))
+
+    @property
+    def spheres_only(self) -> bool:
+        return self.planes is None and self.boxes is None and self.meshes is None
 
 
-def prepare(scene: Scene) -> PreparedScene:
-    """Arrays for :func:`hit` and :func:`shade`; equal channels are deduplicated."""
+@dataclass(frozen=True)
+class PlaneArrays:
+    """Planes: a point, the unit normal, and the disk they are rendered as (centre, radius:
+    geometry.plane_disk)."""
+
+    point: np.ndarray              # (P, 3)
+    normal: np.ndarray             # (P, 3)
+    centre: np.ndarray             # (P, 3)
+    radius: np.ndarray             # (P,)
+
+
+@dataclass(frozen=True)
+class BoxArrays:
+    """Boxes: corners in object space, and world → object (M⁻¹, float64: rows 3×4)."""
+
+    lo: np.ndarray                 # (B, 3)
+    hi: np.ndarray                 # (B, 3)
+    from_world: np.ndarray         # (B, 3, 4)
+
+
+@dataclass(frozen=True)
+class MeshArrays:
+    """Every mesh's triangles in world space, one hierarchy: ``triangles`` index
+    ``positions`` (and ``uv``, NaN rows for a mesh without texture coordinates);
+    ``triangle_shape`` is each triangle's global shape index."""
+
+    bvh: TriangleBVH
+    positions: np.ndarray          # (V, 3) world
+    triangles: np.ndarray          # (T, 3) int64
+    triangle_shape: np.ndarray     # (T,) int64
+    uv: np.ndarray | None          # (V, 2), or None when no mesh has texture coordinates
+
+
+def _from_world(shapes) -> np.ndarray:
+    """object_to_world(shape)⁻¹ of each shape (:func:`mimarble.scene.geometry.object_to_world`),
+    inverted in float64, as rows 3×4: (n, 3, 4)."""
+    if not shapes:
+        return np.zeros((0, 3, 4))
+    placed = np.array([geometry.object_to_world(shape) for shape in shapes], dtype=np.float64)
+    return np.linalg.inv(placed)[:, :3, :]
+
+
+def read_meshes(scene: Scene) -> tuple:
+    """Every mesh file of the scene read (:func:`.mesh_file.read_mesh`), in scene order, as
+    the scene language checks them (mesh_header.mesh_facts: PLY faces triangles, OBJ
+    indices from 1), each file once. The PLY headers are checked against
+    MAX_MESH_TRIANGLES together before any body is read; an OBJ, whose lines are its
+    header, is refused the line it passes the limit, and the scene once the files read so
+    far pass it. A file that cannot be read, or the mesh past the limit, is a SceneError
+    at that mesh's file string (``mesh file 'NAME': …``)."""
+    def refused(mesh, reason):
+        return SceneError.in_file(scene.source, mesh.pos,
+                                  f"mesh file '{shortened(mesh.file, 256)}': {reason}")
+
+    def over(total):
+        return (f"the scene's meshes hold {total} triangles or more, past the "
+                f"{MAX_MESH_TRIANGLES} a scene's meshes hold")
+
+    total = 0
+    for mesh in scene.meshes:              # PLY headers first: nothing large is read yet
+        if mesh.location.lower().endswith(".ply"):
+            try:
+                total += mesh_facts(mesh.location).triangles
+            except MeshFileError as e:
+                raise refused(mesh, str(e)) from None
+            if total > MAX_MESH_TRIANGLES:
+                raise refused(mesh, over(total))
+    read: dict = {}
+    out, total = [], 0
+    for mesh in scene.meshes:
+        if mesh.location not in read:
+            try:
+                read[mesh.location] = read_mesh(mesh.location, relative=False)
+            except MeshFileError as e:
+                raise refused(mesh, str(e)) from None
+        data = read[mesh.location]
+        total += len(data.triangles)
+        if total > MAX_MESH_TRIANGLES:
+            raise refused(mesh, over(total))
+        out.append(data)
+    return tuple(out)
+
+
+def _plane_arrays(scene: Scene) -> PlaneArrays | None:
+    if not scene.planes:
+        return None
+    disks = [geometry.plane_disk(scene, plane) for plane in scene.planes]
+    normal = np.array([pl.normal for pl in scene.planes], dtype=np.float64)
+    return PlaneArrays(point=np.array([pl.point for pl in scene.planes], dtype=np.float64),
+                       normal=_normalize(normal),
+                       centre=np.array([c for c, _ in disks], dtype=np.float64),
+                       radius=np.array([r for _, r in disks], dtype=np.float64))
+
+
+def _box_arrays(scene: Scene) -> BoxArrays | None:
+    if not scene.boxes:
+        return None
+    return BoxArrays(lo=np.array([b.min for b in scene.boxes], dtype=np.float64),
+                     hi=np.array([b.max for b in scene.boxes], dtype=np.float64),
+                     from_world=_from_world(scene.boxes))
+
+
+def _mesh_arrays(scene: Scene, meshes: tuple, first: int) -> MeshArrays | None:
+    """The meshes' vertices placed in the world, p_world = M·(p, 1) in float64, and one
+    hierarchy over all their triangles; ``first`` is mesh 0's global shape index."""
+    if not scene.meshes:
+        return None
+    positions, triangles, shape, uvs = [], [], [], []
+    offset = 0
+    for k, (mesh, data) in enumerate(zip(scene.meshes, meshes)):
+        m = np.array(geometry.object_to_world(mesh), dtype=np.float64)
+        positions.append(data.positions @ m[:3, :3].T + m[:3, 3])
+        triangles.append(data.triangles + offset)
+        shape.append(np.full(len(data.triangles), first + k, dtype=np.int64))
+        uvs.append(data.uv if data.uv is not None else np.full((len(data.positions), 2), np.nan))
+        offset += len(data.positions)
+    positions = np.concatenate(positions)
+    triangles = np.concatenate(triangles)
+    corners = positions[triangles]                       # (T, 3, 3)
+    bvh = TriangleBVH(corners[:, 0], corners[:, 1], corners[:, 2])
+    del corners
+    uv = np.concatenate(uvs) if any(d.uv is not None for d in meshes) else None
+    return MeshArrays(bvh=bvh, positions=positions, triangles=triangles,
+                      triangle_shape=np.concatenate(shape), uv=uv)
+
+
+def _check_uv(scene: Scene, meshes: tuple) -> None:
+    """A material with an image map shades only shapes with (u, v): spheres and meshes
+    whose file has texture coordinates (the parser says so at the shape; a scene built in
+    Python hears it here)."""
+    has_uv = {f"mesh_{k}": data.uv is not None for k, data in enumerate(meshes)}
+    for shape_id, shape in scene.shapes():
+        if shape_id.startswith("sphere_") or has_uv.get(shape_id):
+            continue
+        material = scene.material_of(shape)
+        if any(needs_uv(c) for c in material.channels().values()):
+            why = "its file has no texture coordinates" if shape_id in has_uv else \
+                "it has no texture coordinates"
+            raise SceneError.in_file(scene.source, shape.pos,
+                                     f'the material "{shortened(material.name)}" of {shape_id} '
+                                     f"reads an image map, which needs (u, v), and {why}")
+
+
+def _object_space(scene: Scene, channels: tuple) -> np.ndarray | None:
+    """object_to_world(shape)⁻¹ of every shape (rows 3×4), when a channel has a marble in
+    object space."""
+    if not any(isinstance(c, MarbleChannel) and c.space == "object"
+               for ch in channels for c in walk(ch)):
+        return None
+    return _from_world([shape for _, shape in scene.shapes()])
+
+
+def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
+    """Arrays for :func:`hit` and :func:`shade`; equal channels are deduplicated.
+    ``meshes``: the scene's mesh files already read (:func:`read_meshes`), else read here."""
     names = list(scene.materials)
     materials = tuple(scene.materials[n] for n in names)
     index = {n: k for k, n in enumerate(names)}
@@ -127,6 +321,9 @@ def prepare(scene: Scene) -> PreparedScene:
             slot_channel[m, s] = seen[ch]
     spheres = scene.spheres
     lights = scene.lights
+    meshes = read_meshes(scene) if meshes is None else tuple(meshes)
+    _check_uv(scene, meshes)
+    first_mesh = len(spheres) + len(scene.planes) + len(scene.boxes)
     return PreparedScene(
         scene=scene,
         centers=np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3),
@@ -142,6 +339,12 @@ def prepare(scene: Scene) -> PreparedScene:
         background=np.array(scene.image.background, dtype=np.float64),
         light_areas=tuple(None if l.area is None else area_samples(l, scene.camera.lookat)
                           for l in lights),
+        shape_material=np.array([index[shape.material] for _, shape in scene.shapes()],
+                                dtype=np.int64),
+        planes=_plane_arrays(scene),
+        boxes=_box_arrays(scene),
+        meshes=_mesh_arrays(scene, meshes, first_mesh),
+        from_world=_object_space(scene, tuple(channels)),
     )
 
 
@@ -260,6 +463,85 @@ def shadow_hit(centers, radii, o, d, t_max):
     return blocked
 
 
+def intersect_planes(planes: PlaneArrays, o, d, t_lo, t_hi):
+    """Closest plane hit with t_lo < t < t_hi within each plane's disk: (t (N,), plane index
+    (N,)), inf / −1 on a miss. t = n·(p₀ − o)/(n·d) (inf or NaN, so missed, where the ray
+    runs along the plane); kept where |o + t·d − centre| ≤ radius."""
+    d = np.asarray(d, dtype=np.float64)
+    o = np.broadcast_to(np.asarray(o, dtype=np.float64), d.shape)
+    best_t = np.array(np.broadcast_to(t_hi, (d.shape[0],)), dtype=np.float64)
+    best_i = np.full(d.shape[0], -1, dtype=np.int64)
+    for k in range(len(planes.radius)):
+        n = planes.normal[k]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = ((planes.point[k] - o) @ n) / (d @ n)
+        rel = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - planes.centre[k]
+        inside = np.einsum("ij,ij->i", rel, rel) <= planes.radius[k] ** 2
+        better = inside & (t > t_lo) & (t < best_t)
+        best_t = np.where(better, t, best_t)
+        best_i = np.where(better, k, best_i)
+    best_t[best_i < 0] = np.inf
+    return best_t, best_i
+
+
+def intersect_boxes(boxes: BoxArrays, o, d, t_lo, t_hi):
+    """Closest box hit with t_lo < t < t_hi: (t (N,), box index (N,), axis (N,) of the face
+    hit in object space), inf / −1 on a miss. In the box's object space, o' = M⁻¹·(o, 1),
+    d' = M⁻¹·(d, 0) (not unit: the same t); per axis the slab (lo_k − o'_k)/d'_k …
+    (hi_k − o'_k)/d'_k, near = the largest entry, far = the smallest exit; the hit is near
+    when it is past t_lo, else far (a ray from inside sees the inside), on the face of the
+    axis that set it."""
+    d = np.asarray(d, dtype=np.float64)
+    o = np.broadcast_to(np.asarray(o, dtype=np.float64), d.shape)
+    best_t = np.array(np.broadcast_to(t_hi, (d.shape[0],)), dtype=np.float64)
+    best_i = np.full(d.shape[0], -1, dtype=np.int64)
+    best_axis = np.zeros(d.shape[0], dtype=np.int64)
+    for k in range(len(boxes.lo)):
+        m = boxes.from_world[k]
+        ob = o @ m[:, :3].T + m[:, 3]
+        db = d @ m[:, :3].T
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t0 = (boxes.lo[k] - ob) / db
+            t1 = (boxes.hi[k] - ob) / db
+        enter, leave = np.minimum(t0, t1), np.maximum(t0, t1)
+        near, far = enter.max(axis=1), leave.min(axis=1)
+        from_near = near > t_lo
+        t = np.where(from_near, near, far)
+        axis = np.where(from_near, enter.argmax(axis=1), leave.argmin(axis=1))
+        better = (near <= far) & (t > t_lo) & (t < best_t)      # NaN compares False
+        best_t = np.where(better, t, best_t)
+        best_i = np.where(better, k, best_i)
+        best_axis = np.where(better, axis, best_axis)
+    best_t[best_i < 0] = np.inf
+    return best_t, best_i, best_axis
+
+
+def occluded(prep: PreparedScene, o, d, t_max):
+    """``shadowHit`` over every shape: does any shape meet the ray at t in (0, t_max)?
+    Spheres first (:func:`shadow_hit`), then planes, boxes and the meshes (any hit), each
+    testing only the rays no earlier shape blocked. Returns a bool (N,)."""
+    blocked = shadow_hit(prep.centers, prep.radii, o, d, t_max)
+    if prep.spheres_only:
+        return blocked
+    o, d = np.asarray(o, dtype=np.float64), np.asarray(d, dtype=np.float64)
+    t_max = np.asarray(t_max, dtype=np.float64)
+    live = np.flatnonzero(~blocked)
+    tests = []
+    if prep.planes is not None:
+        tests.append(lambda oo, dd, tm: intersect_planes(prep.planes, oo, dd, 0.0, tm)[1] >= 0)
+    if prep.boxes is not None:
+        tests.append(lambda oo, dd, tm: intersect_boxes(prep.boxes, oo, dd, 0.0, tm)[1] >= 0)
+    if prep.meshes is not None:
+        tests.append(prep.meshes.bvh.any_hit)
+    for test in tests:
+        if live.size == 0:
+            break
+        hit_s = test(o[live], d[live], t_max[live])
+        blocked[live[hit_s]] = True
+        live = live[~hit_s]
+    return blocked
+
+
 # ---------------------------------------------------------------------------
 # Area lights: their fixed sample patterns
 
@@ -350,7 +632,10 @@ class HitRecord:
 
     Arrays over the rays that hit (``index`` gives their positions in the
     batch): distance ``t``, point ``p``, unit normal ``n`` facing the viewer
-    (two-sided), view vector ``v`` = −d, the sphere and material hit, and, once
+    (two-sided), view vector ``v`` = −d, the shape hit (``shape``: its index in
+    ``scene.shapes()`` order; ``sphere``: the sphere's index, −1 for other shapes;
+    ``triangle``: a mesh's triangle in the scene's hierarchy, −1 for other shapes, with
+    ``bary`` its barycentrics (b₁, b₂) of vertices 1 and 2), the material hit, and, once
     :func:`fill_channels` has run, the channel colours ``colors[slot]``
     ((k, 3), or None when no hit material has that component).
     """
@@ -363,15 +648,20 @@ class HitRecord:
     v: np.ndarray                   # (k, 3)
     sphere: np.ndarray              # (k,)
     material: np.ndarray            # (k,)
+    shape: np.ndarray | None = None     # (k,) global shape index
+    triangle: np.ndarray | None = None  # (k,) −1 off meshes
+    bary: np.ndarray | None = None      # (k, 2)
     colors: dict = field(default_factory=dict)
 
 
 def closest_hit(prep: PreparedScene, o, d) -> HitRecord:
-    """Geometry of the closest hit of each ray (no colours yet)."""
+    """Geometry of the closest hit of each ray over every shape (no colours yet)."""
     o = np.asarray(o, dtype=np.float64)
     d = np.asarray(d, dtype=np.float64)
     t_min = T_MIN_REL * (1.0 + np.max(np.abs(o), axis=-1))
     t, s = intersect_spheres(prep.centers, prep.radii, o, d, t_min)
+    if not prep.spheres_only:
+        return _closest_of_all(prep, o, d, t_min, t, s)
     idx = np.nonzero(s >= 0)[0]
     t, s = t[idx], s[idx]
     dd = d[idx]
@@ -382,7 +672,84 @@ def closest_hit(prep: PreparedScene, o, d) -> HitRecord:
     flip = np.einsum("ij,ij->i", n, v) < 0.0
     n[flip] = -n[flip]
     return HitRecord(count=d.shape[0], index=idx, t=t, p=p, n=n, v=v, sphere=s,
-                     material=prep.sphere_material[s])
+                     material=prep.sphere_material[s], shape=s,
+                     triangle=np.full(len(s), -1, dtype=np.int64), bary=np.zeros((len(s), 2)))
+
+
+def _closest_of_all(prep: PreparedScene, o, d, t_min, t, s) -> HitRecord:
+    """closest_hit past the spheres (their t, s given): planes, boxes, meshes; the point
+    p = o + t·d and each kind's normal as in the spheres-only path."""
+    n_rays = d.shape[0]
+    shape = s.copy()                                  # global index; spheres' are theirs
+    axis = np.zeros(n_rays, dtype=np.int64)
+    tri = np.full(n_rays, -1, dtype=np.int64)
+    bary = np.zeros((n_rays, 2))
+    if prep.planes is not None:
+        tp, ip = intersect_planes(prep.planes, o, d, t_min, t)
+        closer = ip >= 0
+        t, shape = np.where(closer, tp, t), np.where(closer, prep.first_plane + ip, shape)
+    if prep.boxes is not None:
+        tb, ib, ab = intersect_boxes(prep.boxes, o, d, t_min, t)
+        closer = ib >= 0
+        t, shape = np.where(closer, tb, t), np.where(closer, prep.first_box + ib, shape)
+        axis = np.where(closer, ab, axis)
+    if prep.meshes is not None:
+        tm, it, b1, b2 = prep.meshes.bvh.closest(o, d, t_min, t)
+        closer = it >= 0
+        t = np.where(closer, tm, t)
+        shape = np.where(closer, prep.meshes.triangle_shape[np.maximum(it, 0)], shape)
+        tri = np.where(closer, it, -1)
+        bary = np.where(closer[:, None], np.stack([b1, b2], axis=1), 0.0)
+    idx = np.nonzero(shape >= 0)[0]
+    t, shape, axis, tri, bary = t[idx], shape[idx], axis[idx], tri[idx], bary[idx]
+    dd = d[idx]
+    oo = o[idx] if o.ndim == 2 else o
+    p = oo + t[:, None] * dd
+    n = np.empty_like(p)
+    sphere = np.where(shape < prep.first_plane, shape, -1)
+    on = sphere >= 0
+    n[on] = (p[on] - prep.centers[sphere[on]]) / prep.radii[sphere[on]][:, None]
+    if prep.planes is not None:
+        on = (shape >= prep.first_plane) & (shape < prep.first_box)
+        n[on] = prep.planes.normal[shape[on] - prep.first_plane]
+    if prep.boxes is not None:
+        on = (shape >= prep.first_box) & (shape < prep.first_box + len(prep.boxes.lo))
+        # The face's object normal ±e_k to the world by (M⁻¹)ᵀ: row k of M⁻¹'s linear part.
+        n[on] = _normalize(prep.boxes.from_world[shape[on] - prep.first_box, axis[on], :3])
+    on = tri >= 0
+    if on.any():
+        corners = prep.meshes.positions[prep.meshes.triangles[tri[on]]]     # (k, 3, 3)
+        n[on] = _normalize(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+    v = -dd
+    flip = np.einsum("ij,ij->i", n, v) < 0.0
+    n[flip] = -n[flip]
+    return HitRecord(count=n_rays, index=idx, t=t, p=p, n=n, v=v, sphere=sphere,
+                     material=prep.shape_material[shape], shape=shape, triangle=tri, bary=bary)
+
+
+def hit_uv(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
+    """(u, v) of every hit (k, 2): a sphere's Mitsuba sphere (u, v) from its centre and
+    radius; a mesh's vertex texture coordinates interpolated, (1 − b₁ − b₂)·uv₀ + b₁·uv₁ +
+    b₂·uv₂ (as Mitsuba's mesh interpolates them); NaN for shapes without (u, v)
+    (prepare refuses image maps on them)."""
+    if prep.spheres_only:
+        return sphere_uv(rec.p, prep.centers[rec.sphere], prep.radii[rec.sphere])
+    uv = np.full((rec.index.size, 2), np.nan)
+    on = rec.sphere >= 0
+    uv[on] = sphere_uv(rec.p[on], prep.centers[rec.sphere[on]], prep.radii[rec.sphere[on]])
+    on = rec.triangle >= 0
+    if on.any() and prep.meshes.uv is not None:
+        corner = prep.meshes.uv[prep.meshes.triangles[rec.triangle[on]]]     # (k, 3, 2)
+        b1, b2 = rec.bary[on, 0:1], rec.bary[on, 1:2]
+        uv[on] = (1.0 - b1 - b2) * corner[:, 0] + b1 * corner[:, 1] + b2 * corner[:, 2]
+    return uv
+
+
+def object_points(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
+    """Every hit point in the object space of the shape hit, object_to_world(shape)⁻¹·p
+    (k, 3), float64 (needs ``prep.from_world``: a scene with an object-space marble)."""
+    m = prep.from_world[rec.shape]                                           # (k, 3, 4)
+    return np.einsum("kij,kj->ki", m[:, :, :3], rec.p) + m[:, :, 3]
 
 
 def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecord:
@@ -391,7 +758,8 @@ def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecor
     ``needed[slot]`` is a bool (k,) mask of the hits where that component's
     value is used (elsewhere it is left 0). Each distinct channel is evaluated
     once, on the union of the points where any slot of any material uses it;
-    image maps read the hit sphere's (u, v) (:func:`.channels.sphere_uv`).
+    image maps read the hit shape's (u, v) (:func:`hit_uv`), ``space object`` marbles
+    the hit point in the hit shape's object space (:func:`object_points`).
     """
     k = rec.index.size
     slot_ch = prep.slot_channel[rec.material] if k else np.empty((0, 3), dtype=np.int64)
@@ -405,14 +773,13 @@ def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecor
                 continue
             m = mask & (slot_ch[:, s] == c)
             want[c] = want[c] | m if c in want else m
-    uv = None
-    if any(needs_uv(prep.channels[c]) for c in want):
-        # Mitsuba's sphere (u, v) of every hit, from the hit sphere's centre and radius.
-        uv = sphere_uv(rec.p, prep.centers[rec.sphere], prep.radii[rec.sphere])
+    uv = hit_uv(prep, rec) if any(needs_uv(prep.channels[c]) for c in want) else None
+    local = object_points(prep, rec) if prep.from_world is not None else None
     values = {}
     for c, m in want.items():
         full = np.zeros((k, 3))
-        full[m] = channel_color(prep.channels[c], rec.p[m], None if uv is None else uv[m])
+        full[m] = channel_color(prep.channels[c], rec.p[m], None if uv is None else uv[m],
+                                None if local is None else local[m])
         values[c] = full
     for s, slot in enumerate(SLOTS):
         mask = needed.get(slot)
@@ -473,7 +840,7 @@ def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
         if front.size:
             seg = lp - p_shadow[front]
             dist = np.linalg.norm(seg, axis=1)
-            blocked = shadow_hit(prep.centers, prep.radii, p_shadow[front], seg / dist[:, None], dist)
+            blocked = occluded(prep, p_shadow[front], seg / dist[:, None], dist)
             visible[front[~blocked]] = True
         if not visible.any():
             continue
@@ -527,7 +894,7 @@ def _area_light(prep: PreparedScene, pattern: AreaSamples, p, n, v, p_shadow, sh
             continue
         seg = lp[front] - p_shadow[front]
         dist = np.linalg.norm(seg, axis=1)
-        blocked = shadow_hit(prep.centers, prep.radii, p_shadow[front], seg / dist[:, None], dist)
+        blocked = occluded(prep, p_shadow[front], seg / dist[:, None], dist)
         lit = front[~blocked]
         if lit.size == 0:
             continue

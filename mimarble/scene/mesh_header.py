@@ -16,8 +16,9 @@ Limits, each checked before anything in proportion to it is read or allocated:
   count is at most :data:`~mimarble.scene.limits.MAX_MESH_TRIANGLES` and its vertex count
   at most :data:`MAX_MESH_VERTICES`, and the file is large enough for what the header
   declares (the fewest bytes each record can take), so a 100-byte file claiming 10¹²
-  faces is refused from its header. A face count is a lower bound of the triangles (a
-  polygon of n corners is n − 2 of them): the reader counts them and refuses past the limit;
+  faces is refused from its header. Its faces are then triangles (below), so the face
+  count is the triangle count; the reference tracer's reader, which also takes polygons
+  (a fan of n − 2 triangles for n corners), counts them and refuses past the limit;
 * **OBJ**: the lines are streamed; the triangles (Σ (n − 2) over the faces) are refused the
   line they pass the limit, the ``v`` and ``vt`` lines past :data:`MAX_MESH_VERTICES`.
 
@@ -30,13 +31,25 @@ What is read (and what is refused, in one sentence each):
   ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference); other
   elements skipped. Integer coordinates are refused: Mitsuba reads an integer property as a
   fraction of its type's range, so the two renderers would place the mesh differently.
+  The faces must be **triangles**: Mitsuba's ``ply`` plugin reads a face's list as a
+  length checked to be 3 and three indices, so :func:`mesh_facts` reads every face's
+  length (a stepped slice of a binary body; the numbers of an ascii one) and refuses a
+  polygon, which the reference tracer's reader would take as a fan.
 * **OBJ**: ``v x y z`` (further numbers ignored), ``vt u v``, ``vn x y z``, ``f`` with 3 or
-  more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, indices from 1, or negative
-  (relative: −1 is the last one defined so far), each referring to an element defined
-  before the face; everything after ``#`` is a comment; other statements (``o``, ``g``,
+  more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, indices from 1, each referring
+  to an element defined before the face; polygons are fans, as Mitsuba splits them.
+  Negative (relative) indices, which the OBJ format allows, are refused by
+  :func:`mesh_facts` (Mitsuba 3.9 reads indices with ``strtoul``: −1 becomes 2³² − 1, "an
+  invalid vertex") and read by the reference tracer's reader (:func:`obj_statements`
+  with ``relative``). Everything after ``#`` is a comment; other statements (``o``, ``g``,
   ``s``, ``usemtl``, ``mtllib``, ``l``, …) are ignored. A line is at most
   :data:`MAX_OBJ_LINE_BYTES` bytes (Mitsuba's OBJ reader refuses longer ones).
   ``has_uv`` when every corner of every face names a ``vt``.
+
+So the files :func:`mesh_facts` accepts, Mitsuba 3.9.1's ``ply`` and ``obj`` plugins and the
+reference tracer read alike in fans, (u, v), indices, coordinates and triangles (checked on
+that version's src/shapes/ply.h, ply.cpp and obj.cpp, and by loading such files in it),
+up to Mitsuba's float32.
 """
 
 from __future__ import annotations
@@ -90,8 +103,8 @@ class MeshFileError(ValueError):
 @dataclass(frozen=True)
 class MeshFacts:
     """``format`` "ply" or "obj"; ``vertices`` (PLY: vertex records; OBJ: ``v`` lines);
-    ``triangles`` (polygons split into fans; PLY: the face count, exact for a triangle mesh,
-    a lower bound otherwise); ``has_uv``: texture coordinates on every vertex (PLY) or
+    ``triangles`` (OBJ: polygons split into fans; PLY: the face count, its faces being
+    triangles); ``has_uv``: texture coordinates on every vertex (PLY) or
     every face corner (OBJ)."""
 
     format: str
@@ -162,13 +175,15 @@ def open_mesh(path):
 
 
 def mesh_facts(path: str) -> MeshFacts:
-    """What the mesh file at ``path`` holds (module docstring), or MeshFileError. PLY: from
-    its header alone; OBJ: from all its lines, each checked."""
+    """What the mesh file at ``path`` holds (module docstring), or MeshFileError. PLY: its
+    header, then the length of every face's list (Mitsuba reads triangles only); OBJ: all
+    its lines, each checked, negative indices refused (Mitsuba reads none)."""
     fmt = _format_of(path)
     f, size = open_mesh(path)
     with f:
         if fmt == "ply":
             header = ply_header(f, size)
+            _ply_triangles_only(f, header)
             return MeshFacts("ply", header.element("vertex").count,
                              header.element("face").count, header.uv is not None)
         vertices = triangles = 0
@@ -353,29 +368,118 @@ def _ply_fits(header: PlyHeader, size: int) -> None:
                             f"{size - header.size} after its header)")
 
 
+def _ply_triangles_only(f, header: PlyHeader) -> None:
+    """Every face of the PLY body (``f`` just past the header) lists 3 vertices: Mitsuba
+    3.9's ``ply`` plugin reads a face's list as a length checked to be 3 and three indices
+    ("incompatible contents -- is this a triangle mesh?"), so a polygon, which the
+    reference tracer would read as a fan, is refused here for both renderers. Binary: the
+    lengths are read at their offsets (a stepped slice of the face element); ascii: the
+    numbers are walked up to the faces. A body too short is left to the readers."""
+    face = header.element("face")
+    lengths = _ascii_face_lengths(f, header) if header.format == "ascii" else \
+        _binary_face_lengths(f, header)
+    for n in lengths:
+        if n != 3:
+            raise MeshFileError(f"a face of {n} vertices: Mitsuba 3.9's ply plugin reads "
+                                f"triangles only (split the {face.name}s into triangles)")
+
+
+def _binary_face_lengths(f, header: PlyHeader):
+    """The face lists' lengths, as far as the body holds them (binary)."""
+    order = "little" if header.format == "binary_little_endian" else "big"
+
+    def size(type_):
+        return PLY_TYPES[type_][1]
+
+    for element in header.elements:
+        lists = [p for p in element.properties if p.count_type]
+        if element.name == "face" and len(lists) == 1:
+            # One list: with 3 indices each record is R bytes, its length at `before`.
+            prop = lists[0]
+            at = element.properties.index(prop)
+            before = sum(size(p.type) for p in element.properties[:at])
+            width = size(prop.count_type)
+            record = sum(size(p.type) for p in element.properties) + width + 2 * size(prop.type)
+            block = f.read(element.count * record)
+            three = (3).to_bytes(width, order)
+            whole = len(block) // record
+            bad = whole                             # the first record whose length is not 3
+            for j in range(width):                  # each byte of the length, every record
+                column = block[before + j:whole * record:record]
+                if column != three[j:j + 1] * whole:
+                    bad = min(bad, next(k for k, b in enumerate(column) if b != three[j]))
+            if bad < whole:                         # records up to it are triangles, aligned
+                start = bad * record + before
+                yield int.from_bytes(block[start:start + width], order,
+                                     signed=PLY_TYPES[prop.count_type][0] == "i")
+            return
+        if not lists:                               # fixed records: skip them
+            f.seek(element.count * sum(size(p.type) for p in element.properties), os.SEEK_CUR)
+            continue
+        for _ in range(element.count):              # lists of any length: walk the records
+            for p in element.properties:
+                if p.count_type:
+                    raw = f.read(size(p.count_type))
+                    if len(raw) < size(p.count_type):
+                        return
+                    n = int.from_bytes(raw, order, signed=PLY_TYPES[p.count_type][0] == "i")
+                    if element.name == "face" and p.name == header.face_list:
+                        yield n
+                    f.seek(max(n, 0) * size(p.type), os.SEEK_CUR)
+                else:
+                    f.seek(size(p.type), os.SEEK_CUR)
+        if element.name == "face":
+            return
+
+
+def _ascii_face_lengths(f, header: PlyHeader):
+    """The face lists' lengths, as far as the body holds them (ascii), number by number."""
+    numbers = (word for line in f for word in line.split())
+    for element in header.elements:
+        for _ in range(element.count):
+            for p in element.properties:
+                word = next(numbers, None)
+                if word is None:
+                    return
+                if not p.count_type:
+                    continue
+                try:
+                    n = int(word)
+                except ValueError:
+                    return                          # not a length: the reader says what
+                if element.name == "face" and p.name == header.face_list:
+                    yield n
+                for _ in range(max(n, 0)):
+                    next(numbers, None)
+        if element.name == "face":
+            return
+
+
 # ---------------------------------------------------------------------------
 # OBJ
 
-def obj_statements(f):
+def obj_statements(f, relative: bool = False):
     """The OBJ file open as ``f`` (binary), statement by statement, checked (module
     docstring): yields ``("v", (x, y, z))``, ``("vt", (u, v))`` as written, and ``("f",
-    ((v, t), …))`` with 0-based indices resolved (negative ones against the elements
-    defined so far), t = −1 where a corner names no ``vt``. Normals are checked and counted,
-    not yielded. MeshFileError ``line N: …`` on the first malformed line or the first
-    past a limit; ``the file has no faces`` at the end when it has none."""
+    ((v, t), …))`` with 0-based indices resolved, t = −1 where a corner names no ``vt``.
+    Negative (relative) indices are resolved against the elements defined so far when
+    ``relative``, else refused (Mitsuba 3.9's OBJ reader takes none: ``strtoul`` makes −1
+    an index past every vertex). Normals are checked and counted, not yielded.
+    MeshFileError ``line N: …`` on the first malformed line or the first past a limit;
+    ``the file has no faces`` at the end when it has none."""
     counts = {b"v": 0, b"vt": 0, b"vn": 0}
     triangles = 0
     number = 0
     for number, line in enumerate(f, start=1):
-        if len(line.rstrip(b"\n")) > MAX_OBJ_LINE_BYTES:
+        if len(line) > MAX_OBJ_LINE_BYTES and len(line.rstrip(b"\n")) > MAX_OBJ_LINE_BYTES:
             raise MeshFileError(f"line {number} is longer than {MAX_OBJ_LINE_BYTES} bytes, the "
                                 f"most Mitsuba's OBJ reader takes")
-        words = line.split(b"#", 1)[0].split()
+        words = (line.split(b"#", 1)[0] if b"#" in line else line).split()
         if not words:
             continue
         keyword = words[0]
         if keyword in counts:
-            numbers = _obj_numbers(words, number)
+            numbers = _obj_numbers(words, number, b"_" not in line)
             counts[keyword] += 1
             if keyword == b"vn":
                 if len(numbers) < 3 or not any(numbers[:3]):
@@ -391,7 +495,7 @@ def obj_statements(f):
                                     f"{keyword.decode()} lines, the most a mesh file holds")
             yield keyword.decode(), numbers[:need]
         elif keyword == b"f":
-            corners = tuple(_obj_corner(w, number, counts) for w in words[1:])
+            corners = _obj_face(words, number, counts, relative, b"_" not in line)
             if len(corners) < 3:
                 raise MeshFileError(f"line {number}: a face needs 3 or more vertices")
             triangles += len(corners) - 2
@@ -403,15 +507,17 @@ def obj_statements(f):
         raise MeshFileError("the OBJ file has no faces (f lines)")
 
 
-def _obj_numbers(words, number) -> tuple[float, ...]:
+def _obj_numbers(words, number, plain: bool) -> tuple[float, ...]:
+    """The numbers after the keyword; ``plain``: the line holds no ``_`` (Python's float
+    takes 1_0, C's strtof, Mitsuba's, does not)."""
     try:
-        if any(b"_" in w for w in words[1:]):     # Python's float takes 1_0; C's strtof not
+        if not plain:
             raise ValueError
-        values = tuple(float(w) for w in words[1:])
+        values = tuple(map(float, words[1:]))
     except ValueError:
         raise MeshFileError(f"line {number}: '{shortened(words[0].decode('latin-1'), 8)}' "
                             f"is followed by something that is not a number") from None
-    if not all(math.isfinite(v) for v in values):
+    if not all(map(math.isfinite, values)):
         raise MeshFileError(f"line {number}: a number that is not finite")
     return values
 
@@ -419,7 +525,31 @@ def _obj_numbers(words, number) -> tuple[float, ...]:
 _OBJ_ELEMENTS = ((b"v", "vertex"), (b"vt", "texture coordinate"), (b"vn", "normal"))
 
 
-def _obj_corner(word: bytes, number: int, counts) -> tuple[int, int]:
+def _obj_face(words, number: int, counts, relative: bool, plain: bool) -> tuple:
+    """The corners (v, t) of ``f`` line ``number`` (``words`` with the keyword), 0-based.
+    The common case, indices from 1 within the counts on a line without ``_`` (``plain``:
+    Python's int takes 1_0, strtoul not), is read here; anything else goes to
+    :func:`_obj_corner`, which resolves relative indices and says what is wrong."""
+    nv, nt, nn = counts[b"v"], counts[b"vt"], counts[b"vn"]
+    out = []
+    for word in words[1:]:
+        parts = word.split(b"/")
+        if plain and len(parts) <= 3:
+            try:
+                v = int(parts[0])
+                t = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+                n = int(parts[2]) if len(parts) > 2 and parts[2] else 0
+                if 0 < v <= nv and (0 < t <= nt or (t == 0 and (len(parts) < 2 or not parts[1]))) \
+                        and (0 < n <= nn or (n == 0 and (len(parts) < 3 or not parts[2]))):
+                    out.append((v - 1, t - 1))
+                    continue
+            except ValueError:
+                pass
+        out.append(_obj_corner(word, number, counts, relative))
+    return tuple(out)
+
+
+def _obj_corner(word: bytes, number: int, counts, relative: bool) -> tuple[int, int]:
     """(v, t) of one face corner ``v``, ``v/t``, ``v//n`` or ``v/t/n``, 0-based (t = −1:
     none); n is checked only."""
     parts = word.split(b"/")
@@ -436,6 +566,9 @@ def _obj_corner(word: bytes, number: int, counts) -> tuple[int, int]:
             raise MeshFileError(f"line {number}: a face index is a whole number, found "
                                 f"'{shortened(part.decode('latin-1'), 40)}'")
         index, defined = int(part), counts[keyword]
+        if index < 0 and not relative:
+            raise MeshFileError(f"line {number}: a negative (relative) index {index}; "
+                                f"Mitsuba 3.9's OBJ reader takes indices counted from 1 only")
         resolved = index - 1 if index > 0 else defined + index
         if index == 0 or not 0 <= resolved < defined:
             raise MeshFileError(f"line {number}: {what} {index} does not exist (OBJ counts "
