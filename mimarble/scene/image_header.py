@@ -24,7 +24,7 @@ from __future__ import annotations
 import os
 
 from .limits import MAX_IMAGE_MAP_PIXELS
-from .reading import NotRegularFile, open_regular
+from .reading import open_failure, open_regular
 from .rules import shortened
 
 __all__ = ["image_file_problem", "image_file_sentence", "check_image_maps", "png_facts",
@@ -100,16 +100,8 @@ def _check(path: str) -> None:
                 _jpeg(f)
             else:
                 raise _Problem("not a PNG or JPEG file; image maps are 8-bit PNG or JPEG")
-    except FileNotFoundError:
-        raise _Problem(f"no such file (looked for {where})") from None
-    except IsADirectoryError:
-        raise _Problem(f"it is a directory ({where})") from None
-    except PermissionError:
-        raise _Problem(f"permission denied ({where})") from None
-    except NotRegularFile as e:
-        raise _Problem(f"{e} ({where})") from None
     except OSError as e:
-        raise _Problem(f"cannot read it: {e.strerror or e} ({where})") from None
+        raise _Problem(open_failure(e, where)) from None
 
 
 def png_facts(f) -> tuple[int, int, bool] | None:

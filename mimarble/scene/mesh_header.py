@@ -59,7 +59,7 @@ import os
 from dataclasses import dataclass
 
 from .limits import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
-from .reading import NotRegularFile, open_regular
+from .reading import open_failure, open_regular
 from .rules import shortened
 
 __all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "MAX_PLY_HEADER_BYTES",
@@ -156,16 +156,8 @@ def open_mesh(path):
     where = shortened(os.fspath(path), 1024)
     try:
         f = open_regular(path)
-    except FileNotFoundError:
-        raise MeshFileError(f"no such file (looked for {where})") from None
-    except IsADirectoryError:
-        raise MeshFileError(f"it is a directory ({where})") from None
-    except PermissionError:
-        raise MeshFileError(f"permission denied ({where})") from None
-    except NotRegularFile as e:
-        raise MeshFileError(f"{e} ({where})") from None
     except OSError as e:
-        raise MeshFileError(f"cannot read it: {e.strerror or e} ({where})") from None
+        raise MeshFileError(open_failure(e, where)) from None
     size = os.fstat(f.fileno()).st_size
     if size > MAX_MESH_BYTES:
         f.close()

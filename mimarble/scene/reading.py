@@ -13,7 +13,7 @@ import errno
 import os
 import stat
 
-__all__ = ["NotRegularFile", "not_regular", "open_regular"]
+__all__ = ["NotRegularFile", "not_regular", "open_regular", "open_failure"]
 
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
@@ -61,3 +61,17 @@ def open_regular(path, follow_links: bool = True):
     except BaseException:
         os.close(fd)
         raise
+
+
+def open_failure(error: OSError, where: str) -> str:
+    """Why a file (shown as ``where``) could not be opened, in a few words: the sentences
+    the image maps' and meshes' checks end with."""
+    if isinstance(error, FileNotFoundError):
+        return f"no such file (looked for {where})"
+    if isinstance(error, IsADirectoryError):
+        return f"it is a directory ({where})"
+    if isinstance(error, PermissionError):
+        return f"permission denied ({where})"
+    if isinstance(error, NotRegularFile):
+        return f"{error} ({where})"
+    return f"cannot read it: {error.strerror or error} ({where})"
