@@ -359,6 +359,7 @@ class _Builder:
         # Image maps and meshes are found relative to the scene file (else the working
         # directory).
         self.folder = os.path.dirname(os.path.abspath(source)) if source else os.getcwd()
+        self.meshes_read: dict = {}      # mesh file path -> its MeshFacts, in this parse
         #: The texture definitions, by name (the first of a name), and the channels of
         #: those resolved so far.
         self.definitions: dict[str, Tree] = {}
@@ -935,10 +936,12 @@ class _Builder:
         if not name.lower().endswith(MESH_FORMATS):
             raise self.error(tok, rules.mesh_format_problem(name))
         path = os.path.normpath(os.path.join(self.folder, name))
-        try:
-            facts = mesh_header.mesh_facts(path)
-        except mesh_header.MeshFileError as e:
-            raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': {e}") from None
+        facts = self.meshes_read.get(path)       # a file used by several meshes: read once
+        if facts is None:
+            try:
+                facts = self.meshes_read[path] = mesh_header.mesh_facts(path)
+            except mesh_header.MeshFileError as e:
+                raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': {e}") from None
         self.triangles += facts.triangles
         problem = rules.mesh_triangles_problem(self.triangles)
         if problem:
