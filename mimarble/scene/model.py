@@ -54,6 +54,7 @@ __all__ = [
     "MarbleChannel",
     "Channel",
     "Material",
+    "Subsurface",
     "Sphere",
     "Plane",
     "Box",
@@ -617,8 +618,47 @@ def replace_marbles(channel, **changes):
 
 
 @dataclass(frozen=True)
+class Subsurface:
+    """``subsurface { albedo CH mean_free_path X density CH ior X }``: the material's inside
+    is a scattering volume behind a smooth dielectric boundary (path mode only).
+
+    At a point p inside: extinction σ_t(p) = d(p) / ``mean_free_path`` (d the ``density``
+    channel's mean of its three components, at least 0; 1 everywhere without one), single-
+    scattering albedo α(p) = the ``albedo`` channel's colour clamped to [0, 1]; σ_s = α·σ_t,
+    σ_a = (1 − α)·σ_t; isotropic phase function. The boundary has relative index of
+    refraction ``ior`` (inside over outside). Channels are evaluated at the world point (or
+    in the shape's object space, for ``space object`` marbles), as on surfaces.
+    """
+
+    albedo: Channel
+    mean_free_path: float
+    ior: float = 1.5
+    density: Channel | None = None
+    pos: Pos | None = _pos()
+
+    def __post_init__(self) -> None:
+        for name in ("albedo", "density"):
+            channel = getattr(self, name)
+            if (channel is not None or name == "albedo") and not isinstance(channel, CHANNEL_TYPES):
+                raise TypeError(f"a subsurface's {name} must be a channel, found {_shown(channel)}")
+        mfp = _number(self.mean_free_path, "mean_free_path")
+        _refuse(rules.mean_free_path_problem(mfp), self.mean_free_path)
+        ior = _number(self.ior, "ior")
+        _refuse(rules.ior_problem(ior), self.ior)
+        _store(self, mean_free_path=mfp, ior=ior)
+
+    def channels(self) -> dict:
+        """The channels present, by name (albedo, density)."""
+        return {k: c for k, c in (("albedo", self.albedo), ("density", self.density))
+                if c is not None}
+
+
+@dataclass(frozen=True)
 class Material:
     """``material "name" { ambient {CH} diffuse {CH} specular {CH} shininess N }``.
+
+    With ``subsurface`` (a :class:`Subsurface`), the material is a scattering volume behind a
+    dielectric boundary in path mode, and whitted mode refuses it.
 
     Shading (whitted mode), per light l with visibility V and intensity I_l::
 
@@ -631,6 +671,7 @@ class Material:
     diffuse: Channel | None = None
     specular: Channel | None = None
     shininess: float = 32.0
+    subsurface: Subsurface | None = None
     pos: Pos | None = _pos()
 
     def __post_init__(self) -> None:
@@ -644,6 +685,9 @@ class Material:
             if channel is not None and not isinstance(channel, CHANNEL_TYPES):
                 raise TypeError(f'{component} of material "{rules.shortened(self.name)}" must '
                                 f"be a channel or None, found {_shown(channel)}")
+        if self.subsurface is not None and not isinstance(self.subsurface, Subsurface):
+            raise TypeError(f'the subsurface of material "{rules.shortened(self.name)}" must be '
+                            f"a Subsurface or None, found {_shown(self.subsurface)}")
         shininess = _number(self.shininess, "shininess")
         _refuse(rules.shininess_problem(shininess), self.shininess)
         _store(self, shininess=shininess)

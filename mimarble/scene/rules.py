@@ -22,7 +22,7 @@ __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
            "light_samples_problem", "area_axes_problem", "area_radius_problem", "cross",
-           "depth_problem", "size_problem", "listed_names", "shortened", "normal_problem",
+           "depth_problem", "size_problem", "mean_free_path_problem", "ior_problem", "listed_names", "shortened", "normal_problem",
            "box_problem", "mesh_format_problem", "texture_name_problem",
            "mesh_triangles_problem", "image_map_uv_problem"]
 
@@ -229,6 +229,16 @@ def size_problem(count: int) -> str | None:
         return None
     return (f"channel too large: at most {MAX_CHANNEL_SIZE} channels, counting a named "
             f"texture again at each use (this one holds {count})")
+
+
+def mean_free_path_problem(value: float) -> str | None:
+    """A subsurface's mean free path (where its density is 1), scene units: > 0."""
+    return None if value > 0 else "mean_free_path must be > 0 (scene units)"
+
+
+def ior_problem(value: float) -> str | None:
+    """A subsurface boundary's relative index of refraction: > 0."""
+    return None if value > 0 else "ior must be > 0 (the index inside over outside)"
 
 
 def normal_problem(normal) -> str | None:
