@@ -46,22 +46,26 @@ def _cross(a, b):
 
 
 def plane_frame(normal):
-    """(tangent, normal, bitangent): the images of +x, +y, +z under the smallest rotation
-    that takes +y to the unit ``normal`` (the half turn about x when it is −y): unit and
-    right-handed, tangent × normal = bitangent as x × y = z."""
+    """(tangent, normal, bitangent): the images of +x, +y, +z under a rotation that takes +y
+    to the unit ``normal``: for a normal in the upper half-space (n_y ≥ 0) the smallest such
+    rotation; below it, the half turn about x (+y to −y) followed by the smallest rotation
+    from −y to the normal, so that neither divides by a small 1 ± n_y. Unit, orthogonal to
+    double precision and right-handed: tangent × normal = bitangent, as x × y = z."""
     n = _unit(normal)
-    if n[1] < -1.0 + 1e-12:                       # −y: the half turn about x
-        return (1.0, 0.0, 0.0), n, (0.0, 0.0, -1.0)
-    # Rodrigues' rotation from y to n: R = I + [k]× + [k]×²/(1 + y·n), k = y × n.
-    k = (n[2], 0.0, -n[0])
-    c = 1.0 / (1.0 + n[1])
+    up = 1.0 if n[1] >= 0.0 else -1.0              # the pole the rotation starts from
+    # Rodrigues' rotation from s·y to n (s = up): R = I + [k]× + [k]×²/(1 + s·n_y),
+    # k = s·y × n; after the half turn for s = −1, x stays x and z becomes −z.
+    k = (up * n[2], 0.0, -up * n[0])
+    c = 1.0 / (1.0 + up * n[1])
 
     def rotate(v):
         kv = _cross(k, v)
         kkv = _cross(k, kv)
-        return _unit(tuple(v[i] + kv[i] + c * kkv[i] for i in range(3)))
+        return tuple(v[i] + kv[i] + c * kkv[i] for i in range(3))
 
-    tangent = rotate((1.0, 0.0, 0.0))
+    x = rotate((1.0, 0.0, 0.0))
+    along = math.fsum(x[i] * n[i] for i in range(3))
+    tangent = _unit(tuple(x[i] - along * n[i] for i in range(3)))
     bitangent = _unit(_cross(tangent, n))
     return tangent, n, bitangent
 

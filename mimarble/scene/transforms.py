@@ -111,6 +111,6 @@ def matrix_problem(matrix: Matrix) -> str | None:
     largest = max(abs(v) for row in matrix[:3] for v in row[:3])
     det = abs(_determinant(matrix))
     if largest == 0 or not det > (1e-6 * largest) ** 3 or not _FLT_MIN_NORMAL <= det <= FLT_MAX:
-        return (f"the transform squeezes the pattern too far to invert in single precision "
-                f"(determinant {det:.3g} of its 3×3 part)")
+        return (f"the transform squeezes some direction too far to invert in single precision "
+                f"(its 3×3 part: determinant {det:.3g}, largest entry {largest:.3g})")
     return None
