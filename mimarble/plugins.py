@@ -95,6 +95,7 @@ _KINDS = {
     "bsdf": ("BSDF", "register_bsdf"),
     "integrator": ("SamplingIntegrator", "register_integrator"),
     "emitter": ("Emitter", "register_emitter"),
+    "medium": ("Medium", "register_medium"),
 }
 _plugins: list[tuple[str, str, type]] = []
 _bound: dict[tuple[str, str], type] = {}
