@@ -163,6 +163,21 @@ def channel_bound(channel) -> float:
     return keep * a + take * b
 
 
+def mean_bound(channel) -> float:
+    """An upper bound of the mean of a channel's three components (a subsurface's density
+    is that mean): a colour's own, a marble's largest over its ramp's colours (the ramp
+    interpolates each component linearly, so their mean too: its largest is at a key), a sum's
+    the sum of its operands'; :func:`channel_bound` for the rest."""
+    from .scene import model
+    if isinstance(channel, model.ColorChannel):
+        return sum(channel.rgb) / 3.0
+    if isinstance(channel, model.MarbleChannel):
+        return max(sum(c) / 3.0 for c in channel.ramp)
+    if isinstance(channel, model.Add):
+        return sum(mean_bound(c) for c in channel.operands)
+    return channel_bound(channel)
+
+
 def _mix_weights(weight) -> tuple[float, float]:
     """Bounds of |1 − w| and |w| for a mix weight (a number, or a channel with |w| ≤ W)."""
     if isinstance(weight, float):

@@ -268,6 +268,8 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
         "transform": "{ }", "translate": "<1 0 0>", "rotate": "<0 0 90>", "space": "object",
         "point": "<0 0 0>", "normal": "<0 0 1>", "min": "<0 0 0>", "max": "<1 1 1>",
         "file": f'"{tmp_path / "a.obj"}"',
+        "subsurface": "{ albedo color <1 1 1> mean_free_path 1 }",
+        "density": "color <1 1 1>", "ior": "1.3",
     }
     wrap = {
         "image": "image {{ {} }}", "camera": "camera {{ {} }}", "light": "light {{ position <0 0 0> {} }}",
@@ -278,6 +280,7 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
         "plane": 'material "m" {{ }} plane {{ material "m" {} }}',
         "box": 'material "m" {{ }} box {{ material "m" {} }}',
         "mesh": 'material "m" {{ }} mesh {{ material "m" {} }}',
+        "subsurface": 'material "m" {{ subsurface {{ albedo color <1 1 1> mean_free_path 1 {} }} }}',
     }
     one = {"color": "color <0 0 0>", "marble": "marble { }", "weight": "weight 0.5",
            "image": f'image {{ file "{PNG}" }}', "add": "add { color <0 0 0> color <0 0 0> }",
@@ -303,7 +306,8 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
             continue
         for key in keys:
             if (block, key) in (("light", "position"), ("sphere", "material"), ("plane", "material"),
-                                ("box", "material"), ("mesh", "material")):
+                                ("box", "material"), ("mesh", "material"),
+                                ("subsurface", "albedo"), ("subsurface", "mean_free_path")):
                 continue  # required keys, already in the wrapper
             if block == "mesh" and key != "file":       # a mesh needs its file too
                 parse(wrap[block].format(f"{key} {samples[key]} file {samples['file']}"))

@@ -37,6 +37,12 @@ object`` marble becomes one BSDF per shape, its object-space textures placed by 
 shape's object space (``to_world`` = S·M, v = scale·(S·M)⁻¹·p); in path mode planes,
 boxes and meshes get their BSDF wrapped in ``twosided`` (docs/rendering-model.md,
 "Planes, boxes and meshes"; docs/mitsuba-scene.md).
+
+A material with a ``subsurface`` (:func:`translucent_materials`) is translucent: whitted mode
+refuses it (:class:`ModeError`, at its ``subsurface`` keyword); path mode renders it under
+``volpath`` (max_depth :data:`VOLPATH_MAX_DEPTH`) as a smooth ``dielectric`` boundary
+(``null`` when ior is 1) around a ``marble_medium`` interior on every shape that uses it,
+its surface channels unused (docs/rendering-model.md, "Translucent materials").
 """
 
 from __future__ import annotations
@@ -52,10 +58,35 @@ import numpy as np
 from .. import error_budget
 from ..marble_parameters import checked
 from ..scene import geometry, model
+from ..scene.errors import SceneError
 from ..scene.image_header import check_image_maps
-from ..scene.rules import cross, spp_problem
+from ..scene.limits import FLT_MAX
+from ..scene.rules import cross, shortened, spp_problem
 
 MODES = ("whitted", "path")
+
+#: volpath's max_depth for a scene with a translucent material: the most scattering events
+#: of a path, each medium scattering and each non-null surface interaction (a refraction
+#: through the boundary too) counting one (Mitsuba's volpath.cpp). 64 lets a walk in a
+#: medium of albedo 0.9 scatter past where its weight has fallen below 0.9⁶⁴ ≈ 0.1 %; the
+#: float64 reference random walk stops at the same depth, so that the two agree. Russian
+#: roulette: volpath's default (from depth 5 on), hide_emitters as path mode's.
+VOLPATH_MAX_DEPTH = 64
+
+
+class ModeError(SceneError, ValueError):
+    """A scene that the mode asked cannot render (a translucent material in whitted mode),
+    in one sentence at the node's FILE:LINE:COL: a SceneError (the command line prints it,
+    exit status 2, no traceback) that is a ValueError to Python."""
+
+    def __reduce__(self):
+        return (_mode_error, (self.message, self.filename, self.line, self.column,
+                              self.source_line))
+
+
+def _mode_error(message, filename, line, column, source_line):
+    return ModeError(message, filename=filename, line=line, column=column,
+                     source_line=source_line)
 
 
 def texture_dict(channel, tolerance: float | None = None, operand=None) -> dict:
@@ -119,7 +150,8 @@ def _marble_gains(scene: model.Scene) -> dict:
     """Each marble's largest expression gain over the channels it is in."""
     gains: dict = {}
     for material in scene.materials.values():
-        for channel in material.channels().values():
+        volume = material.subsurface.channels() if material.subsurface is not None else {}
+        for channel in (*material.channels().values(), *volume.values()):
             total = error_budget.expression_gain(channel)
             for marble in error_budget.marble_gains(channel):
                 gains[marble] = max(gains.get(marble, 1.0), total)
@@ -369,6 +401,14 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     if mode not in MODES:
         raise ValueError(f"mode={mode!r:.40} must be one of {', '.join(MODES)}")
     spp = checked_samples(scene, mode, spp)
+    translucent = translucent_materials(scene)
+    if mode == "whitted" and translucent:
+        material = translucent[0]
+        raise ModeError.in_file(
+            scene.source, material.subsurface.pos,
+            f"material \"{shortened(material.name)}\" has a subsurface, a "
+            f"scattering volume that whitted mode (the paper's surface shading) cannot render: "
+            f"render the scene with --mode path (mode=\"path\")")
     check_image_maps(scene)        # the header check of maps the parser never saw
     for problem in float32_range_problems(scene):
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
@@ -419,6 +459,10 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         out["integrator"] = {"type": "whitted", "ambient": list(scene.ambient),
                              "background": list(scene.image.background)}
         sampler = {"type": "stratified", "sample_count": spp, "jitter": False}
+    elif translucent:              # light scattered inside media: docs/rendering-model.md
+        out["integrator"] = {"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH,
+                             "hide_emitters": True}
+        sampler = {"type": "independent", "sample_count": spp}
     else:
         out["integrator"] = {"type": "path", "max_depth": 4, "hide_emitters": True}
         sampler = {"type": "independent", "sample_count": spp}
@@ -434,7 +478,9 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             placement = None
         key = (name, None if placement is None else placement[1])
         if key not in bsdfs:
-            if mode == "whitted":
+            if mode == "path" and material.subsurface is not None:
+                bsdf = subsurface_boundary(material.subsurface)   # its channels: unused
+            elif mode == "whitted":
                 bsdf = {"type": "channel_material", "shininess": material.shininess}
                 for channel_name, channel in material.channels().items():
                     bsdf[channel_name] = ref(channel, placement)
@@ -447,16 +493,37 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         if not any(in_object_space(c) for c in material.channels().values()):
             bsdf_of(name)                 # (object-space ones: per shape, below)
 
+    media: dict = {}       # (material name, placement's matrix or None) -> its medium
+
+    def medium_of(name, placement):
+        """The interior of the material's shapes: one medium, or with object-space
+        marbles in its subsurface one per placement (``placement`` as for ``ref``)."""
+        subsurface = scene.materials[name].subsurface
+        if not any(in_object_space(c) for c in subsurface.channels().values()):
+            placement = None
+        key = (name, None if placement is None else placement[1])
+        if key not in media:
+            media[key] = medium_dict(scene, subsurface, lambda channel: ref(channel, placement))
+        return media[key]
+
     two_sided: dict = {}       # id of a path BSDF -> the one twosided wrapper of it
     for shape_id, shape in scene.shapes():
         placement = (shape_id, geometry.object_to_world(shape))
         bsdf = bsdf_of(shape.material, placement)
-        if mode == "path" and not isinstance(shape, model.Sphere):
+        subsurface = scene.materials[shape.material].subsurface
+        if mode == "path" and not isinstance(shape, model.Sphere) and subsurface is None:
             # Mitsuba's BSDFs reflect on the side their normal points to; planes, boxes
-            # and meshes are shaded on either side (whitted flips n to the viewer).
+            # and meshes are shaded on either side (whitted flips n to the viewer). A
+            # dielectric boundary is two-sided itself (and twosided refuses transmission).
             bsdf = two_sided.setdefault(id(bsdf), {"type": "twosided", "bsdf": bsdf})
+        # Its medium's textures first: a reference follows what it refers to.
+        interior = medium_of(shape.material, placement) \
+            if mode == "path" and subsurface is not None else None
         out[shape_id] = shape_dict(scene, shape)
         out[shape_id]["bsdf"] = bsdf
+        if interior is not None:
+            out[shape_id]["interior"] = interior
+            _facing_out(out[shape_id], shape)
 
     for k, light in enumerate(scene.lights):
         if light.area is not None:
@@ -633,3 +700,72 @@ def _path_bsdf(material: model.Material, ref) -> dict:
             "alpha": math.sqrt(2.0 / (material.shininess + 2.0)), "int_ior": CALCITE_IOR,
             "diffuse_reflectance": diffuse, "specular_reflectance": ref(material.specular),
             "nonlinear": True}
+
+
+def translucent_materials(scene: model.Scene) -> tuple:
+    """The materials with a subsurface that some shape of ``scene`` uses, in file order:
+    a scene with one renders in path mode only, under ``volpath`` (a material no shape
+    uses changes no image, and is not asked about)."""
+    used = {shape.material for _, shape in scene.shapes()}
+    return tuple(m for m in scene.materials.values() if m.subsurface is not None and m.name in used)
+
+
+def _facing_out(shape_out: dict, shape) -> None:
+    """A translucent box's or mesh's normals facing out of it under a transform that
+    mirrors (det < 0). Mitsuba enters a shape's ``interior`` when a ray crosses against its
+    geometric normal, the cross product of a triangle's edges — which a mirror turns
+    inwards: the medium would be outside. A mesh (flat, ``face_normals``) then gets
+    ``flip_normals``; a box, whose ``cube`` carries vertex normals that the inverse
+    transpose keeps outward, gets its cube mirrored back, to_world·diag(−1, 1, 1), the
+    same points ([−1, 1]³ is symmetric) with det > 0. A sphere's and a plane's disk's
+    normals face out (and up) whatever their placement."""
+    if isinstance(shape, (model.Box, model.Mesh)) \
+            and np.linalg.det(np.asarray(geometry.object_to_world(shape), dtype=np.float64)) < 0:
+        if isinstance(shape, model.Box):
+            mirror = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
+                      [0.0, 0.0, 0.0, 1.0]]
+            shape_out["to_world"] = _transform(_product(cube_to_world(shape), mirror))
+        else:
+            shape_out["flip_normals"] = True
+
+
+def subsurface_boundary(subsurface: model.Subsurface) -> dict:
+    """The BSDF of a translucent material's surface: a smooth ``dielectric`` of relative
+    index ``ior`` (int_ior = ior, ext_ior = 1; it reflects and refracts by Fresnel's
+    equations, and is two-sided). At ior 1 the boundary bends and reflects nothing, which
+    is Mitsuba's ``null`` BSDF, the same physics: written so, because volpath's shadow
+    rays pass a ``null`` surface and stop at any other, so only an index-matched boundary
+    lets a point light (which no sampled direction can hit) light the inside
+    (docs/rendering-model.md, "Translucent materials")."""
+    if subsurface.ior == 1.0:
+        return {"type": "null"}
+    return {"type": "dielectric", "int_ior": subsurface.ior, "ext_ior": 1.0}
+
+
+def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> dict:
+    """The ``marble_medium`` (mimarble/mitsuba/marble_medium.py) of a subsurface: the
+    textures of its albedo and density channels (``ref(channel)``: a texture or a reference
+    to one; default: :func:`texture_dict`), ``scale`` = 1/mean_free_path, so that
+    σ_t(p) = scale·d(p), and ``density_bound`` ≥ every d(p) (the majorant is
+    scale·density_bound): ``error_budget.mean_bound`` of the density channel (d is the mean
+    of its components, at least 0), 1 without one (d = 1). Behind a smooth dielectric
+    (ior ≠ 1) no shadow ray from inside can reach an emitter, so the medium samples none
+    (``sample_emitters`` false: the paths that leave find them; unbiased, and up to half the
+    render time saved). A majorant past
+    float32's range is refused (ModeError at the ``subsurface`` keyword): Mitsuba's
+    arithmetic is single precision."""
+    ref = texture_dict if ref is None else ref
+    density = subsurface.density
+    scale = 1.0 / subsurface.mean_free_path
+    bound = 1.0 if density is None else max(0.0, error_budget.mean_bound(density))
+    if not scale * bound <= FLT_MAX:
+        raise ModeError.in_file(
+            scene.source, subsurface.pos,
+            f"mean_free_path {subsurface.mean_free_path:g} with a density up to {bound:g} is "
+            f"an extinction of up to {scale * bound:.3g} per scene unit, past float32's "
+            f"{FLT_MAX:.3g}, the most Mitsuba's single precision holds")
+    out = {"type": "marble_medium", "albedo": ref(subsurface.albedo)}
+    if density is not None:
+        out["density"] = ref(density)
+    out.update(scale=scale, density_bound=bound, sample_emitters=subsurface.ior == 1.0)
+    return out

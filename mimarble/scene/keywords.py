@@ -14,7 +14,7 @@ from __future__ import annotations
 from ..marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
 from .grammar import LANGUAGE_MARBLE_KEYS
 
-__all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BLOCK_KEYS"]
+__all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BARE_CHANNEL_KEYS", "BLOCK_KEYS"]
 
 #: Top-level statements, in documentation order.
 STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "material", "texture",
@@ -27,6 +27,9 @@ CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multipl
 #: CHANNEL }``, which holds one).
 CHANNEL_BLOCKS: tuple[str, ...] = ("ambient", "diffuse", "specular", "add", "multiply", "mix",
                                    "texture")
+#: The keys followed by one channel written bare, without braces (a subsurface's:
+#: ``albedo marble { … }``, ``density texture "veins"``).
+BARE_CHANNEL_KEYS: tuple[str, ...] = ("albedo", "density")
 
 #: The keywords allowed in each kind of block (keyed by the block's rule name: an image
 #: map is ``image_map``, written ``image { file "…" }`` like the image statement).
@@ -35,7 +38,8 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "camera": ("eye", "lookat", "up", "fov"),
     "light": ("position", "color", "area"),
     "area": ("axis1", "axis2", "radius", "samples"),
-    "material": ("ambient", "diffuse", "specular", "shininess"),
+    "material": ("ambient", "diffuse", "specular", "shininess", "subsurface"),
+    "subsurface": ("albedo", "mean_free_path", "density", "ior"),   # albedo, density: a channel
     "ambient": CHANNEL_KEYWORDS,
     "diffuse": CHANNEL_KEYWORDS,
     "specular": CHANNEL_KEYWORDS,

@@ -641,6 +641,9 @@ class Subsurface:
             channel = getattr(self, name)
             if (channel is not None or name == "albedo") and not isinstance(channel, CHANNEL_TYPES):
                 raise TypeError(f"a subsurface's {name} must be a channel, found {_shown(channel)}")
+            if channel is not None and any(isinstance(c, ImageChannel) for c in walk(channel)):
+                raise ValueError(f"a subsurface's {name} cannot hold an image map: a volume "
+                                 f"has no (u, v)")
         mfp = _number(self.mean_free_path, "mean_free_path")
         _refuse(rules.mean_free_path_problem(mfp), self.mean_free_path)
         ior = _number(self.ior, "ior")

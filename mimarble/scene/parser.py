@@ -76,6 +76,7 @@ from .model import (
     Scene,
     Sphere,
     SphereArea,
+    Subsurface,
     EXPRESSIONS,
 )
 from .model import depth as depth_of
@@ -677,7 +678,51 @@ class _Builder:
             tok = f["shininess"].children[0]
             shininess = self.number(tok)
             self.refuse(tok, rules.shininess_problem(shininess))
-        return Material(name, shininess=shininess, pos=_pos_of(st), **channels)
+        subsurface = self.subsurface(f["subsurface"], block) if "subsurface" in f else None
+        return Material(name, shininess=shininess, subsurface=subsurface, pos=_pos_of(st),
+                        **channels)
+
+    def subsurface(self, st: Tree, block: str) -> Subsurface:
+        """``subsurface { albedo CH mean_free_path X density CH ior X }``: albedo and
+        mean_free_path required (refused at the ``subsurface`` keyword without them), each
+        key at most once; the numbers by their rules (rules.py) at the number, the
+        channels read as any channel is (depth, size, named textures) but with no image
+        map in them, directly or through a texture (:meth:`volume_channel`); the keys
+        checked in the order written."""
+        f = self.fields(st, "'subsurface' block")
+        for key in ("albedo", "mean_free_path"):
+            if key not in f:
+                raise self.error(st, f"subsurface has no '{key}'; write subsurface {{ albedo "
+                                     f"color < 0.9 0.9 0.9 > mean_free_path 0.2 }}")
+        values = {}             # ior absent: the model's default
+        for key, tree in f.items():
+            if key in ("albedo", "density"):
+                values[key] = self.volume_channel(tree, f"{key} of the subsurface of {block}")
+                continue
+            tok = tree.children[0]
+            values[key] = self.number(tok)
+            problem = (rules.mean_free_path_problem if key == "mean_free_path"
+                       else rules.ior_problem)(values[key])
+            self.refuse(tok, problem)
+        return Subsurface(pos=_pos_of(st), **values)
+
+    def volume_channel(self, key: Tree, what: str):
+        """The channel after a subsurface's ``albedo`` or ``density`` (written bare). A
+        volume's points have no texture coordinates (u, v): an image map written in it is
+        refused at its ``image`` keyword before its file is read, one brought in by a
+        named texture at that texture's use."""
+        (ch,) = [c for c in key.children if isinstance(c, Tree)]
+        for inner in ch.iter_subtrees_topdown():
+            held = inner.data == "texture_use" and any(
+                isinstance(c, ImageChannel) for c in _parts([self.texture(inner.children[0])]))
+            if inner.data == "image_map" or held:
+                said = f"texture {rules.shortened(inner.children[0])} holds an image map, " \
+                    f"which" if held else "an image map"
+                raise self.error(inner, f"{said} has no place in a subsurface: it is read at a "
+                                        f"surface's texture coordinates (u, v), and the points "
+                                        f"inside a volume have none; use colours, marbles and "
+                                        f"expressions of them there")
+        return self.channel_of(ch, what)
 
     def channel(self, component: Tree, what: str):
         """The one channel of a component block (ambient, diffuse, specular)."""

@@ -232,8 +232,13 @@ def size_problem(count: int) -> str | None:
 
 
 def mean_free_path_problem(value: float) -> str | None:
-    """A subsurface's mean free path (where its density is 1), scene units: > 0."""
-    return None if value > 0 else "mean_free_path must be > 0 (scene units)"
+    """A subsurface's mean free path (where its density is 1), scene units: > 0, and not so
+    small that its extinction 1/mean_free_path leaves float32's range."""
+    if not value > 0:
+        return "mean_free_path must be > 0 (scene units)"
+    if 1.0 / value > FLT_MAX:
+        return "mean_free_path is too small: its extinction 1/mean_free_path passes 3.4e38"
+    return None
 
 
 def ior_problem(value: float) -> str | None:

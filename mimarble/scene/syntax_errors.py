@@ -16,7 +16,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
-from .keywords import BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
+from .keywords import BARE_CHANNEL_KEYS, BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
 from .model import SPACES
 from .rules import shortened
 
@@ -95,6 +95,10 @@ POVRAY_HINTS: dict[str, str] = {
                        "other global settings",
     "background": "the background is in the image statement: image { background < r g b > }",
 }
+
+#: The channels, in the sentences that expect one.
+_CHANNELS = ("'color < r g b >', 'marble { ... }', 'image { file \"...\" }', 'add { ... }', "
+             "'multiply { ... }', 'mix { ... }' or 'texture \"NAME\"'")
 
 _NUMBER_TEXT = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?")
 
@@ -202,9 +206,10 @@ def _open_blocks(state) -> list[tuple[Token, str]]:
 
 def _block_rule(blocks, k: int) -> str:
     """The rule name (a key of BLOCK_KEYS) of the k-th open block: its keyword, but
-    ``image`` inside a channel block is an image map."""
+    ``image`` inside any block is an image map (the image statement is top-level only; a
+    subsurface's ``albedo image { … }`` opens one with no channel block around it)."""
     word = str(blocks[k][0])
-    if word == "image" and k > 0 and str(blocks[k - 1][0]) in CHANNEL_BLOCKS:
+    if word == "image" and k > 0:
         return "image_map"
     return word
 
@@ -359,9 +364,15 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
                                      f"{allowed}")
             return at(line, col, f"unexpected {found} at top level; a statement is one of {allowed}")
         opener, name = blocks[-1]
+        if isinstance(prev, Token) and prev.type in keywords and str(prev) in BARE_CHANNEL_KEYS:
+            # albedo / density: one channel, written bare (a component block's braces are
+            # the likely habit)
+            bare = (f"; a subsurface's {prev} takes its channel without braces: {prev} "
+                    f"color < 1 1 1 >") if tok.type == "LBRACE" else ""
+            return at(line, col, f"expected a channel after '{prev}' ({_CHANNELS}), found "
+                                 f"{found}{bare}")
         if opener in CHANNEL_BLOCKS:
-            what = ("a channel: 'color < r g b >', 'marble { ... }', 'image { file \"...\" }', "
-                    "'add { ... }', 'multiply { ... }', 'mix { ... }' or 'texture \"NAME\"'")
+            what = f"a channel: {_CHANNELS}"
             if opener == "mix":
                 what += ", or 'weight W' last"
             if tok.type == "RBRACE":
@@ -376,8 +387,10 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(line, col, f"unknown keyword '{shortened(tok)}' in {name}{_renamed_note(str(tok))}; "
                                  f"allowed: {allowed}")
         if tok.type in keywords:
+            one = (" (albedo and density take exactly one channel each)"
+                   if opener == "subsurface" and str(tok) in CHANNEL_KEYWORDS else "")
             return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: "
-                                 f"{allowed}{_unclosed_note(tok, blocks)}")
+                                 f"{allowed}{one}{_unclosed_note(tok, blocks)}")
         return at(line, col, f"unexpected {found} in {name}; expected a keyword ({allowed}) or '}}'")
 
     if expected == {"RBRACE"} and blocks:
