@@ -6,6 +6,7 @@ files): its own Perlin noise (Shirley's sum-of-ω form, :mod:`.noise`), its own 
 (:mod:`.marble`), its own camera, intersection of spheres, planes and boxes, ``shadowHit``
 and shading (:mod:`.tracer`), its own mesh file reader (:mod:`.mesh_file`) and triangle
 hierarchy (:mod:`.triangles`), its own
+random walk through translucent spheres for path mode's ``subsurface`` (:mod:`.volume`), its own
 channel expressions, sphere (u, v) and image maps (:mod:`.channels`, :mod:`.image_map`:
 Pillow decodes, the sRGB curve and bilinear lookup are here). Its modules import only
 NumPy, Pillow, the standard library, ``mimarble.scene`` and ``mimarble.progress``
@@ -45,10 +46,14 @@ from .tracer import (
     trace,
 )
 from .triangles import TriangleBVH
+from . import volume
+from .volume import render_translucent
 from .tracer import render as _render
 
 __all__ = [
     "render",
+    "render_translucent",
+    "volume",
     "noise",
     "marble",
     "tracer",
