@@ -18,8 +18,9 @@ up to interpolation between texel centres. v = 0 is the top row, as in the ``bit
   (u, v), and the triangle containing it gives the point by its barycentric coordinates
   (b₀, b₁, b₂): p = b₀·p₀ + b₁·p₁ + b₂·p₂ of its world vertices (the object-space point
   likewise, of the file's vertices). (u, v) outside [0, 1] wrap as ``repeat`` does
-  (texel i mod N); a triangle whose (u, v) span more than one repeat of the image
-  (a tiled floor) is refused: no image holds it once. Where triangles overlap in (u, v)
+  (texel i mod N; up to ±:data:`MAX_UV`, past which a mesh is refused); a triangle whose
+  (u, v) span more than one repeat of the image (a tiled floor) is refused: no image
+  holds it once. Where triangles overlap in (u, v)
   (mirrored halves sharing a chart), one of them gives the texel. Texels no triangle
   covers are filled from their covered neighbours, :data:`DILATION` texels deep (the
   mean of the covered ones of the eight around, wrapping as ``repeat`` does, repeatedly),
@@ -75,7 +76,7 @@ IMAGE_SUFFIXES = (".png", ".exr")
 VOLUME_SUFFIXES = (".vol",)
 
 #: A material's channels, in the order a default is looked for after ``diffuse``.
-CHANNELS = ("ambient", "diffuse", "specular")
+CHANNELS = ("ambient", "diffuse", "specular", "albedo", "density")
 
 #: How many texels deep the covered texels of a mesh's image are extended (bilinear
 #: lookup reads the texel beside the nearest: one is enough, two leave a margin).
@@ -87,6 +88,12 @@ FLAT_FRACTION = 1e-3
 
 #: Points evaluated at once: the float64 marble holds a few dozen arrays of this many.
 CHUNK = 1 << 16
+
+#: The largest |u| or |v| a mesh's image is baked through: there float64's step is 2⁻²⁰,
+#: 128 times finer than a texel of MAX_IMAGE_SIZE, so each triangle's (u, v) shifted by
+#: whole repeats keeps its place in the image; past it, refused (and texel numbers stay
+#: far inside int64).
+MAX_UV = 2.0 ** 32
 
 
 class BakeError(ValueError):
@@ -119,7 +126,9 @@ def chosen(scene, shape_id: str, channel: str | None = None, volume: bool = Fals
         raise BakeError(f"{shape_id} is a box: it has no (u, v) to bake an image through; "
                         f"bake a volume with --volume")
     material = scene.material_of(shape)
-    present = material.channels()
+    present = dict(material.channels())
+    if volume and material.subsurface is not None:       # a volume's own: albedo, density
+        present.update(material.subsurface.channels())
     if not present:
         raise BakeError(f'{shape_id}\'s material "{material.name}" has no channels to bake')
     if channel is None:
@@ -201,16 +210,28 @@ def _mesh_texels(shape_id, shape, size, channel, out, progress):
                         f"image through; bake a volume with --volume")
     triangles = np.asarray(data.triangles, dtype=np.int64)
     uv = np.asarray(data.uv, dtype=np.float64)[triangles]                 # (T, 3, 2)
+    big = np.nonzero((np.abs(uv) > MAX_UV).any(axis=(1, 2)))[0]
+    if big.size:
+        t = int(big[0])
+        raise BakeError(f"{shape_id} ({shape.file}): triangle {t}'s texture coordinates reach "
+                        f"{np.abs(uv[t]).max():g}, past the ±{MAX_UV:g} through which an image "
+                        f"is baked")
     lo, hi = uv.min(axis=1), uv.max(axis=1)
+    # Whole repeats of the image are one texel apart modulo N: each triangle is shifted by
+    # the floor of its least (u, v), to [0, 1) there, so that its texel numbers stay small.
+    shift = np.floor(lo)
+    uv, lo, hi = uv - shift[:, None, :], lo - shift, hi - shift
     # Texel centres (i + ½)/N inside [lo, hi]: i from ⌈lo·N − ½⌉ to ⌊hi·N − ½⌋.
     first = np.ceil(lo * size - 0.5).astype(np.int64)
     last = np.floor(hi * size - 0.5).astype(np.int64)
     wide = np.nonzero((last - first + 1 > size).any(axis=1))[0]
     if wide.size:
         t = int(wide[0])
+        u0, v0 = lo[t] + shift[t]
+        u1, v1 = hi[t] + shift[t]
         raise BakeError(f"{shape_id} ({shape.file}): triangle {t}'s texture coordinates span "
-                        f"more than one repeat of the image (u {lo[t, 0]:g}..{hi[t, 0]:g}, "
-                        f"v {lo[t, 1]:g}..{hi[t, 1]:g}): no baked image holds it once")
+                        f"more than one repeat of the image (u {u0:g}..{u1:g}, "
+                        f"v {v0:g}..{v1:g}): no baked image holds it once")
     owner, first, last = _pieces(first, last)
     counts = (last - first + 1).prod(axis=1)
     object_space = _needs_object_points(channel)

@@ -826,7 +826,8 @@ def build_parser() -> argparse.ArgumentParser:
                         f"most {MAX_IMAGE_SIZE}), or voxels along a side of the volume "
                         f"(default {DEFAULT_VOLUME_SIZE}, at most {MAX_VOLUME_SIZE})")
     p.add_argument("--channel", choices=CHANNELS,
-                   help="the material's channel (default: diffuse, else the first it has)")
+                   help="the material's channel (default: diffuse, else the first it has; "
+                        "albedo and density: a subsurface's, with --volume)")
     p.add_argument("--volume", action="store_true",
                    help="bake the channel on an N×N×N grid over the shape's world bounding box, "
                         "as a Mitsuba volume grid (.vol: gridvolume); spheres, boxes, meshes")

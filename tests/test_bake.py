@@ -10,6 +10,7 @@ interpolation of those voxels.
 
 import math
 import struct
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -305,6 +306,29 @@ def test_a_mesh_without_texture_coordinates_or_tiled_ones_is_refused(tmp_path):
     scene = quad_scene(tmp_path, uv=((0, 0), (3, 0), (3, 1), (0, 1)))
     with pytest.raises(bake.BakeError, match="more than one repeat of the image"):
         bake.bake_image(scene, "mesh_0", 8)
+
+
+@pytest.mark.parametrize("kind, shift", [("ply", (1000, -3)), ("obj", (2 ** 31 + 5, -(2 ** 20))),
+                                         ("obj", (2 ** 32 - 1, -(2 ** 32)))])
+def test_texture_coordinates_whole_repeats_away_bake_the_same_image(tmp_path, kind, shift):
+    """(u, v) moved by whole repeats of the image (exact in the file: float32 for PLY,
+    float64 for OBJ) name the same texels, as a ``repeat`` lookup reads them."""
+    base = bake.bake_image(quad_scene(tmp_path, kind=kind), "mesh_0", 16)
+    uv = [(u + shift[0], v + shift[1]) for u, v in ((0, 0), (1, 0), (1, 1), (0, 1))]
+    moved = bake.bake_image(quad_scene(tmp_path, uv=uv, kind=kind), "mesh_0", 16)
+    np.testing.assert_array_equal(moved, base)
+
+
+@pytest.mark.parametrize("value", [1e30, -2.0 ** 33])
+def test_texture_coordinates_past_max_uv_are_refused_in_one_sentence(tmp_path, value):
+    uv = ((0, 0), (1, 0), (1, value), (0, 1))
+    scene = quad_scene(tmp_path, uv=uv, kind="obj")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")              # no NumPy warning on the way
+        with pytest.raises(bake.BakeError) as e:
+            bake.bake_image(scene, "mesh_0", 8)
+    assert f"texture coordinates reach {abs(value):g}, past the ±4.29497e+09" in str(e.value)
+    assert "\n" not in str(e.value)
 
 
 def test_a_mesh_volume_spans_its_world_vertices(tmp_path):

@@ -5,6 +5,7 @@ The same mesh is written in every encoding by hand (struct for the binary PLYs, 
 others), so each reader is checked against the triangles it was given, not against another
 reader."""
 
+import math
 import os
 import struct
 import tracemalloc
@@ -76,6 +77,8 @@ def corners(mesh):
 
 
 EXPECTED_POSITIONS = np.array(POSITIONS)[np.array(FANS)]
+#: The written positions' least and greatest x, y, z (written exactly in every encoding).
+POSITION_BOUNDS = (tuple(min(c) for c in zip(*POSITIONS)), tuple(max(c) for c in zip(*POSITIONS)))
 EXPECTED_UV = np.array([uv_of(p) for p in POSITIONS])[np.array(FANS)]
 
 
@@ -105,7 +108,7 @@ def test_facts_count_the_written_mesh(tmp_path, kind):
             "ply-be": lambda: write_ply_binary(tmp_path / "m.ply", ">", faces=TRIANGLES),
             "obj": lambda: write_obj(tmp_path / "m.obj", relative=False)}[kind]()
     assert mesh_facts(str(path)) == mesh_header.MeshFacts(
-        "obj" if kind == "obj" else "ply", len(POSITIONS), len(FANS), True)
+        "obj" if kind == "obj" else "ply", len(POSITIONS), len(FANS), True, POSITION_BOUNDS)
 
 
 @pytest.mark.parametrize("kind", ["ply-ascii", "ply-le", "ply-be"])
@@ -395,4 +398,217 @@ def test_elements_in_any_order_and_others_skipped(tmp_path, fmt):
         path.write_bytes(head.encode() + body)
     mesh = read_mesh(path)
     np.testing.assert_array_equal(mesh.positions[mesh.triangles], np.array(square)[np.array(faces)])
-    assert mesh_facts(str(path)) == mesh_header.MeshFacts("ply", 4, 2, False)
+    assert mesh_facts(str(path)) == mesh_header.MeshFacts("ply", 4, 2, False,
+                                                          ((0, 0, 0), (1, 1, 0)))
+
+
+# ---------------------------------------------------------------------------
+# What mesh_facts walks in a PLY body, for Mitsuba's sake: every face a triangle of
+# existing vertices, every coordinate finite within float32, every element bounded.
+
+def ply_with(fmt, positions, faces, index_type="int", types="fff", uv=None):
+    """A PLY of ``positions`` (x y z of the given float types, then u v as float) and
+    triangles ``faces`` in format ``fmt``, written here with struct or text."""
+    names = dict(f="float", d="double")
+    lines = ["ply", f"format {fmt} 1.0", f"element vertex {len(positions)}"]
+    lines += [f"property {names[t]} {c}" for t, c in zip(types, "xyz")]
+    lines += ["property float u", "property float v"] if uv else []
+    lines += [f"element face {len(faces)}", f"property list uchar {index_type} vertex_indices",
+              "end_header"]
+    head = ("\n".join(lines) + "\n").encode()
+    rows = [tuple(p) + (tuple(uv[k]) if uv else ()) for k, p in enumerate(positions)]
+    if fmt == "ascii":
+        text = [" ".join(repr(float(c)) for c in r) for r in rows]
+        text += [" ".join(map(str, (3,) + tuple(f))) for f in faces]
+        return head + ("\n".join(text) + "\n").encode()
+    order = "<" if fmt == "binary_little_endian" else ">"
+    code = {"int": "i", "uint": "I", "short": "h", "uchar": "B"}[index_type]
+    body = b"".join(struct.pack(order + types + ("ff" if uv else ""), *r) for r in rows)
+    body += b"".join(struct.pack(f"{order}B3{code}", 3, *f) for f in faces)
+    return head + body
+
+
+FORMATS = ["ascii", "binary_little_endian", "binary_big_endian"]
+TRIANGLE = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
+
+
+def facts_refusal(tmp_path, data, name="m.ply"):
+    path = tmp_path / name
+    (path.write_bytes if isinstance(data, bytes) else path.write_text)(data)
+    with pytest.raises(MeshFileError) as e:
+        mesh_facts(str(path))
+    assert_one_sentence(str(e.value))
+    return str(e.value)
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian"])
+def test_an_element_of_no_properties_or_past_the_limit_is_refused_from_the_header(tmp_path, fmt):
+    """10¹⁵ records of nothing fit any file: refused at once (it was walked record by
+    record); any element past MAX_MESH_VERTICES records is refused before it is walked."""
+    good = ply_with(fmt, TRIANGLE, [(0, 1, 2)])
+    for junk, words in [(b"element junk 1000000000000000\n",
+                         "the PLY element 'junk' declares 1000000000000000 records of no "
+                         "properties"),
+                        (f"element junk {mesh_header.MAX_MESH_VERTICES + 1}\nproperty uchar a\n"
+                         .encode(), "an element of a mesh file holds at most"),
+                        (b"element junk " + b"9" * 5000 + b"\n", "more than a mesh file holds")]:
+        data = good.replace(b"element vertex", junk + b"element vertex")
+        assert words in facts_refusal(tmp_path, data)
+        with pytest.raises(MeshFileError, match=words.split("(")[0]):
+            read_mesh(tmp_path / "m.ply")
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("index_type, bad", [("int", 3), ("int", -1), ("uint", 2 ** 32 - 1),
+                                             ("short", 7)])
+def test_a_face_index_outside_the_vertices_is_refused_in_the_readers_words(tmp_path, fmt,
+                                                                           index_type, bad):
+    faces = [(0, 1, 2)] * 10 + [(0, bad, 2)] + [(0, 1, 2)] * 3
+    message = facts_refusal(tmp_path, ply_with(fmt, TRIANGLE, faces, index_type))
+    assert message == (f"a face refers to vertex {bad}, which does not exist (the file has 3, "
+                       f"numbered from 0)")
+    with pytest.raises(MeshFileError, match=f"a face refers to vertex {bad}, which does not"):
+        read_mesh(tmp_path / "m.ply")                 # the reference reader's sentence
+
+
+def test_obj_face_indices_past_the_vertices_are_refused_at_their_line(tmp_path):
+    message = facts_refusal(tmp_path, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 9\n", "m.obj")
+    assert message.startswith("line 5: vertex 9 does not exist")
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+@pytest.mark.parametrize("value, words", [(1e39, "a vertex coordinate 1e+39 is beyond float32's"),
+                                          (-4e38, "a vertex coordinate -4e+38 is beyond"),
+                                          (math.inf, "a vertex coordinate is not finite"),
+                                          (math.nan, "a vertex coordinate is not finite")])
+def test_ply_coordinates_not_finite_or_past_float32_are_refused(tmp_path, fmt, value, words):
+    positions = [(0.0, 0.0, 0.0), (1.0, 0.0, value), (0.0, 1.0, 0.0)]
+    assert words in facts_refusal(tmp_path, ply_with(fmt, positions, [(0, 1, 2)], types="ffd"))
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_ply_texture_coordinates_not_finite_are_refused(tmp_path, fmt):
+    uv = [(0, 0), (1, math.nan), (0, 1)]
+    assert "a texture coordinate is not finite" in facts_refusal(
+        tmp_path, ply_with(fmt, TRIANGLE, [(0, 1, 2)], uv=uv))
+
+
+def test_ascii_texture_coordinates_past_float32_are_refused(tmp_path):
+    data = ply_with("ascii", TRIANGLE, [(0, 1, 2)], uv=[(0, 0), (1, 0), (0, 1)])
+    data = data.replace(b"\n1.0 0.0 0.0 1.0 0.0\n", b"\n1.0 0.0 0.0 1e39 0.0\n")
+    assert "a texture coordinate 1e+39 is beyond float32's range" in facts_refusal(tmp_path, data)
+
+
+@pytest.mark.parametrize("line, words", [("v 1 0 1e39", "line 2: the number 1e+39 is beyond"),
+                                         ("v -1e39 0 0", "line 2: the number -1e+39 is beyond"),
+                                         ("vt 0 3.5e38", "line 2: the number 3.5e+38 is beyond"),
+                                         ("v 1 0 inf", "line 2: a number that is not finite")])
+def test_obj_coordinates_past_float32_are_refused_at_their_line(tmp_path, line, words):
+    text = f"v 0 0 0\n{line}\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1 3 4\n"
+    message = facts_refusal(tmp_path, text, "m.obj")
+    assert words in message
+    assert "float32's range (±3.402823e+38)" in message or "finite" in words
+
+
+def test_float32s_largest_is_taken(tmp_path):
+    big = 3.4028234663852886e38                   # FLT_MAX itself, exact in float32
+    positions = [(0.0, 0.0, 0.0), (big, 0.0, 0.0), (0.0, -big, 0.0)]
+    path = tmp_path / "m.ply"
+    path.write_bytes(ply_with("binary_little_endian", positions, [(0, 1, 2)]))
+    assert mesh_facts(str(path)).bounds == ((0.0, -big, 0.0), (big, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("fmt", FORMATS)
+def test_a_polygon_short_body_or_trailing_data_is_refused_by_the_walk(tmp_path, fmt):
+    good = ply_with(fmt, TRIANGLE, [(0, 1, 2)] * 4)
+    if fmt == "ascii":
+        polygon = good.replace(b"\n3 0 1 2\n3 0 1 2\n", b"\n3 0 1 2\n4 0 1 2 1\n", 1)
+        short, trailing = good[:-8], good + b"7\n"
+        where = "face"
+    else:
+        polygon = good.replace(b"\x03" + good[-12:], b"\x04" + good[-12:] + good[-4:])
+        trailing = good + b"\0"
+        # Binary records are fixed in size but for their lists (the header's check counts
+        # 3 indices a face): a list of 255 bytes, more than the file has left.
+        at = good.index(b"end_header\n") + len(b"end_header\n")
+        short = good[:at].replace(b"element vertex", b"element extra 1\nproperty list uchar "
+                                  b"uchar k\nelement vertex") + b"\xff" + good[at:]
+        where = "extra"
+    assert facts_refusal(tmp_path, polygon).startswith("a face of 4 vertices")
+    assert facts_refusal(tmp_path, short) == f"the file ends inside its {where} element"
+    assert "goes on past the elements its header declares" in facts_refusal(tmp_path, trailing)
+
+
+# ---------------------------------------------------------------------------
+# The bounds of a mesh's file, and the shapes placed by them (scene.geometry)
+
+@pytest.mark.parametrize("fmt", FORMATS + ["obj"])
+@pytest.mark.parametrize("chunk", [None, 64])
+def test_bounds_are_the_least_and_greatest_coordinates_written(tmp_path, monkeypatch, fmt, chunk):
+    """Random float32 positions (exact in every encoding), read a chunk at a time (64 bytes
+    or words: many chunks), against NumPy's min and max of what was written."""
+    if chunk:
+        monkeypatch.setattr(mesh_header, "_CHUNK", chunk)
+    rng = np.random.default_rng(25)
+    positions = rng.normal(0, 100, (500, 3)).astype(np.float32).astype(np.float64)
+    faces = rng.integers(0, len(positions), (300, 3))
+    if fmt == "obj":
+        lines = [f"v {x!r} {y!r} {z!r}" for x, y, z in positions.tolist()]
+        lines += ["f " + " ".join(str(i + 1) for i in f) for f in faces]
+        (tmp_path / "m.obj").write_text("\n".join(lines) + "\n")
+        path = tmp_path / "m.obj"
+    else:
+        path = tmp_path / "m.ply"
+        path.write_bytes(ply_with(fmt, positions.tolist(), faces.tolist()))
+    facts = mesh_facts(str(path))
+    assert (facts.vertices, facts.triangles) == (500, 300)
+    assert facts.bounds == (tuple(positions.min(axis=0)), tuple(positions.max(axis=0)))
+
+
+def test_mesh_bounds_are_looked_up_again_when_the_file_changes(tmp_path):
+    path = tmp_path / "m.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert mesh_header.mesh_bounds(str(path)) == ((0, 0, 0), (1, 1, 0))
+    path.write_text("v 0 0 0\nv 10 0 0\nv 0 -1 0\nf 1 2 3\n")        # another size
+    assert mesh_header.mesh_bounds(str(path)) == ((0, -1, 0), (10, 0, 0))
+    path.write_text("v 0 0 0\n")
+    assert mesh_header.mesh_bounds(str(path)) is None                  # refused: unknown
+    assert mesh_header.mesh_bounds(str(tmp_path / "missing.obj")) is None
+
+
+def test_a_meshs_bounding_sphere_is_around_its_transformed_bounds(tmp_path):
+    """Vertices within x 1..3, y −1..1, z 0..4 (a corner of each kind), scaled by 2 and
+    moved by (10, 0, −5): the box 2..6 × −2..2 × 0..8 moved, whose centre is (14, 0, −1)
+    and whose half diagonal is √(4² + 4² + 8²)/2 = √24."""
+    from mimarble.scene import geometry, model
+    vertices = [(1, -1, 0), (3, 1, 4), (2, 0, 1), (1, 1, 4)]
+    path = tmp_path / "m.obj"
+    path.write_text("".join(f"v {x} {y} {z}\n" for x, y, z in vertices) + "f 1 2 3 4\n")
+    steps = (("scale", (2.0, 2.0, 2.0)), ("translate", (10.0, 0.0, -5.0)))
+    mesh = model.Mesh("g", str(path), transform=steps)
+    centre, radius = geometry.sphere_bounds(mesh)
+    assert centre == pytest.approx((14.0, 0.0, -1.0)) and radius == pytest.approx(math.sqrt(24))
+    corners = geometry.mesh_corners(mesh)
+    assert sorted(corners) == sorted((x, y, z) for x in (12, 16) for y in (-2, 2)
+                                     for z in (-5, 3))
+    missing = model.Mesh("g", str(tmp_path / "missing.obj"), transform=steps)
+    assert geometry.sphere_bounds(missing) == ((10.0, 0.0, -5.0), 0.0)   # its origin alone
+    assert geometry.mesh_corners(missing) is None
+
+
+def test_a_planes_disk_reaches_past_a_far_mesh(tmp_path):
+    """A mesh whose vertices lie 1000 to 1001 from the eye (none at its transform's origin):
+    the plane's disk is PLANE_REACH times (1 + its farthest corner's distance) at least."""
+    from mimarble.scene import geometry, model
+    path = tmp_path / "far.obj"
+    path.write_text("v 1000 0 0\nv 1001 0 0\nv 1000 1 0\nf 1 2 3\n")
+    g = model.Material("g", diffuse=model.ColorChannel((0.5, 0.5, 0.5)))
+    plane = model.Plane("g", (0.0, -1.0, 0.0), (0.0, 1.0, 0.0))
+    scene = model.Scene(image=model.Image(8, 8, 1),
+                        camera=model.Camera(eye=(0.0, 0.0, 0.0), lookat=(0.0, 0.0, -1.0)),
+                        lights=(model.Light((0.0, 5.0, 0.0)),), materials={"g": g},
+                        planes=(plane,), meshes=(model.Mesh("g", str(path)),))
+    _, radius = geometry.plane_disk(scene, plane)
+    farthest = math.dist((0.0, -1.0, 0.0), (1001.0, 1.0, 0.0))    # from the disk's centre
+    assert radius >= geometry.PLANE_REACH * (1 + farthest)
+    assert radius <= geometry.PLANE_REACH * (1 + farthest + 2.0)   # the bounding sphere's slack

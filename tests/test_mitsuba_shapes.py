@@ -204,6 +204,35 @@ def test_shapes_beyond_float32s_reach_are_warned_about():
         to_mitsuba(on_plane)
 
 
+def test_a_mesh_past_embrees_range_or_too_near_for_float32_is_warned_about(tmp_path):
+    """A mesh is judged by the world corners of its file's bounds, not by its transform's
+    origin: a triangle of coordinates ±10¹⁹ about the origin (untransformed) reaches 10¹⁹
+    (past Embree's 1.8·10¹⁸), moved by 10¹⁸ further; a triangle at x = 10⁹ seen from 1
+    away is nearer than float32's error there (2⁻²³·(10⁹ + 1) ≈ 119), from 1000 away it
+    is not."""
+    g = [m.Material("g", diffuse=GREY)]
+    unit = write_obj(tmp_path / "unit.obj", [(-1, -1, 0), (1, -1, 0), (0, 1, 0)], [(0, 1, 2)])
+    huge = write_obj(tmp_path / "huge.obj", [(-1e19, -1e19, 0), (1e19, -1e19, 0), (0, 1e19, 0)],
+                     [(0, 1, 2)])
+    for mesh, reach in ((m.Mesh("g", huge), "1e+19"),
+                        (m.Mesh("g", huge, transform=(("translate", (1e18, 0, 0)),)), "1.1e+19")):
+        problems = float32_range_problems(scene_of(g, meshes=(mesh,)))
+        assert any(f"mesh reaches {reach} from the origin" in p and "Embree" in p
+                   for p in problems), problems
+    with pytest.warns(Float32RangeWarning) as caught:     # and the light's, 1.4e19 away
+        to_mitsuba(scene_of(g, meshes=(m.Mesh("g", huge),)))
+    assert any("mesh reaches 1e+19" in str(w.message) for w in caught)
+    far = write_obj(tmp_path / "far.obj", [(1e9, -1, -1), (1e9, 1, -1), (1e9, 0, 1)], [(0, 1, 2)])
+    mesh = m.Mesh("g", far)
+    for distance, warned in ((1.0, True), (1000.0, False)):
+        scene = scene_of(g, eye=(1e9 + distance, 0.0, 0.0), lookat=(1e9, 0.0, 0.0),
+                         lights=((1e9 + 5, 0.0, 0.0),), meshes=(mesh,))
+        problems = float32_range_problems(scene)
+        assert any("mesh at 1e+09 from the origin is beyond float32's reach" in p
+                   for p in problems) == warned, problems
+    assert float32_range_problems(scene_of(g, meshes=(m.Mesh("g", unit),))) == []
+
+
 # ---------------------------------------------------------------------------
 # Renders against float64 geometry
 

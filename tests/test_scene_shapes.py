@@ -232,13 +232,13 @@ def test_a_real_ply_with_uv_takes_an_image_map(tmp_path):
     text = IMAGE_MATERIAL + 'mesh { file "tri.ply" material "i" }'
     (mesh,) = parse(text, source=str(tmp_path / "t.scene")).meshes
     assert mesh.location == str(tmp_path / "tri.ply")
-    assert mesh_header.mesh_facts(mesh.location) == MeshFacts("ply", 3, 1, True)
+    assert mesh_header.mesh_facts(mesh.location) == MeshFacts("ply", 3, 1, True, ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0)))
 
 
 def test_a_real_obj_without_uv_refuses_an_image_map(tmp_path):
     (tmp_path / "square.obj").write_text(SQUARE_OBJ)
     real_reader(tmp_path / "square.obj")
-    assert mesh_header.mesh_facts(str(tmp_path / "square.obj")) == MeshFacts("obj", 4, 2, False)
+    assert mesh_header.mesh_facts(str(tmp_path / "square.obj")) == MeshFacts("obj", 4, 2, False, ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0)))
     text = IMAGE_MATERIAL + 'mesh { file "square.obj" material "i" }'
     refused_at(text, 2, 35, "image map", "texture coordinates", source=str(tmp_path / "t.scene"))
 

@@ -37,3 +37,15 @@ def test_whitted_mode_refuses_a_translucent_scene_at_its_subsurface(llvm):
     line = next(k for k, text in enumerate(path.read_text().splitlines(), 1) if "subsurface" in text
                 and not text.lstrip().startswith("//"))
     assert str(info.value).startswith(f"{path}:{line}:") and "--mode path" in str(info.value)
+
+
+def test_a_subsurface_albedo_bakes_on_a_grid_as_the_reference_marble(tmp_path):
+    from mimarble import bake
+    from mimarble.reference.channels import channel_color
+    scene = S.load(SCENES[0])
+    lo, hi = bake.bake_volume(scene, "sphere_0", tmp_path / "albedo.vol", size=4, channel="albedo")
+    data = (tmp_path / "albedo.vol").read_bytes()
+    values = np.frombuffer(data[-4 ** 3 * 3 * 4:], dtype="<f4").reshape(4, 4, 4, 3)  # z, y, x
+    centre = (np.asarray(lo) + (np.asarray(hi) - np.asarray(lo)) * (np.array([1, 2, 0]) + 0.5) / 4)
+    expected = channel_color(scene.materials["translucent marble"].subsurface.albedo, centre[None])
+    np.testing.assert_allclose(values[0, 2, 1], expected[0], atol=1e-6)

@@ -393,14 +393,16 @@ def _checked(scene, spp, max_depth, rr_depth, chunk_paths):
 
 def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int = MAX_DEPTH,
                        rr_depth: int | None = ROULETTE_DEPTH, chunk_paths: int = CHUNK_PATHS,
-                       variance: bool = False):
+                       variance: bool = False, steps: dict | None = None):
     """Path mode's image of a scene of translucent spheres (module docstring) -> float64
     (H, W, 3), linear, each pixel the mean of ``spp`` random walks.
 
     ``seed`` seeds ``np.random.default_rng``; ``max_depth`` is volpath's (−1: no limit);
     ``rr_depth`` starts the Russian roulette (None: none). With ``variance=True`` returns
     ``(image, sample_variance)``: the second, (H, W, 3), is each pixel's unbiased variance
-    of one sample (so the pixel mean's variance is it / spp; 0 at spp 1).
+    of one sample (so the pixel mean's variance is it / spp; 0 at spp 1). ``steps``, a dict,
+    gains the delta tracking's counts: ``paths``, ``real`` and ``null`` collisions (the
+    majorant's efficiency is real / (real + null)).
     """
     _checked(scene, spp, max_depth, rr_depth, chunk_paths)
     spp = int(spp)
@@ -424,7 +426,7 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
         y = ((pixel // width) + rng.random(len(pixel))) / height
         eye, d = camera_rays(scene, x, y)
         value = _walk(spheres, lights, ambient, np.broadcast_to(eye, d.shape).copy(), d, rng,
-                      depth_cap, roulette, q_max)
+                      depth_cap, roulette, q_max, steps)
         for c in range(3):
             total[:, c] += np.bincount(pixel, value[:, c], minlength=pixels)
             square[:, c] += np.bincount(pixel, value[:, c] ** 2, minlength=pixels)
@@ -450,9 +452,12 @@ class _Lights:
                            for l in scene.lights if isinstance(l.area, RectangleArea)]
 
 
-def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max):
-    """Every path's contribution (n, 3), the walks of rays (o, d) from the camera."""
+def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps=None):
+    """Every path's contribution (n, 3), the walks of rays (o, d) from the camera (``steps``:
+    counts added, see :func:`render_translucent`)."""
     n = len(d)
+    if steps is not None:
+        steps["paths"] = steps.get("paths", 0) + n
     value = np.zeros((n, 3))
     beta = np.ones((n, 3))
     depth = np.zeros(n, dtype=np.int64)
@@ -572,6 +577,9 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max):
                     chosen = u[here] < ratio
                     real[here[chosen]] = True
                     beta[j[here[chosen]]] *= albedo[chosen]
+                if steps is not None:
+                    steps["real"] = steps.get("real", 0) + int(real.sum())
+                    steps["null"] = steps.get("null", 0) + int((~real).sum())
                 scattered = j[real]
                 d[scattered] = _uniform_sphere(rng, scattered.size)
                 event[ins[hits[real]]] = True

@@ -25,10 +25,10 @@ from __future__ import annotations
 
 import math
 
-from . import transforms
+from . import mesh_header, transforms
 
 __all__ = ["PLANE_REACH", "plane_frame", "object_to_world", "plane_disk", "sphere_bounds",
-           "box_corners", "apply", "apply_linear"]
+           "box_corners", "mesh_corners", "apply", "apply_linear"]
 
 #: A plane's rendered radius in units of the scene's extent around it (:func:`plane_disk`).
 PLANE_REACH = 1e4
@@ -108,18 +108,39 @@ def box_corners(box):
             for y in (box.min[1], box.max[1]) for z in (box.min[2], box.max[2])]
 
 
+def mesh_corners(mesh):
+    """The eight corners, in world space, of the box of a mesh file's vertex positions
+    (mesh_header.mesh_bounds, in file coordinates) placed by the mesh's transform: the
+    mesh lies within their convex hull. None where the file cannot be read (the parser
+    says why at the mesh)."""
+    bounds = mesh_header.mesh_bounds(mesh.location)
+    if bounds is None:
+        return None
+    (x0, y0, z0), (x1, y1, z1) = bounds
+    m = transforms.compose(mesh.transform)
+    return [apply(m, (x, y, z)) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
+
+
+def _around(corners):
+    """(centre, radius): the sphere about the corners' mean through the farthest one."""
+    centre = tuple(sum(c[i] for c in corners) / len(corners) for i in range(3))
+    return centre, max(math.dist(centre, c) for c in corners)
+
+
 def sphere_bounds(shape):
     """(centre, radius) of a sphere enclosing the shape in world space, or None for a
-    plane (unbounded) and a mesh (its vertices are in its file: the translation of its
-    transform is returned, radius 0, as the one point known without reading it)."""
+    plane (unbounded): a box's or a mesh's (:func:`mesh_corners`) around its eight world
+    corners; a mesh whose file cannot be read, the translation of its transform, radius 0
+    (the one point known without it; the parser refuses such a scene)."""
     kind = type(shape).__name__
     if kind == "Sphere":
         return shape.center, shape.radius
     if kind == "Box":
-        corners = box_corners(shape)
-        centre = tuple(sum(c[i] for c in corners) / 8.0 for i in range(3))
-        return centre, max(math.dist(centre, c) for c in corners)
+        return _around(box_corners(shape))
     if kind == "Mesh":
+        corners = mesh_corners(shape)
+        if corners is not None:
+            return _around(corners)
         m = transforms.compose(shape.transform)
         return (m[0][3], m[1][3], m[2][3]), 0.0
     return None
@@ -128,8 +149,8 @@ def sphere_bounds(shape):
 def plane_disk(scene, plane):
     """(centre, radius) of the disk a plane is rendered as: centred on the point of the
     plane nearest the eye, of radius PLANE_REACH·E, E = 1 + the largest distance from that
-    point to the eye, the look-at point, a light or any bounded shape (a mesh: the origin
-    of its transform; :func:`sphere_bounds`)."""
+    point to the eye, the look-at point, a light or any bounded shape's bounding sphere
+    (:func:`sphere_bounds`: a mesh's from its file's bounds)."""
     n = _unit(plane.normal)
     eye = scene.camera.eye
     height = math.fsum(n[i] * (eye[i] - plane.point[i]) for i in range(3))

@@ -1,10 +1,12 @@
 """What a mesh file holds, read from its header (PLY) or its lines (OBJ), within the limits.
 
-``mesh_facts(path)`` returns :class:`MeshFacts` (format, vertices, triangles, has_uv) or
-raises :class:`MeshFileError` with one sentence (no file name: the caller names the file;
-an OBJ's sentence begins with its line number, ``line 12: a face needs 3 or more
-vertices``). The scene language checks every mesh with it while it parses; the reference
-tracer's reader (mimarble/reference/mesh_file.py) reads the PLY header with
+``mesh_facts(path)`` returns :class:`MeshFacts` (format, vertices, triangles, has_uv,
+bounds) or raises :class:`MeshFileError` with one sentence (no file name: the caller names
+the file; an OBJ's sentence begins with its line number, ``line 12: a face needs 3 or more
+vertices``). ``mesh_bounds(path)`` is its bounds, looked up once per version of the file
+(its size and modification time), for the geometry that places shapes by their extent
+(scene/geometry.py). The scene language checks every mesh with mesh_facts while it
+parses; the reference tracer's reader (mimarble/reference/mesh_file.py) reads the PLY header with
 :func:`ply_header` and the OBJ lines with :func:`obj_statements`, so both see one grammar
 and one set of limits. Standard library only.
 
@@ -13,12 +15,14 @@ Limits, each checked before anything in proportion to it is read or allocated:
 * the file is a regular file (reading.py) of at most
   :data:`~mimarble.scene.limits.MAX_MESH_BYTES`, from its size, before it is read;
 * **PLY**: the header ends (``end_header``) within :data:`MAX_PLY_HEADER_BYTES`; its face
-  count is at most :data:`~mimarble.scene.limits.MAX_MESH_TRIANGLES` and its vertex count
-  at most :data:`MAX_MESH_VERTICES`, and the file is large enough for what the header
-  declares (the fewest bytes each record can take), so a 100-byte file claiming 10¹²
-  faces is refused from its header. Its faces are then triangles (below), so the face
-  count is the triangle count; the reference tracer's reader, which also takes polygons
-  (a fan of n − 2 triangles for n corners), counts them and refuses past the limit;
+  count is at most :data:`~mimarble.scene.limits.MAX_MESH_TRIANGLES`, its vertex count and
+  every other element's at most :data:`MAX_MESH_VERTICES`, an element of no properties has
+  no records (its records would take no bytes: 10¹⁵ of them fit any file), and the file is
+  large enough for what the header declares (the fewest bytes each record can take), so a
+  100-byte file claiming 10¹² faces is refused from its header. Its faces are then
+  triangles (below), so the face count is the triangle count; the reference tracer's
+  reader, which also takes polygons (a fan of n − 2 triangles for n corners), counts them
+  and refuses past the limit;
 * **OBJ**: the lines are streamed; the triangles (Σ (n − 2) over the faces) are refused the
   line they pass the limit, the ``v`` and ``vt`` lines past :data:`MAX_MESH_VERTICES`.
 
@@ -32,19 +36,22 @@ What is read (and what is refused, in one sentence each):
   elements skipped. Integer coordinates are refused: Mitsuba reads an integer property as a
   fraction of its type's range, so the two renderers would place the mesh differently.
   The faces must be **triangles**: Mitsuba's ``ply`` plugin reads a face's list as a
-  length checked to be 3 and three indices, so :func:`mesh_facts` reads every face's
-  length (a stepped slice of a binary body; the numbers of an ascii one) and refuses a
-  polygon, which the reference tracer's reader would take as a fan.
-* **OBJ**: ``v x y z`` (further numbers ignored), ``vt u v``, ``vn x y z``, ``f`` with 3 or
-  more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, indices from 1, each referring
-  to an element defined before the face; polygons are fans, as Mitsuba splits them.
-  Negative (relative) indices, which the OBJ format allows, are refused by
-  :func:`mesh_facts` (Mitsuba 3.9 reads indices with ``strtoul``: −1 becomes 2³² − 1, "an
-  invalid vertex") and read by the reference tracer's reader (:func:`obj_statements`
-  with ``relative``). Everything after ``#`` is a comment; other statements (``o``, ``g``,
-  ``s``, ``usemtl``, ``mtllib``, ``l``, …) are ignored. A line is at most
-  :data:`MAX_OBJ_LINE_BYTES` bytes (Mitsuba's OBJ reader refuses longer ones).
-  ``has_uv`` when every corner of every face names a ``vt``.
+  length checked to be 3 and three indices, so :func:`mesh_facts` walks the body
+  (:func:`_ply_body`: stepped slices of a binary one, the words of an ascii one) and
+  refuses a polygon, which the reference tracer's reader would take as a fan; a face
+  index outside 0 … V − 1 (Mitsuba would read past its vertices); a coordinate x, y, z
+  (or the u, v read) that is not finite or beyond ±FLT_MAX (float32, where Mitsuba holds
+  it); a body ending inside an element or going on past the last.
+* **OBJ**: ``v x y z`` (further numbers ignored), ``vt u v`` (each finite, within
+  ±FLT_MAX), ``vn x y z``, ``f`` with 3 or more corners ``v``, ``v/vt``, ``v//vn`` or
+  ``v/vt/vn``, indices from 1, each referring to an element defined before the face;
+  polygons are fans, as Mitsuba splits them. Negative (relative) indices, which the OBJ
+  format allows, are refused by :func:`mesh_facts` (Mitsuba 3.9 reads indices with
+  ``strtoul``: −1 becomes 2³² − 1, "an invalid vertex") and read by the reference tracer's
+  reader (:func:`obj_statements` with ``relative``). Everything after ``#`` is a comment;
+  other statements (``o``, ``g``, ``s``, ``usemtl``, ``mtllib``, ``l``, …) are ignored. A
+  line is at most :data:`MAX_OBJ_LINE_BYTES` bytes (Mitsuba's OBJ reader refuses longer
+  ones). ``has_uv`` when every corner of every face names a ``vt``.
 
 So the files :func:`mesh_facts` accepts, Mitsuba 3.9.1's ``ply`` and ``obj`` plugins and the
 reference tracer read alike in fans, (u, v), indices, coordinates and triangles (checked on
@@ -54,15 +61,19 @@ up to Mitsuba's float32.
 
 from __future__ import annotations
 
+import functools
+import itertools
 import math
 import os
+import struct
+import sys
 from dataclasses import dataclass
 
-from .limits import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
+from .limits import FLT_MAX, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, MAX_MESHES
 from .reading import open_failure, open_regular
 from .rules import shortened
 
-__all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "MAX_PLY_HEADER_BYTES",
+__all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "mesh_bounds", "MAX_PLY_HEADER_BYTES",
            "MAX_MESH_VERTICES", "MAX_OBJ_LINE_BYTES", "PLY_TYPES", "PlyProperty", "PlyElement",
            "PlyHeader", "ply_header", "obj_statements", "open_mesh"]
 
@@ -105,12 +116,15 @@ class MeshFacts:
     """``format`` "ply" or "obj"; ``vertices`` (PLY: vertex records; OBJ: ``v`` lines);
     ``triangles`` (OBJ: polygons split into fans; PLY: the face count, its faces being
     triangles); ``has_uv``: texture coordinates on every vertex (PLY) or
-    every face corner (OBJ)."""
+    every face corner (OBJ); ``bounds``: ((x, y, z) min, (x, y, z) max) of every vertex
+    position the file lists (used by a face or not), in the file's coordinates (None
+    where not known: facts built by hand)."""
 
     format: str
     vertices: int
     triangles: int
     has_uv: bool
+    bounds: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
 
 
 @dataclass(frozen=True)
@@ -168,25 +182,64 @@ def open_mesh(path):
 
 def mesh_facts(path: str) -> MeshFacts:
     """What the mesh file at ``path`` holds (module docstring), or MeshFileError. PLY: its
-    header, then the length of every face's list (Mitsuba reads triangles only); OBJ: all
-    its lines, each checked, negative indices refused (Mitsuba reads none)."""
+    header, then its body walked (every face a triangle of existing vertices, every
+    coordinate finite within float32: :func:`_ply_body`); OBJ: all its lines, each checked,
+    negative indices refused (Mitsuba reads none)."""
     fmt = _format_of(path)
     f, size = open_mesh(path)
     with f:
         if fmt == "ply":
             header = ply_header(f, size)
-            _ply_triangles_only(f, header)
+            bounds = _ply_body(f, header, size)
             return MeshFacts("ply", header.element("vertex").count,
-                             header.element("face").count, header.uv is not None)
+                             header.element("face").count, header.uv is not None, bounds)
         vertices = triangles = 0
         has_uv = True
+        x0 = y0 = z0 = math.inf
+        x1 = y1 = z1 = -math.inf
         for kind, value in obj_statements(f):
             if kind == "v":
                 vertices += 1
+                x, y, z = value                  # plain comparisons: the fastest here
+                if x < x0:
+                    x0 = x
+                if x > x1:
+                    x1 = x
+                if y < y0:
+                    y0 = y
+                if y > y1:
+                    y1 = y
+                if z < z0:
+                    z0 = z
+                if z > z1:
+                    z1 = z
             elif kind == "f":
                 triangles += len(value) - 2
                 has_uv = has_uv and all(t >= 0 for _, t in value)
-        return MeshFacts("obj", vertices, triangles, has_uv)
+        return MeshFacts("obj", vertices, triangles, has_uv, ((x0, y0, z0), (x1, y1, z1)))
+
+
+def mesh_bounds(path):
+    """The ``bounds`` of :func:`mesh_facts` for the file at ``path``, or None where it
+    cannot be read (the parser says why at the mesh). Looked up again only when the file's
+    size or modification time changes (:func:`_bounds_of`): the scene's geometry
+    (geometry.sphere_bounds, a plane's disk, Mitsuba's float32 checks) asks for them many
+    times over one file."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return _bounds_of(os.fspath(path), st.st_size, st.st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=MAX_MESHES)
+def _bounds_of(path: str, size: int, mtime_ns: int):
+    """mesh_facts(path).bounds, None for a file refused; ``size`` and ``mtime_ns`` key the
+    cache only."""
+    try:
+        return mesh_facts(path).bounds
+    except MeshFileError:
+        return None
 
 
 def _format_of(path) -> str:
@@ -273,6 +326,9 @@ def _ply_element(words, elements):
         raise MeshFileError(f"a PLY element line is 'element NAME COUNT', found "
                             f"'{shortened(' '.join(words), 60)}'")
     name = words[1]
+    if len(words[2].lstrip("0")) > 100:         # int() refuses 4300 digits and more
+        raise MeshFileError(f"the PLY element '{shortened(name, 40)}' declares "
+                            f"{shortened(words[2], 30)} records, more than a mesh file holds")
     if any(e[0] == name for e in elements):
         raise MeshFileError(f"the PLY header declares the element '{shortened(name, 40)}' "
                             f"twice")
@@ -315,6 +371,14 @@ def _ply_checked(fmt, elements, end) -> PlyHeader:
     if face.count > MAX_MESH_TRIANGLES:
         raise MeshFileError(f"the PLY header declares {face.count} faces; a scene's meshes "
                             f"hold at most {MAX_MESH_TRIANGLES} triangles")
+    for element in elements:                # every walk over records is bounded
+        name = shortened(element.name, 40)
+        if element.count and not element.properties:
+            raise MeshFileError(f"the PLY element '{name}' declares {element.count} records "
+                                f"of no properties")
+        if element.count > MAX_MESH_VERTICES:
+            raise MeshFileError(f"the PLY header declares {element.count} '{name}' records; "
+                                f"an element of a mesh file holds at most {MAX_MESH_VERTICES}")
     uv = next((pair for pair in _PLY_UV_NAMES
                if vertex.property(pair[0]) and vertex.property(pair[1])), None)
     for name in ("x", "y", "z") + (uv or ()):
@@ -360,91 +424,363 @@ def _ply_fits(header: PlyHeader, size: int) -> None:
                             f"{size - header.size} after its header)")
 
 
-def _ply_triangles_only(f, header: PlyHeader) -> None:
-    """Every face of the PLY body (``f`` just past the header) lists 3 vertices: Mitsuba
-    3.9's ``ply`` plugin reads a face's list as a length checked to be 3 and three indices
-    ("incompatible contents -- is this a triangle mesh?"), so a polygon, which the
-    reference tracer would read as a fan, is refused here for both renderers. Binary: the
-    lengths are read at their offsets (a stepped slice of the face element); ascii: the
-    numbers are walked up to the faces. A body too short is left to the readers."""
-    face = header.element("face")
-    lengths = _ascii_face_lengths(f, header) if header.format == "ascii" else \
-        _binary_face_lengths(f, header)
-    for n in lengths:
-        if n != 3:
-            raise MeshFileError(f"a face of {n} vertices: Mitsuba 3.9's ply plugin reads "
-                                f"triangles only (split the {face.name}s into triangles)")
+def _ply_body(f, header: PlyHeader, size: int) -> tuple:
+    """Walk the PLY body (``f`` just past the header) element by element and return the
+    bounds of its vertex positions; MeshFileError on the first thing Mitsuba 3.9.1's
+    ``ply`` plugin would not read as the reference tracer does:
+
+    * a face whose list is not 3 indices long (Mitsuba reads triangles only: "incompatible
+      contents -- is this a triangle mesh?"; the reference tracer would read a fan);
+    * a face index outside 0 … V − 1 (Mitsuba would read past its vertex buffer);
+    * a coordinate x, y, z (or the (u, v) read) not finite or beyond ±FLT_MAX (Mitsuba
+      stores float32, where it would be ±∞, and refuses such a mesh with a traceback);
+    * a body that ends inside an element, or goes on past the last one (Mitsuba refuses
+      both).
+
+    Binary: fixed-size records are read :data:`_CHUNK` bytes at a time and their columns
+    taken as stepped slices (a face's list, 3 indices, fixed-size as long as every length
+    is 3, which is checked first); records with other lists are walked one by one. Ascii:
+    the words are streamed and taken a chunk of records at a time."""
+    walk = _AsciiWalk(f) if header.format == "ascii" else \
+        _BinaryWalk(f, "little" if header.format == "binary_little_endian" else "big", size)
+    vertices = header.element("vertex").count
+    names = ("x", "y", "z") + (header.uv or ())
+    lo, hi = [math.inf] * 3, [-math.inf] * 3
+    for element in header.elements:
+        if element.name == "vertex":
+            for columns in walk.scalars(element, names):
+                for i, name in enumerate(names):
+                    least, most = _coordinate_range(
+                        columns[name], "vertex coordinate" if i < 3 else "texture coordinate")
+                    if i < 3:
+                        lo[i], hi[i] = min(lo[i], least), max(hi[i], most)
+        elif element.name == "face":
+            for indices in walk.triangles(element, header.face_list):
+                least, most = min(indices), max(indices)
+                if least < 0 or most >= vertices:
+                    bad = least if least < 0 else most
+                    raise MeshFileError(f"a face refers to vertex {bad}, which does not exist "
+                                        f"(the file has {vertices}, numbered from 0)")
+        else:
+            walk.skip(element)
+    walk.finish()
+    return tuple(lo), tuple(hi)
 
 
-def _binary_face_lengths(f, header: PlyHeader):
-    """The face lists' lengths, as far as the body holds them (binary)."""
-    order = "little" if header.format == "binary_little_endian" else "big"
+def _coordinate_range(values, what: str) -> tuple[float, float]:
+    """(min, max) of a column of coordinates, each finite and within ±FLT_MAX. Their sum
+    is finite exactly when none is NaN or ±∞ (or, of finite ones, when none is huge: 3·10⁶
+    numbers within ±FLT_MAX sum to at most 10⁴⁵), so one pass decides the common case."""
+    if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+        raise MeshFileError(f"a {what} is not finite")
+    least, most = min(values), max(values)
+    if max(-least, most) > FLT_MAX:
+        raise MeshFileError(f"a {what} {_beyond_float32(most if most > -least else least)}")
+    return least, most
 
-    def size(type_):
+
+def _beyond_float32(value: float) -> str:
+    return (f"{value:g} is beyond float32's range (±{FLT_MAX:.7g}), the numbers Mitsuba "
+            f"holds its meshes in")
+
+
+def _polygon(n, element) -> MeshFileError:
+    return MeshFileError(f"a face of {n} vertices: Mitsuba 3.9's ply plugin reads triangles "
+                         f"only (split the {element.name}s into triangles)")
+
+
+def _ends_inside(element) -> MeshFileError:
+    return MeshFileError(f"the file ends inside its {element.name} element")
+
+
+def _goes_on(more: str) -> MeshFileError:
+    return MeshFileError(f"the file goes on past the elements its header declares{more}")
+
+
+#: A PLY body is taken about this many bytes (binary) or words (ascii) at a time.
+_CHUNK = 1 << 20
+
+#: struct's (and memoryview.cast's) code of each PLY number (kind, bytes).
+_CODES = {("i", 1): "b", ("u", 1): "B", ("i", 2): "h", ("u", 2): "H", ("i", 4): "i",
+          ("u", 4): "I", ("i", 8): "q", ("u", 8): "Q", ("f", 2): "e", ("f", 4): "f",
+          ("f", 8): "d"}
+
+
+def _chunks(count: int, width: int):
+    """The records in each chunk of ``count`` records of ``width`` bytes or words."""
+    step = max(1, _CHUNK // max(width, 1))
+    for first in range(0, count, step):
+        yield min(step, count - first)
+
+
+class _BinaryWalk:
+    """A binary PLY body, element by element (:func:`_ply_body`)."""
+
+    def __init__(self, f, order: str, size: int) -> None:
+        self.f, self.order, self.size = f, order, size
+        self.swap = order != sys.byteorder
+
+    def _width(self, type_: str) -> int:
         return PLY_TYPES[type_][1]
 
-    for element in header.elements:
+    def _read(self, n: int, element) -> bytes:
+        """``n`` bytes, refused before they are asked for when the file holds fewer."""
+        if n > self.size - self.f.tell():
+            raise _ends_inside(element)
+        return self.f.read(n)
+
+    def _column(self, block: bytes, records: int, record: int, offset: int, type_: str):
+        """The numbers of type ``type_`` at ``offset`` of each of ``records`` records of
+        ``record`` bytes: byte j of every number is the stepped slice block[offset + j::
+        record] (its mirror image where the file's byte order is not this machine's),
+        laid side by side and cast."""
+        kind, width = PLY_TYPES[type_]
+        out = bytearray(records * width)
+        for j in range(width):
+            at = offset + (width - 1 - j if self.swap else j)
+            out[j::width] = block[at:records * record:record]
+        code = _CODES[kind, width]
+        if code == "e":                          # half: not a format memoryview casts to
+            return [v for (v,) in struct.iter_unpack("=e", out)]
+        return memoryview(out).cast(code)
+
+    def _value(self, raw: bytes, type_: str):
+        return struct.unpack(("<" if self.order == "little" else ">")
+                             + _CODES[PLY_TYPES[type_]], raw)[0]
+
+    def skip(self, element) -> None:
+        if any(p.count_type for p in element.properties):
+            for _ in self._records(element):
+                pass
+            return
+        record = sum(self._width(p.type) for p in element.properties)
+        if self.f.tell() + element.count * record > self.size:
+            raise _ends_inside(element)
+        self.f.seek(element.count * record, os.SEEK_CUR)
+
+    def scalars(self, element, names):
+        """Chunks of {name: the values of that scalar property}."""
+        if any(p.count_type for p in element.properties):
+            yield from _gathered(self._records(element), names)
+            return
+        offsets, record = {}, 0
+        for p in element.properties:
+            offsets[p.name] = (record, p.type)
+            record += self._width(p.type)
+        for records in _chunks(element.count, record):
+            block = self._read(records * record, element)
+            yield {name: self._column(block, records, record, *offsets[name]) for name in names}
+
+    def triangles(self, element, list_name: str):
+        """Chunks of the face lists' indices, every list checked to hold 3. With the face
+        list the only list, a record of R bytes (the list's length at ``before``) while
+        every length is 3: a chunk's lengths are compared byte column by byte column with
+        3's bytes, and the first record where one differs (every record before it being a
+        triangle, it is where a triangle's length would be) is refused."""
         lists = [p for p in element.properties if p.count_type]
-        if element.name == "face" and len(lists) == 1:
-            # One list: with 3 indices each record is R bytes, its length at `before`.
-            prop = lists[0]
-            at = element.properties.index(prop)
-            before = sum(size(p.type) for p in element.properties[:at])
-            width = size(prop.count_type)
-            record = sum(size(p.type) for p in element.properties) + width + 2 * size(prop.type)
-            block = f.read(element.count * record)
-            three = (3).to_bytes(width, order)
+        if len(lists) > 1:
+            yield from _walked_triangles(self._records(element), element, list_name)
+            return
+        prop = lists[0]
+        at = element.properties.index(prop)
+        before = sum(self._width(p.type) for p in element.properties[:at])
+        width, size = self._width(prop.count_type), self._width(prop.type)
+        record = sum(self._width(p.type) for p in element.properties) + width + 2 * size
+        three = (3).to_bytes(width, self.order)
+        for records in _chunks(element.count, record):
+            block = self.f.read(min(records * record, self.size - self.f.tell()))
             whole = len(block) // record
-            bad = whole                             # the first record whose length is not 3
-            for j in range(width):                  # each byte of the length, every record
+            bad = whole                          # the first record whose length is not 3
+            for j in range(width):               # each byte of the length, every record
                 column = block[before + j:whole * record:record]
                 if column != three[j:j + 1] * whole:
                     bad = min(bad, next(k for k, b in enumerate(column) if b != three[j]))
-            if bad < whole:                         # records up to it are triangles, aligned
-                start = bad * record + before
-                yield int.from_bytes(block[start:start + width], order,
-                                     signed=PLY_TYPES[prop.count_type][0] == "i")
-            return
-        if not lists:                               # fixed records: skip them
-            f.seek(element.count * sum(size(p.type) for p in element.properties), os.SEEK_CUR)
-            continue
-        for _ in range(element.count):              # lists of any length: walk the records
-            for p in element.properties:
-                if p.count_type:
-                    raw = f.read(size(p.count_type))
-                    if len(raw) < size(p.count_type):
-                        return
-                    n = int.from_bytes(raw, order, signed=PLY_TYPES[p.count_type][0] == "i")
-                    if element.name == "face" and p.name == header.face_list:
-                        yield n
-                    f.seek(max(n, 0) * size(p.type), os.SEEK_CUR)
-                else:
-                    f.seek(size(p.type), os.SEEK_CUR)
-        if element.name == "face":
-            return
+            if bad < whole or len(block) >= bad * record + before + width:
+                start = bad * record + before               # a length, complete or not 3
+                n = int.from_bytes(block[start:start + width], self.order,
+                                   signed=PLY_TYPES[prop.count_type][0] == "i")
+                if n != 3:
+                    raise _polygon(n, element)
+            if whole < records:
+                raise _ends_inside(element)
+            indices = []
+            for k in range(3):
+                indices.extend(self._column(block, records, record, before + width + k * size,
+                                            prop.type))
+            yield indices
 
-
-def _ascii_face_lengths(f, header: PlyHeader):
-    """The face lists' lengths, as far as the body holds them (ascii), number by number."""
-    numbers = (word for line in f for word in line.split())
-    for element in header.elements:
+    def _records(self, element):
+        """Each record as {property: value, or a list's values as a tuple}, read one by
+        one (elements with lists of any length)."""
+        sizes = [(p, self._width(p.count_type) if p.count_type else 0, self._width(p.type))
+                 for p in element.properties]
         for _ in range(element.count):
-            for p in element.properties:
-                word = next(numbers, None)
-                if word is None:
-                    return
-                if not p.count_type:
-                    continue
-                try:
-                    n = int(word)
-                except ValueError:
-                    return                          # not a length: the reader says what
-                if element.name == "face" and p.name == header.face_list:
-                    yield n
-                for _ in range(max(n, 0)):
-                    next(numbers, None)
-        if element.name == "face":
+            out = {}
+            for p, count_width, size in sizes:
+                if p.count_type:
+                    n = self._value(self._read(count_width, element), p.count_type)
+                    if n < 0:
+                        raise MeshFileError(f"a list of length {n} in the {element.name} "
+                                            f"element")
+                    raw = self._read(n * size, element)
+                    out[p.name] = struct.unpack(("<" if self.order == "little" else ">")
+                                                + str(n) + _CODES[PLY_TYPES[p.type]], raw)
+                else:
+                    out[p.name] = self._value(self._read(size, element), p.type)
+            yield out
+
+    def finish(self) -> None:
+        more = self.size - self.f.tell()
+        if more > 0:
+            raise _goes_on(f" ({more} more byte{'s' if more > 1 else ''})")
+
+
+def _gathered(records, names):
+    """Chunks of {name: values} of the records {property: value}."""
+    chunk = {name: [] for name in names}
+    for k, record in enumerate(records, start=1):
+        for name in names:
+            chunk[name].append(record[name])
+        if k % _CHUNK == 0:
+            yield chunk
+            chunk = {name: [] for name in names}
+    if chunk[names[0]]:
+        yield chunk
+
+
+def _walked_triangles(records, element, list_name):
+    """Chunks of the face lists' indices of the records {property: value}, each list of 3."""
+    chunk = []
+    for k, record in enumerate(records, start=1):
+        indices = record[list_name]
+        if len(indices) != 3:
+            raise _polygon(len(indices), element)
+        chunk.extend(indices)
+        if len(chunk) >= _CHUNK:
+            yield chunk
+            chunk = []
+    if chunk:
+        yield chunk
+
+
+class _AsciiWalk:
+    """An ascii PLY body, element by element (:func:`_ply_body`): its words streamed line
+    by line; a line holding ``_`` is refused (Python's float and int take 1_0, the C++
+    streams Mitsuba reads with do not)."""
+
+    def __init__(self, f) -> None:
+        self.words = self._words(f)
+
+    @staticmethod
+    def _words(f):
+        for line in f:
+            if b"_" in line:
+                raise _not_a_number()
+            yield from line.split()
+
+    def _take(self, n: int, element) -> list:
+        words = list(itertools.islice(self.words, n))
+        if len(words) < n:
+            raise _ends_inside(element)
+        return words
+
+    def skip(self, element) -> None:
+        if any(p.count_type for p in element.properties):
+            for _ in self._records(element):
+                pass
             return
+        width = len(element.properties)
+        for records in _chunks(element.count, width):
+            self._take(records * width, element)
+
+    def scalars(self, element, names):
+        if any(p.count_type for p in element.properties):
+            yield from _gathered(self._records(element), names)
+            return
+        width = len(element.properties)
+        at = {p.name: k for k, p in enumerate(element.properties)}
+        for records in _chunks(element.count, width):
+            words = self._take(records * width, element)
+            yield {name: _floats(words[at[name]::width]) for name in names}
+
+    def triangles(self, element, list_name: str):
+        """As _BinaryWalk.triangles: while every length is 3, a record is the scalars,
+        the length and 3 indices; the first record whose length is not 3 is refused."""
+        lists = [p for p in element.properties if p.count_type]
+        if len(lists) > 1:
+            yield from _walked_triangles(self._records(element), element, list_name)
+            return
+        before = element.properties.index(lists[0])
+        width = len(element.properties) + 3
+        for records in _chunks(element.count, width):
+            words = list(itertools.islice(self.words, records * width))
+            whole = len(words) // width
+            lengths = words[before:len(words):width]
+            if lengths.count(b"3") < len(lengths):
+                for word in lengths:
+                    n = 3 if word == b"3" else _ascii_int(word, "a list's length")
+                    if n != 3:
+                        raise _polygon(n, element)
+            if whole < records:
+                raise _ends_inside(element)
+            indices = []
+            for k in range(3):
+                indices.extend(_ints(words[before + 1 + k::width]))
+            yield indices
+
+    def _records(self, element):
+        """Each record as {property: value, or a list's values as a tuple}, word by word."""
+        for _ in range(element.count):
+            out = {}
+            for p in element.properties:
+                word = next(self.words, None)
+                if word is None:
+                    raise _ends_inside(element)
+                if p.count_type:
+                    n = _ascii_int(word, "a list's length")
+                    if n < 0:
+                        raise MeshFileError(f"a list of length {n} in the {element.name} "
+                                            f"element")
+                    values = self._take(n, element)
+                    out[p.name] = tuple(_ints(values) if PLY_TYPES[p.type][0] != "f"
+                                        else _floats(values))
+                else:
+                    out[p.name] = _floats([word])[0]
+            yield out
+
+    def finish(self) -> None:
+        if next(self.words, None) is not None:
+            raise _goes_on("")
+
+
+def _not_a_number() -> MeshFileError:
+    return MeshFileError("the PLY body holds something that is not a number")
+
+
+def _floats(words) -> list[float]:
+    try:
+        return list(map(float, words))
+    except ValueError:
+        raise _not_a_number() from None
+
+
+def _ints(words) -> list[int]:
+    try:
+        return list(map(int, words))
+    except ValueError:
+        return [_ascii_int(word, "a face's vertex index") for word in words]
+
+
+def _ascii_int(word: bytes, what: str) -> int:
+    """A whole number written in an ascii body (as an integer, or as a float: 3.0)."""
+    try:
+        return int(word)
+    except ValueError:
+        value = _floats([word])[0]
+    if not (math.isfinite(value) and value == math.floor(value)):
+        raise MeshFileError(f"{what} is not a whole number "
+                            f"({shortened(word.decode('latin-1'), 20)})")
+    return int(value)
 
 
 # ---------------------------------------------------------------------------
@@ -482,6 +818,9 @@ def obj_statements(f, relative: bool = False):
             if len(numbers) < need:
                 what = "a vertex (v)" if keyword == b"v" else "a texture coordinate (vt)"
                 raise MeshFileError(f"line {number}: {what} needs {need} numbers")
+            big = max(numbers[:need], key=abs)
+            if abs(big) > FLT_MAX:
+                raise MeshFileError(f"line {number}: the number {_beyond_float32(big)}")
             if counts[keyword] > MAX_MESH_VERTICES:
                 raise MeshFileError(f"line {number}: more than {MAX_MESH_VERTICES} "
                                     f"{keyword.decode()} lines, the most a mesh file holds")
