@@ -127,8 +127,12 @@ def chosen(scene, shape_id: str, channel: str | None = None, volume: bool = Fals
                         f"bake a volume with --volume")
     material = scene.material_of(shape)
     present = dict(material.channels())
-    if volume and material.subsurface is not None:       # a volume's own: albedo, density
-        present.update(material.subsurface.channels())
+    inside = material.subsurface.channels() if material.subsurface is not None else {}
+    if volume:                                            # a volume's own: albedo, density
+        present.update(inside)
+    elif channel in inside:
+        raise BakeError(f"{channel} is {shape_id}'s subsurface's, a volume's: bake it with "
+                        f"--volume")
     if not present:
         raise BakeError(f'{shape_id}\'s material "{material.name}" has no channels to bake')
     if channel is None:

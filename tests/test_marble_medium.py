@@ -194,7 +194,8 @@ def test_the_majorant_is_tight_no_null_collisions_at_a_constant_density(llvm):
 
 
 def test_a_marble_density_under_its_channel_bound_collides_really_as_often_as_d_over_bound(llvm):
-    """The bound the translator passes (error_budget.channel_bound) holds: σ_n ≥ 0 at every
+    """The channel bound (error_budget.channel_bound: every component's, so the mean's too)
+    holds: σ_n ≥ 0 at every
     tentative collision, and the share of real ones, the mean of σ_t/σ̄, is the
     reference's d/bound at the same points. Measured efficiency: 0.74 for these veins
     (a grey ramp from 0.3 to 1)."""

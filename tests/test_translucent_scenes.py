@@ -49,3 +49,24 @@ def test_a_subsurface_albedo_bakes_on_a_grid_as_the_reference_marble(tmp_path):
     centre = (np.asarray(lo) + (np.asarray(hi) - np.asarray(lo)) * (np.array([1, 2, 0]) + 0.5) / 4)
     expected = channel_color(scene.materials["translucent marble"].subsurface.albedo, centre[None])
     np.testing.assert_allclose(values[0, 2, 1], expected[0], atol=1e-6)
+
+
+def test_the_mean_bound_bounds_the_mean_of_every_channel_kind():
+    # error_budget.mean_bound (the medium's density bound) against the float64 reference's
+    # channel values at random points (seeded), for colours, marbles and expressions.
+    from mimarble.error_budget import mean_bound
+    from mimarble.reference.channels import channel_color
+    marble = S.MarbleChannel(octaves=4, ramp=((0, 0, 0), (4, 1, 0.5), (0.2, 3, 0)))
+    negative = S.ColorChannel((-1.0, 0.5, 2.0))
+    points = np.random.default_rng(3).uniform(-5, 5, (20000, 3))
+    for channel in (marble, negative, S.Add((marble, negative)),
+                    S.Multiply((marble, negative)), S.Mix(marble, negative, 0.3),
+                    S.Mix(negative, marble, S.MarbleChannel(octaves=2))):
+        means = channel_color(channel, points).mean(axis=1)
+        assert means.max() <= mean_bound(channel) + 1e-12, channel
+
+
+def test_the_reference_tracer_refuses_a_translucent_scene_at_its_subsurface():
+    from mimarble import reference
+    with pytest.raises(S.SceneError, match="render_translucent"):
+        reference.render(resized(S.load(SCENES[0]), 8))

@@ -221,9 +221,9 @@ class MarbleMedium:
 
     def density_at(self, si, active=True):
         """d = clamp(mean of the density's three components, 0, density_bound); 1 without
-        a density texture."""
+        a density texture (at most density_bound, so that the majorant bounds σ_t)."""
         if self.density is None:
-            return mi.Float(1.0)
+            return dr.minimum(mi.Float(1.0), self.bound)
         c = self.density.eval(si, active)
         return dr.clip((c[0] + c[1] + c[2]) / 3.0, 0.0, self.bound)
 

@@ -41,7 +41,7 @@ boxes and meshes get their BSDF wrapped in ``twosided`` (docs/rendering-model.md
 A material with a ``subsurface`` (:func:`translucent_materials`) is translucent: whitted mode
 refuses it (:class:`ModeError`, at its ``subsurface`` keyword); path mode renders it under
 ``volpath`` (max_depth :data:`VOLPATH_MAX_DEPTH`) as a smooth ``dielectric`` boundary
-(``null`` when ior is 1) around a ``marble_medium`` interior on every shape that uses it,
+around a ``marble_medium`` interior on every shape that uses it,
 its surface channels unused (docs/rendering-model.md, "Translucent materials").
 """
 
@@ -737,13 +737,11 @@ def _facing_out(shape_out: dict, shape) -> None:
 def subsurface_boundary(subsurface: model.Subsurface) -> dict:
     """The BSDF of a translucent material's surface: a smooth ``dielectric`` of relative
     index ``ior`` (int_ior = ior, ext_ior = 1; it reflects and refracts by Fresnel's
-    equations, and is two-sided). At ior 1 the boundary bends and reflects nothing, which
-    is Mitsuba's ``null`` BSDF, the same physics: written so, because volpath's shadow
-    rays pass a ``null`` surface and stop at any other, so only an index-matched boundary
-    lets a point light (which no sampled direction can hit) light the inside
-    (docs/rendering-model.md, "Translucent materials")."""
-    if subsurface.ior == 1.0:
-        return {"type": "null"}
+    equations, and is two-sided) — at ior 1 too, where it bends and reflects nothing: a
+    ``null`` BSDF would let point lights in, but volpath would then neither count the
+    crossing as a vertex nor show the sky through it to camera rays (hide_emitters), unlike
+    every other ior and the reference random walk (docs/rendering-model.md, "Translucent
+    materials")."""
     return {"type": "dielectric", "int_ior": subsurface.ior, "ext_ior": 1.0}
 
 
@@ -753,8 +751,8 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
     to one; default: :func:`texture_dict`), ``scale`` = 1/mean_free_path, so that
     σ_t(p) = scale·d(p), and ``density_bound`` ≥ every d(p) (the majorant is
     scale·density_bound): ``error_budget.mean_bound`` of the density channel (d is the mean
-    of its components, at least 0), 1 without one (d = 1). Behind a smooth dielectric
-    (ior ≠ 1) no shadow ray from inside can reach an emitter, so the medium samples none
+    of its components, at least 0), 1 without one (d = 1). Behind the smooth dielectric
+    no shadow ray from inside can reach an emitter, so the medium samples none
     (``sample_emitters`` false: the paths that leave find them; unbiased, and up to half the
     render time saved). A majorant past
     float32's range is refused (ModeError at the ``subsurface`` keyword): Mitsuba's
@@ -772,5 +770,5 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
     out = {"type": "marble_medium", "albedo": ref(subsurface.albedo)}
     if density is not None:
         out["density"] = ref(density)
-    out.update(scale=scale, density_bound=bound, sample_emitters=subsurface.ior == 1.0)
+    out.update(scale=scale, density_bound=bound, sample_emitters=False)
     return out

@@ -303,7 +303,18 @@ def _object_space(scene: Scene, channels: tuple) -> np.ndarray | None:
 
 def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
     """Arrays for :func:`hit` and :func:`shade`; equal channels are deduplicated.
-    ``meshes``: the scene's mesh files already read (:func:`read_meshes`), else read here."""
+    ``meshes``: the scene's mesh files already read (:func:`read_meshes`), else read here.
+    A material with a subsurface that a shape uses is refused (SceneError at its
+    ``subsurface``): this is whitted mode's renderer; path mode's translucent spheres are
+    :func:`mimarble.reference.volume.render_translucent`'s."""
+    used = {shape.material for _, shape in scene.shapes()}
+    for material in scene.materials.values():
+        if material.subsurface is not None and material.name in used:
+            raise SceneError.in_file(
+                scene.source, material.subsurface.pos,
+                f'material "{material.name}" has a subsurface, which the reference tracer '
+                f"renders in path mode only, from Python: "
+                f"mimarble.reference.render_translucent(scene, spp)")
     names = list(scene.materials)
     materials = tuple(scene.materials[n] for n in names)
     index = {n: k for k, n in enumerate(names)}
