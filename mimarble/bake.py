@@ -148,10 +148,9 @@ def chosen(scene, shape_id: str, channel: str | None = None, volume: bool = Fals
 
 
 def _needs_object_points(channel) -> bool:
-    """Whether the channel holds a ``space object`` marble (the translator's
-    ``in_object_space``, which lives with Mitsuba's side: a volume bakes without it)."""
-    from .scene.model import MarbleChannel, walk
-    return any(isinstance(c, MarbleChannel) and c.space == "object" for c in walk(channel))
+    """Whether the channel holds a ``space object`` marble (``model.in_object_space``)."""
+    from .scene.model import in_object_space
+    return in_object_space(channel)
 
 
 def _evaluate(channel, points, uv=None, object_points=None):

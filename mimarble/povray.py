@@ -73,9 +73,8 @@ def scene_text(scene: model.Scene, size: int) -> str:
     if others:
         raise ValueError(f"POV-Ray export takes spheres only, not {' or '.join(others)} "
                          f"(the benchmark's comparison is a marble sphere, fig11a)")
-    if any(isinstance(c, model.MarbleChannel) and c.space == "object"
-           for material in scene.materials.values() for channel in material.channels().values()
-           for c in model.walk(channel)):
+    if any(model.in_object_space(channel) for material in scene.materials.values()
+           for channel in material.channels().values()):
         raise ValueError("POV-Ray export takes world-space marbles only, not 'space object' "
                          "(the benchmark's comparison is a marble sphere, fig11a)")
     cam = scene.camera

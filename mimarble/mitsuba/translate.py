@@ -546,11 +546,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     return out
 
 
-def in_object_space(channel) -> bool:
-    """Whether the channel holds a ``space object`` marble (evaluated in the object space
-    of the shape it shades, so that each shape needs its own texture of it)."""
-    return any(isinstance(c, model.MarbleChannel) and c.space == "object"
-               for c in model.walk(channel))
+in_object_space = model.in_object_space
 
 
 def _product(a, b):

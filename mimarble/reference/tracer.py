@@ -63,7 +63,7 @@ from mimarble.scene import geometry
 from mimarble.scene.errors import SceneError
 from mimarble.scene.limits import MAX_MESH_TRIANGLES
 from mimarble.scene.mesh_header import MeshFileError, mesh_facts
-from mimarble.scene.model import MarbleChannel, Scene, samples_per_axis, walk
+from mimarble.scene.model import Scene, in_object_space, samples_per_axis
 from mimarble.scene.rules import shortened
 
 from .channels import channel_color, needs_uv, sphere_uv
@@ -295,8 +295,7 @@ def _check_uv(scene: Scene, meshes: tuple) -> None:
 def _object_space(scene: Scene, channels: tuple) -> np.ndarray | None:
     """object_to_world(shape)⁻¹ of every shape (rows 3×4), when a channel has a marble in
     object space."""
-    if not any(isinstance(c, MarbleChannel) and c.space == "object"
-               for ch in channels for c in walk(ch)):
+    if not any(in_object_space(ch) for ch in channels):
         return None
     return _from_world([shape for _, shape in scene.shapes()])
 

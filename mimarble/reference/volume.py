@@ -113,7 +113,7 @@ from mimarble.scene.model import (
     RectangleArea,
     Scene,
     SphereArea,
-    walk,
+    in_object_space,
 )
 from mimarble.scene.rules import spp_problem
 
@@ -339,8 +339,8 @@ class _Spheres:
         self.majorant = np.array([density_bound(s) for s in subs]) / self.mfp
         self.albedo = [s.albedo for s in subs]
         self.density = [s.density for s in subs]
-        self.object_space = [any(isinstance(c, MarbleChannel) and c.space == "object"
-                                 for ch in s.channels().values() for c in walk(ch)) for s in subs]
+        self.object_space = [any(in_object_space(ch) for ch in s.channels().values())
+                             for s in subs]
         self.from_world = np.linalg.inv(np.array([geometry.object_to_world(s) for s in spheres],
                                                  dtype=np.float64).reshape(-1, 4, 4))[:, :3, :]
 

@@ -70,6 +70,7 @@ __all__ = [
     "EXPRESSIONS",
     "CHANNEL_TYPES",
     "walk",
+    "in_object_space",
     "replace_marbles",
     "depth",
     "size",
@@ -600,6 +601,12 @@ def walk(channel) -> Iterator:
     if isinstance(channel, EXPRESSIONS):
         for operand in channel.operands:
             yield from walk(operand)
+
+
+def in_object_space(channel) -> bool:
+    """Whether the channel holds a ``space object`` marble: evaluated in the object space of
+    the shape it shades, so that each shape needs its own evaluation of it."""
+    return any(isinstance(c, MarbleChannel) and c.space == "object" for c in walk(channel))
 
 
 def replace_marbles(channel, **changes):
