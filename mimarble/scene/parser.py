@@ -77,7 +77,7 @@ from .model import (
     Sphere,
     SphereArea,
     Subsurface,
-    EXPRESSIONS,
+    walk,
 )
 from .model import depth as depth_of
 from .model import size as size_of
@@ -278,7 +278,7 @@ def _file_facts(scene) -> tuple:
     """(size, modification and change times, inode) of each image map's and mesh's file
     (None: unreadable)."""
     facts = []
-    for located in _image_maps(scene.materials.values()) + scene.meshes:
+    for located in scene.image_maps() + scene.meshes:
         try:
             found = os.stat(located.location)
             facts.append((found.st_size, found.st_mtime_ns, found.st_ctime_ns, found.st_ino))
@@ -287,26 +287,11 @@ def _file_facts(scene) -> tuple:
     return tuple(facts)
 
 
-def _parts(channels) -> list:
-    """Every distinct channel inside ``channels``, each once (by identity), outermost
-    first. A texture used many times is one object: walking it at each use (model.walk)
-    takes time exponential in how deep textures of textures nest (``texture "t2" { add {
-    texture "t1" texture "t1" } }`` …), this walk time linear in the distinct channels."""
-    seen, found, stack = set(), [], list(channels)[::-1]
-    while stack:
-        channel = stack.pop()
-        if id(channel) not in seen:
-            seen.add(id(channel))
-            found.append(channel)
-            if isinstance(channel, EXPRESSIONS):
-                stack.extend(channel.operands[::-1])
-    return found
-
-
 def _image_maps(materials) -> tuple:
-    """Every distinct image map of ``materials`` (Scene.image_maps, walked by :func:`_parts`)."""
-    return tuple(dict.fromkeys(c for m in materials for c in _parts(m.channels().values())
-                               if isinstance(c, ImageChannel)))
+    """Every distinct image map of ``materials`` (Scene.image_maps' walk; a channel holds at
+    most LIMITS["max_channel_size"] channels, so walking every use of a texture is bounded)."""
+    return tuple(dict.fromkeys(c for m in materials for ch in m.channels().values()
+                               for c in walk(ch) if isinstance(c, ImageChannel)))
 
 
 def parse(text: str | bytes, filename: str = "<string>", *, source: str | None = None) -> Scene:
@@ -714,7 +699,7 @@ class _Builder:
         (ch,) = [c for c in key.children if isinstance(c, Tree)]
         for inner in ch.iter_subtrees_topdown():
             held = inner.data == "texture_use" and any(
-                isinstance(c, ImageChannel) for c in _parts([self.texture(inner.children[0])]))
+                isinstance(c, ImageChannel) for c in walk(self.texture(inner.children[0])))
             if inner.data == "image_map" or held:
                 said = f"texture {rules.shortened(inner.children[0])} holds an image map, " \
                     f"which" if held else "an image map"
