@@ -58,7 +58,7 @@ def _doctor(args) -> int:
         start, compiled = time.perf_counter(), 0
         for path, seconds, kernels in kernel_cache.warm(scenes, progress=True):
             compiled += kernels
-            print(f"warm: {path}: {kernels} kernel{'s' * (kernels != 1)} compiled, {seconds:.2f} s",
+            _say(f"warm: {path}: {kernels} kernel{'s' * (kernels != 1)} compiled, {seconds:.2f} s",
                   flush=True)
         print(f"warm: {compiled} kernels compiled in {time.perf_counter() - start:.1f} s; "
               f"{kernel_cache.describe()}")
@@ -84,6 +84,9 @@ def _scene_path(argument) -> str:
     packaged scene's name (``fig11a``), else the path itself, whose reading says what is
     wrong (mimarble/packaged_scenes.py)."""
     from . import packaged_scenes
+    if os.fspath(argument) == "":
+        raise UsageError("'': the scene's name is empty; name a scene file, or a packaged "
+                         "scene (`mimarble scenes` lists them)")
     path = packaged_scenes.resolve(argument)      # one look through the packaged scenes
     if path == os.fspath(argument) and packaged_scenes.is_unknown_name(argument):
         raise UsageError(f"{argument}: no such file (looked for {os.path.abspath(argument)}), "
@@ -93,6 +96,26 @@ def _scene_path(argument) -> str:
 
 class UsageError(Exception):
     """A user mistake on the command line (exit status 2)."""
+
+
+def _say(text: str, **print_options) -> None:
+    """Print a line that echoes the user's names (scene files, output names, values), each
+    character that would act on the terminal shown escaped (scene/errors.py, printable)."""
+    from .scene.errors import printable
+    print(printable(text), **print_options)
+
+
+def _checked_name(value, option: str | None = None) -> str:
+    """``value``, an output option's (``option``: ``-o``, ``--diff``, …; None: a default
+    name made from the scene file's), if every writer can write under it: the one rule of
+    mimarble/files.py (:func:`~mimarble.files.output_name_problem`: not empty, no NUL, UTF-8)."""
+    from .files import output_name_problem
+    problem = output_name_problem(value)
+    if problem:
+        raise UsageError(f"{option} {shlex.quote(value)}: {problem}" if option else
+                         f"{value}: {problem} (the default name, made from the scene file's: "
+                         f"give -o NAME)")
+    return value
 
 
 def _check_folder(path) -> Path:
@@ -150,7 +173,8 @@ def _crop(args, scene):
 
 def _output_path(args, default_suffix=".png") -> Path:
     from .image_formats import IMAGE_FORMATS
-    out = Path(args.output) if args.output else Path(Path(args.scene).stem + default_suffix)
+    out = Path(_checked_name(args.output, "-o") if args.output is not None
+               else _checked_name(Path(_scene_path(args.scene)).stem + default_suffix))
     try:
         folder = out.is_dir() and not out.is_symlink()
     except OSError:
@@ -177,7 +201,11 @@ def _load_scene(args):
             if not lo <= value <= hi:
                 raise UsageError(f"--{option} {value}: must be in {lo}..{hi}")
             size[option] = value
-    scene = with_image_size(scene, **size)
+    spp = getattr(args, "spp", None)         # with a new size: the limit is on what renders
+    try:
+        scene = with_image_size(scene, **size, spp=spp if size and spp and spp >= 1 else None)
+    except ValueError as e:
+        raise UsageError(f"{args.scene}: {e}") from None
     if not scene.shapes():
         warnings.warn(f"{args.scene}: the scene has no shapes (no spheres, planes, boxes or "
                       f"meshes): the image is the background")
@@ -265,7 +293,7 @@ def _render_to_file(args, renderer, description) -> int:
     if crop is not None:
         from .crop import crop_words
         size = f"{image.shape[1]}x{image.shape[0]} (--crop {crop_words(crop)} of {size})"
-    print(f"{out}: {size}, {spp} spp, {description(spp)}, {seconds:.2f} s")
+    _say(f"{out}: {size}, {spp} spp, {description(spp)}, {seconds:.2f} s")
     return 0
 
 
@@ -297,8 +325,9 @@ def _compare(args) -> int:
     import json
 
     _check_adaptive_options(args)
-    if args.diff:
-        _check_folder(_check_suffix(Path(args.diff), (".png",), "error map"))
+    if args.diff is not None:
+        _check_folder(_check_suffix(Path(_checked_name(args.diff, "--diff")), (".png",),
+                                    "error map"))
     scene = _load_scene(args)
     spp = _spp(args, scene)
     _start(args)
@@ -328,17 +357,17 @@ def _compare(args) -> int:
                    mitsuba_seconds=mitsuba_seconds, reference_seconds=reference_seconds)
     if args.adaptive is not None:
         metrics.update(adaptive=args.adaptive, max_spp=reference_spp, reference_spp=reference_spp)
-    if args.diff:
+    if args.diff is not None:
         _write(Path(args.diff), error_map_with_legend(ours, ref), eight_bit=True)
     against = "" if reference_spp == spp else f" at {reference_spp} spp"
-    print(f"{args.scene}: {scene.image.width}x{scene.image.height}, {spp} spp"
+    _say(f"{args.scene}: {scene.image.width}x{scene.image.height}, {spp} spp"
           f"{_adaptive_words(args, spp)}, whitted ({mimarble.mi.variant()}) vs reference "
           f"(float64){against}")
     print(f"  RMSE {metrics['rmse']:.3g}   PSNR {metrics['psnr']:.2f} dB   max |error| "
           f"{metrics['max_abs']:.3g}   pixels off by > 1/255: {100 * metrics['frac_over_1_255']:.3f} %")
     print(f"  time: Mitsuba {mitsuba_seconds:.2f} s, reference {reference_seconds:.2f} s")
-    if args.diff:
-        print(f"  error map {args.diff} (legend under it): {error_map_scale()}")
+    if args.diff is not None:
+        _say(f"  error map {args.diff} (legend under it): {error_map_scale()}")
     if args.json:
         print(json.dumps(metrics))
     return 0
@@ -365,12 +394,13 @@ def _bench(args) -> int:
                          "skips those modes: give one of them")
     if args.repeats < 1:
         raise UsageError(f"--repeats {args.repeats}: must be at least 1")
-    if args.json:
-        _check_folder(args.json)
-    if args.plot:
-        _check_folder(_check_suffix(Path(args.plot), (".png", ".pdf", ".svg"), "plot"))
-    if args.page:
-        _check_folder(_check_suffix(Path(args.page), (".md",), "page"))
+    if args.json is not None:
+        _check_folder(_checked_name(args.json, "--json"))
+    if args.plot is not None:
+        _check_folder(_check_suffix(Path(_checked_name(args.plot, "--plot")),
+                                    (".png", ".pdf", ".svg"), "plot"))
+    if args.page is not None:
+        _check_folder(_check_suffix(Path(_checked_name(args.page, "--page")), (".md",), "page"))
     for path in scenes:
         mimarble_scene.load(path)   # every scene error before minutes of measuring
     _start(args)
@@ -400,7 +430,7 @@ def _bench(args) -> int:
         if args.page:
             from .bench_page import plot_relative_to, write_section
             slug = write_section(args.page, results, plot_relative_to(args.page, args.plot))
-            print(f"wrote the section of this machine ({slug}) into {args.page}")
+            _say(f"wrote the section of this machine ({slug}) into {args.page}")
     except OSError as e:
         raise UsageError(f"could not write the results: {e}") from None
     return 0
@@ -409,8 +439,8 @@ def _bench(args) -> int:
 def _stress(args) -> int:
     if args.points < 1:
         raise UsageError(f"--points {args.points}: must be at least 1")
-    if args.json:
-        _check_folder(args.json)
+    if args.json is not None:
+        _check_folder(_checked_name(args.json, "--json"))
     _start(args)
     from .files import write_json
     from .stress import format_report, run_stress
@@ -424,11 +454,15 @@ def _stress(args) -> int:
     return 0
 
 
-def _new_folder(path) -> Path:
-    """``path`` as a folder to write into: one that exists, or a new one in a folder that
-    exists (made by the caller; a missing parent is refused, as ``render -o`` refuses it)."""
-    folder = Path(path)
+def _new_folder(path, option: str) -> Path:
+    """``path`` (the value of ``option``) as a folder to write into: one that exists, or a
+    new one in a folder that exists (made by the caller; a missing parent is refused, as
+    ``render -o`` refuses it), never a symbolic link that leads nowhere."""
+    folder = Path(_checked_name(path, option))
     try:
+        if folder.is_symlink() and not folder.exists():
+            raise UsageError(f"{folder}: is a symbolic link to {os.readlink(folder)}, which "
+                             f"does not exist; name a folder")
         if folder.exists() and not folder.is_dir():
             raise UsageError(f"{folder}: exists and is not a folder")
         if not folder.exists() and not folder.parent.is_dir():
@@ -445,19 +479,24 @@ def _gallery(args) -> int:
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
     from . import scene as mimarble_scene
+    from .files import output_name_problem
     for path in scenes:
         mimarble_scene.load(path)   # every scene error before a folder is made
-    folder = _new_folder(args.output)
+        problem = output_name_problem(Path(path).stem + ".png")   # its image's name
+        if problem:
+            raise UsageError(f"{path}: the gallery names each image after its scene file, "
+                             f"and {problem}")
+    folder = _new_folder(args.output, "-o")
     _start(args)
     from .gallery import make_gallery
     written = 0
     try:
         for out, seconds in make_gallery(scenes, folder, args.size, args.mode):
             written += 1
-            print(f"{out} ({seconds:.2f} s)")
+            _say(f"{out} ({seconds:.2f} s)")
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{folder}: could not write the gallery: {e}") from None
-    print(f"wrote {written} image{'s' * (written != 1)} to {folder}{os.sep}")
+    _say(f"wrote {written} image{'s' * (written != 1)} to {folder}{os.sep}")
     return 0
 
 
@@ -475,7 +514,7 @@ def _scenes(args) -> int:
         print("render one by name (`mimarble render fig11a`, when no file of that name is "
               "here); copy them out with `mimarble scenes --copy DIR`")
         return 0
-    folder = _new_folder(args.copy)
+    folder = _new_folder(args.copy, "--copy")
     try:
         written = packaged_scenes.copy_to(folder)
     except packaged_scenes.CopyRefused as e:
@@ -484,7 +523,7 @@ def _scenes(args) -> int:
         raise UsageError(f"{folder}: could not copy the scenes: {e.strerror or e}") from None
     scenes = sum(1 for p in written if p.suffix == packaged_scenes.SUFFIX)
     others = len(written) - scenes
-    print(f"copied {scenes} scenes and {others} other file{'s' * (others != 1)} (image maps, "
+    _say(f"copied {scenes} scenes and {others} other file{'s' * (others != 1)} (image maps, "
           f"README) to {folder}{os.sep}")
     return 0
 
@@ -493,7 +532,7 @@ def _sweep(args) -> int:
     from .sweeps import SweepError, check_workers, frames, settings_from
     if not args.set:
         raise UsageError("a sweep needs at least one --set KEY=VALUES")
-    out = Path(args.output)
+    out = Path(_checked_name(args.output, "-o"))
     try:
         if out.exists() and not out.is_dir():
             raise UsageError(f"-o {out}: exists and is not a folder")
@@ -521,11 +560,11 @@ def _sweep(args) -> int:
         raise UsageError(str(e)) from None
     failed = [f for f in index["frames"] if f["status"] != "done"]
     # "16 frames: 14 already done, 2 rendered now, 0 failed": what this run did.
-    print(f"{out}: {summary_sentence(index)} ({time.perf_counter() - start:.1f} s); "
+    _say(f"{out}: {summary_sentence(index)} ({time.perf_counter() - start:.1f} s); "
           f"index {out / 'sweep.json'}"
           + ("" if failed else f", contact sheet {out / 'contact.png'}"))
     for f in failed:
-        print(f"  frame {f['index']} {f['values']}: {f['error']}", file=sys.stderr)
+        _say(f"  frame {f['index']} {f['values']}: {f['error']}", file=sys.stderr)
     return 1 if failed else 0
 
 
@@ -533,8 +572,13 @@ def _export(args) -> int:
     """``mimarble export``: the scene's Mitsuba dict as XML (or --python: a Python file)."""
     from .export import PYTHON_SUFFIXES, XML_SUFFIXES
     suffixes = PYTHON_SUFFIXES if args.python else XML_SUFFIXES
-    out = Path(args.output) if args.output else Path(Path(args.scene).stem + suffixes[0])
+    out = Path(_checked_name(args.output, "-o") if args.output is not None
+               else _checked_name(Path(_scene_path(args.scene)).stem + suffixes[0]))
     _check_suffix(_check_folder(out), suffixes, "export")
+    from .export import script_name_problem
+    problem = script_name_problem(out) if args.python else None
+    if problem:
+        raise UsageError(f"{out}: {problem}")
     scene = _load_scene(args)
     spp = _spp(args, scene)
     _start(args)
@@ -547,7 +591,7 @@ def _export(args) -> int:
     except OSError as e:
         raise UsageError(f"{out}: could not write it: {e.strerror or e}") from None
     what = "Python (mi.load_dict)" if args.python else "Mitsuba XML (mi.load_file)"
-    print(f"{out}: {what}, {args.mode} mode, {spp} spp, "
+    _say(f"{out}: {what}, {args.mode} mode, {spp} spp, "
           f"{scene.image.width}x{scene.image.height}; `import mimarble` first, for its plugins")
     return 0
 
@@ -558,7 +602,7 @@ def _bake(args) -> int:
     from .bake import (DEFAULT_IMAGE_SIZE, DEFAULT_VOLUME_SIZE, IMAGE_SUFFIXES, VOLUME_SUFFIXES,
                        BakeError, chosen, size_problem)
     volume = args.volume
-    out = _check_suffix(_check_folder(args.output), VOLUME_SUFFIXES if volume
+    out = _check_suffix(_check_folder(_checked_name(args.output, "-o")), VOLUME_SUFFIXES if volume
                         else IMAGE_SUFFIXES, "volume" if volume else "baked image")
     size = args.size if args.size is not None else \
         DEFAULT_VOLUME_SIZE if volume else DEFAULT_IMAGE_SIZE
@@ -577,7 +621,7 @@ def _bake(args) -> int:
         if volume:
             lo, hi = bake.bake_volume(scene, args.shape, out, size, channel, progress=True)
             box = " to ".join("<" + " ".join(f"{c:g}" for c in b) + ">" for b in (lo, hi))
-            print(f"{out}: {size}x{size}x{size} voxels of {what} over {box}, "
+            _say(f"{out}: {size}x{size}x{size} voxels of {what} over {box}, "
                   f"{time.perf_counter() - start:.1f} s (Mitsuba: gridvolume, use_grid_bbox)")
             return 0
         image = bake.bake_image(scene, args.shape, size, channel, progress=True)
@@ -587,7 +631,7 @@ def _bake(args) -> int:
         raise UsageError(f"{out}: could not write it: {e.strerror or e}") from None
     _start(args)                       # the image writer is Mitsuba's
     _write(out, image)
-    print(f"{out}: {size}x{size} texels of {what} through its (u, v), "
+    _say(f"{out}: {size}x{size} texels of {what} through its (u, v), "
           f"{time.perf_counter() - start:.1f} s")
     return 0
 
@@ -596,8 +640,18 @@ def _bake(args) -> int:
 PACKAGED_NAME = "or a packaged scene's name when no such file exists (`mimarble scenes`)"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, with the user's strings in its usage errors made printable (it
+    echoes an unrecognised argument as typed: scene/errors.py, printable). Subcommands'
+    parsers are of the same class."""
+
+    def error(self, message):
+        from .scene.errors import printable
+        super().error(printable(message))
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="mimarble",
         description="The marble solid texture of Park & Park (2004) for Mitsuba 3.")
     parser.add_argument("--variant", help="Mitsuba variant (default: $MIMARBLE_VARIANT, "
@@ -909,8 +963,10 @@ def _tolerance(text: str) -> float:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
-    """Warnings are sentences for the user, not source locations of ours."""
-    print(f"mimarble: warning: {message}", file=sys.stderr if file is None else file)
+    """Warnings are sentences for the user, not source locations of ours (the user's
+    strings in them made printable: scene/errors.py)."""
+    from .scene.errors import printable
+    print(f"mimarble: warning: {printable(message)}", file=sys.stderr if file is None else file)
 
 
 def main(argv=None) -> int:
@@ -920,11 +976,12 @@ def main(argv=None) -> int:
     args = parser.parse_args(argv)
     args.argv = list(sys.argv[1:] if argv is None else argv)   # as typed, for provenance
     from .environment import EnvironmentProblem
-    from .scene.errors import SceneError
+    from .scene.errors import SceneError, printable
     try:
         return args.run(args)
     except (EnvironmentProblem, UsageError) as e:
-        print(f"mimarble: {e}", file=sys.stderr)
+        # One line: a newline or an escape code in a name it quotes is shown, not sent.
+        print(f"mimarble: {printable(e)}", file=sys.stderr)
         return 2
     except SceneError as e:
         # FILE:LINE:COL: message, as compilers write it (editors jump to it); an error with

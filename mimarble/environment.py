@@ -36,6 +36,24 @@ MIN_LLVM_MAJOR = 16
 INSTALL_HINT = "install libLLVM 16 or newer (on Debian or Ubuntu, as root: apt-get install libllvm19)"
 VARIANT_ENV = "MIMARBLE_VARIANT"
 AUTO_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
+#: The variants mimarble renders in: RGB, and (unpolarized) spectral, where its textures
+#: upsample their colours with Mitsuba's sRGB model (mimarble/srgb_model.py) and only path
+#: mode renders (the whitted integrator computes in RGB). Mono and polarized: not.
+COLOUR_SUFFIXES = ("_rgb", "_spectral")
+
+
+def colour_variant(variant: str) -> bool:
+    """Whether mimarble's plugins give their colours in ``variant`` (:data:`COLOUR_SUFFIXES`)."""
+    return variant.endswith(COLOUR_SUFFIXES)
+
+
+def whitted_problem(variant: str) -> str | None:
+    """Why the ``whitted`` integrator cannot render in ``variant`` (a spectral one), or None."""
+    if variant.endswith("_rgb"):
+        return None
+    return (f"The whitted integrator (whitted mode, the paper's model) computes in RGB, and "
+            f"{variant} is a spectral variant: render in path mode (--mode path) or in an "
+            f"RGB variant.")
 
 # Dr.Jit disables its LLVM backend when this cannot be loaded (its search has no
 # fallback once DRJIT_LIBLLVM_PATH is set).
@@ -237,8 +255,8 @@ def replay_wanted() -> bool:
 def replay_sentence() -> str:
     """What ``mimarble doctor`` says about replay."""
     if replay_wanted():
-        return (f"on in JIT variants (recorded passes replayed, dr.freeze; {FREEZE_ENV}=0 "
-                f"turns it off)")
+        return (f"on in JIT RGB variants (recorded passes replayed, dr.freeze; {FREEZE_ENV}=0 "
+                f"turns it off; spectral variants trace every pass)")
     return f"off ({FREEZE_ENV}=0)"
 
 
@@ -337,10 +355,11 @@ def variant_problem(variant: str) -> str | None:
     if variant not in mi.variants():
         return (f"Unknown Mitsuba variant {variant!r}: this Mitsuba has "
                 f"{', '.join(mi.variants())}.")
-    if not variant.endswith("_rgb"):
-        rgb = [v for v in mi.variants() if v.endswith("_rgb")]
-        return (f"Variant {variant} is not an RGB variant: mimarble's colours, ramps and "
-                f"images are RGB, so use one of {', '.join(rgb)}.")
+    if not colour_variant(variant):
+        usable = [v for v in mi.variants() if colour_variant(v)]
+        return (f"Variant {variant} is neither an RGB nor a spectral variant: mimarble's "
+                f"colours are RGB (upsampled to spectra in spectral variants), so use one "
+                f"of {', '.join(usable)}.")
     if variant.startswith("llvm_"):
         problem = prepare_llvm().problem
         if problem is None and not llvm_backend_up():
@@ -392,13 +411,17 @@ def choose_variant(requested: str | None = None) -> str:
     raise EnvironmentProblem("No Mitsuba variant can render here.")  # scalar always can
 
 
-def require_rgb_variant() -> None:
-    """Raise :class:`EnvironmentProblem` (one sentence) unless the Mitsuba variant is RGB."""
+def require_colour_variant(mode: str | None = None) -> None:
+    """Raise :class:`EnvironmentProblem` (one sentence) unless the Mitsuba variant is an RGB
+    or a spectral one, and an RGB one for ``mode`` ``"whitted"``."""
     _, mi = import_drjit_and_mitsuba()
     variant = mi.variant()
-    problem = variant_problem(variant) if variant and not variant.endswith("_rgb") else None
+    problem = variant_problem(variant) if variant and not colour_variant(variant) else None
     if problem:
         raise EnvironmentProblem(with_alternatives(problem, variant))
+    problem = whitted_problem(variant) if variant and mode == "whitted" else None
+    if problem:
+        raise EnvironmentProblem(problem)
 
 
 def use_variant(requested: str | None = None) -> str:
@@ -452,6 +475,10 @@ def doctor(requested: str | None = None) -> tuple[list[tuple[str, str]], bool]:
             warnings.simplefilter("ignore")   # the problem gets its own row below
             variant = choose_variant(requested)
         rows.append(("variant", variant))
+        spectral = [v for v in mi.variants() if v.endswith("_spectral")
+                    and variant_problem(v) is None]
+        rows.append(("spectral", f"{', '.join(spectral)} (--variant; path mode only)"
+                     if spectral else "none usable here"))
     except EnvironmentProblem as e:
         rows.append(("variant", f"none: {e}"))
         return rows, False

@@ -67,6 +67,13 @@ XML_VERSION = "3.0.0"
 XML_SUFFIXES = (".xml",)
 PYTHON_SUFFIXES = (".py",)
 
+#: The modules an exported Python file imports by name (``mimarble``, ``mitsuba``) and the
+#: packages ``import mimarble`` loads before Mitsuba (``drjit``, ``numpy``). Python puts a
+#: script's own folder first on its path, so a file ``NAME.py`` there is imported in
+#: their place — by that script and by every other one in the folder:
+#: ``export --python`` refuses to write one (:func:`script_name_problem`).
+SCRIPT_IMPORTS = ("mimarble", "mitsuba", "drjit", "numpy")
+
 #: Mitsuba's object types (``mi.ObjectType``) by their XML tags (src/core/parser.cpp,
 #: ``interpret_tag``).
 _TAGS = {"Scene": "scene", "Sensor": "sensor", "Film": "film", "Emitter": "emitter",
@@ -80,6 +87,17 @@ _VALUE_TYPES = ("ref", "rgb", "spectrum")
 
 class ExportError(ValueError):
     """A value of the scene dict that neither file can hold, in one sentence."""
+
+
+def script_name_problem(path) -> str | None:
+    """Why a Python file may not be written at ``path`` (None: it may): its name would
+    shadow one of :data:`SCRIPT_IMPORTS` for every script in its folder."""
+    stem = Path(path).stem
+    if Path(path).suffix in PYTHON_SUFFIXES and stem in SCRIPT_IMPORTS:
+        return (f"a Python file named {stem}.py would be imported in place of the {stem} "
+                f"module by every script in its folder (this one too: it imports "
+                f"{' and '.join(SCRIPT_IMPORTS[:2])}); name it otherwise")
+    return None
 
 
 def plugin_tag(plugin_name: str) -> str:
@@ -294,11 +312,24 @@ def _spectrum_pairs(value: dict, key: str, xml: _XML) -> list:
     return [("value", ", ".join(f"{_float_text(w)}:{_float_text(v)}" for w, v in data))]
 
 
+def _check_own_keys(scene_dict: dict) -> None:
+    """Refuse a plugin under a key ``load_dict`` reads as the dict's own (``type``,
+    ``id``: translate.LOAD_DICT_KEYS): Mitsuba would take it for the scene's id ("std::
+    bad_cast"), and neither file could say it."""
+    from .mitsuba.translate import LOAD_DICT_KEYS
+    for key in LOAD_DICT_KEYS:
+        if isinstance(scene_dict.get(key), dict):
+            raise ExportError(f"cannot export the plugin under the key {key!r}: mi.load_dict "
+                              f"reads a dict's {key!r} as its own, not as a child; give the "
+                              f"plugin another key")
+
+
 def to_xml(scene_dict: dict, folder=".") -> str:
     """The Mitsuba XML of a scene dict (module docstring), for a file in ``folder``
     (where its relative file names start)."""
     if not isinstance(scene_dict, dict) or scene_dict.get("type", "scene") != "scene":
         raise TypeError("to_xml: expected a Mitsuba scene dict ({'type': 'scene', …})")
+    _check_own_keys(scene_dict)
     xml = _XML(Path(folder))
     xml.lines.append(f'<scene version="{XML_VERSION}">')
     for key, value in scene_dict.items():
@@ -364,6 +395,7 @@ def to_python(scene_dict: dict, variant: str, folder=".", command: str | None = 
     line that wrote it, is kept as a string constant (any characters are safe there)."""
     if not isinstance(scene_dict, dict):
         raise TypeError("to_python: expected a Mitsuba scene dict")
+    _check_own_keys(scene_dict)
     body = _Python(Path(folder)).literal("scene", scene_dict, 0)
     return (f'"""A mimarble scene as a Mitsuba 3 scene dict, written by ``mimarble export``\n'
             f"(the command: ``COMMAND``).\n\n"
@@ -393,11 +425,16 @@ def export(scene, path, mode: str = "whitted", spp: int | None = None, python: b
            command: str | None = None) -> str:
     """Write ``to_mitsuba(scene, mode, spp)`` to ``path`` as XML (or ``python``: a Python
     file), whole or not at all (mimarble/files.py); returns the text written. ``command``:
-    the command line, kept in the Python file (``COMMAND``)."""
+    the command line, kept in the Python file (``COMMAND``). ExportError, before anything
+    is written, for a name no writer takes (``files.output_name_problem``) or a Python
+    file that would shadow a module it imports (:func:`script_name_problem`)."""
     import mitsuba as mi
 
-    from .files import write_atomically
+    from .files import output_name_problem, write_atomically
     from .mitsuba.translate import to_mitsuba
+    problem = output_name_problem(path) or (script_name_problem(path) if python else None)
+    if problem:
+        raise ExportError(f"{os.fspath(path)!r}: {problem}")
     path = Path(path)
     scene_dict = to_mitsuba(scene, mode, spp)
     folder = path.parent

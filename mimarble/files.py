@@ -33,12 +33,47 @@ _TEMPORARY = re.compile(r"\..*\.mimarble-(\d+)-[^.]*\.?[^.]*$")
 _cleaned: set = set()
 
 
+def output_name_problem(name) -> str | None:
+    """What is wrong with ``name`` as the name of a file or folder to write, in words that
+    follow it (``NAME: …``), or None. The one rule of every writer (the command line's
+    ``-o``, ``--diff``, ``--copy``, ``--json``…; ``write_image``, ``export``, ``sweep``):
+
+    * empty — a path of no characters means the current folder to the system, so a
+      writer would write there, or fall back to a default name the user did not give;
+    * a NUL character — no system takes one;
+    * not UTF-8 — a name whose bytes are not UTF-8 reaches Python as lone surrogates
+      (U+DC80..U+DCFF, PEP 383); Mitsuba's image writers and the exported files' text take
+      UTF-8 only, so such a name is refused, in every writer alike, rather than written by
+      some (Pillow's JPEG) and not others (Mitsuba's PNG and EXR).
+    """
+    text = os.fspath(name)
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    if text == "":
+        return "an empty name; name the file or folder to write"
+    if "\0" in text:
+        return "the name holds a NUL character, which no file name can"
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError as e:
+        bad = text[e.start]
+        byte = (f"the byte \\x{ord(bad) - 0xDC00:02x}" if 0xDC80 <= ord(bad) <= 0xDCFF
+                else f"U+{ord(bad):04X}")
+        return (f"the name is not UTF-8 ({byte} at character {e.start + 1}); mimarble writes "
+                f"files under UTF-8 names only: give another")
+    return None
+
+
 def write_atomically(path, write) -> None:
     """``write(tmp)`` to a temporary file beside ``path`` (same suffix, so writers that
     choose a format by it choose the same), then rename it to ``path``. The new file gets
     the usual mode (0666 less the umask); on any failure the temporary file is removed,
     and the first write into a folder removes the temporary files that killed processes
-    left there (a kill leaves no chance to remove them)."""
+    left there (a kill leaves no chance to remove them). A name refused by
+    :func:`output_name_problem` is a ValueError, before anything is made."""
+    problem = output_name_problem(path)
+    if problem:
+        raise ValueError(f"{os.fspath(path)!r}: {problem}")
     path = Path(path)
     folder = path.parent if str(path.parent) else Path(".")
     _remove_stale_temporaries(folder)

@@ -19,9 +19,10 @@ import warnings
 
 import numpy as np
 
-from . import environment, error_budget, pixel_filter
+from . import environment, error_budget, pixel_filter, srgb_model
 from .finite_arithmetic import finite_product
-from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, PARAMETERS, POSITIONS,
+from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, MAX_LACUNARITY, PARAMETERS,
+                                POSITIONS,
                                 MarbleParameters, ParameterError, checked, parameter_table,
                                 ramp_count_problem)
 from .noise import Spectrum, fractal_sum, lattice_tables
@@ -43,9 +44,12 @@ class Marble(RGBTexture):
 
     def __init__(self, props):
         mi.Texture.__init__(self, props)
-        if not mi.variant().endswith("_rgb"):
-            raise ParameterError(f"marble: variant {mi.variant()} is not supported; use an "
-                                 f"RGB variant (llvm_ad_rgb, cuda_ad_rgb, scalar_rgb)")
+        variant_problem = srgb_model.variant_problem("marble")
+        if variant_problem:
+            raise ParameterError(variant_problem)
+        # Spectral variants: the model that turns the colour into a spectrum, held (see
+        # RGBTexture.eval and mimarble/srgb_model.py); None elsewhere.
+        self.srgb_table = srgb_model.model_table()
         params = MarbleParameters.from_properties(props)
         self.function, self.axis, self.turbulence, self.filter = \
             params.function, params.axis, params.turbulence, params.filter
@@ -62,12 +66,19 @@ class Marble(RGBTexture):
         self.editable["to_world"] = self.mapping.to_world
         if dr.is_jit_v(mi.Float):        # the noise's tables, held (see lattice_tables)
             self.lattice = lattice_tables(mi.UInt32)
+            self._zero = dr.opaque(mi.Float, 0.0)   # see _kept_attached
         self.pixel_filter = None
         # The warning of eval, once per texture, and never for one that has been traced
         # with footprints (a whitted scene's marble, traced again by another scene's
         # symbolic call over every live material, is not that scene's concern).
         self._quiet_about_footprints = Kept(False)
-        self.parameters_changed()
+        # What the host holds of each traversed value (None: held on the device only, an
+        # edit the host never saw; see parameters_changed): the properties' values, and
+        # to_world's matrix (literals, read without waiting).
+        self._held = Kept({name: getattr(params, name) for name in self.editable
+                           if name in BY_NAME})
+        self._held.value["to_world"] = _matrix(self.mapping.to_world)
+        self._changed(set())
 
     # -- Mitsuba object protocol -------------------------------------------
 
@@ -78,49 +89,71 @@ class Marble(RGBTexture):
                    else mi.ParamFlags.NonDifferentiable)
 
     def parameters_changed(self, keys=[]):
-        """Check the values as ``mi.traverse`` left them, with the table's rules; an
-        invalid edit raises and puts the last valid values back, so the texture never
-        renders with them. Then decide what the kernel evaluates."""
-        if dr.is_jit_v(mi.Float):
-            # Opaque, first: a new value reuses the compiled kernel, a recording of it
-            # (dr.freeze) takes every one as an input, copies too, and reading an
-            # evaluated value back launches nothing (a literal's read evaluates a copy).
+        """Check the values as ``mi.traverse`` left them, and decide what the kernel
+        evaluates, without reading back a value the host does not hold (no wait for the
+        device: an optimisation step stays asynchronous).
+
+        ``keys``: the names Mitsuba says were edited (none: every one may have been). An
+        edited value the host holds — a Python number set through ``mi.traverse`` is a
+        Dr.Jit literal, read without waiting — and a structural one (``octaves``, which
+        decides the kernel) are checked here with the table's rules: an invalid edit
+        raises and puts the last valid values back. Any other edited value (computed on
+        the device: an optimiser's, a ramp array) is checked in the kernel instead: while
+        one breaks its rule, the texture is NaN everywhere (:meth:`check_values` says
+        which rule, reading them). Decisions made from values (the octaves the error
+        budget keeps, whether the noise is needed) take the value-independent choice for
+        a value on the device (docs/design-decisions.md, "The update path")."""
+        self._changed(set(keys) if keys else set(self.editable))
+
+    def _changed(self, keys: set) -> None:
+        jit = dr.is_jit_v(mi.Float)
+        held = dict(self._held.value)
+        for name in keys & set(self.editable):
+            held[name] = self._host_value(name)
+        if jit:
+            # Opaque, next: a new value reuses the compiled kernel, a recording of it
+            # (dr.freeze) takes every one as an input, copies too.
             dr.make_opaque(*self.editable.values())
         try:
-            values = {name: checked(BY_NAME[name], self._read_back(BY_NAME[name]))
-                      for name in self.editable if name in BY_NAME}
-            problem = ramp_count_problem(values["ramp"], values.get("ramp_positions"))
-            if problem:
-                raise ParameterError(f"marble: {problem}")
-            to_world = transform_matrix(self.mapping.to_world)
-            self.mapping.check(to_world)
+            for name in keys:
+                if held.get(name) is not None and name in BY_NAME:
+                    held[name] = checked(BY_NAME[name], held[name])
+            self._check_counts()
+            if held["to_world"] is not None:
+                self.mapping.check(held["to_world"])
         except ParameterError:
             for name, value in getattr(self, "_last_valid", Kept({})).value.items():
                 # In place: mi.traverse holds these very objects.
                 mi.set_property(self.editable[name], value)
             raise
         self._last_valid = Kept({name: type(value)(value) for name, value in self.editable.items()})
+        self._held = Kept(held)
+        values = held
+        on_device = {name for name, value in values.items() if value is None}
         self.ramp.changed()
-        if dr.is_jit_v(mi.Float):   # the kernel reads the traversed values themselves
+        if jit:                     # the kernel reads the traversed values themselves
             self.scale, self.period, self.distortion = (
                 self.editable[name] for name in ("scale", "period", "distortion"))
         else:                       # the scalar variant computes on Python floats
             self.scale, self.period, self.distortion = (
                 values[name] for name in ("scale", "period", "distortion"))
-        self.mapping.changed(self.scale, to_world)
+        self.mapping.changed(self.scale, values["to_world"])
         # Structural: a new count traces a new kernel at the next eval. The budget bounds
         # the colour's error, not its derivatives' (every octave's gradient is of the same
-        # size, 2^i·2^−i): a parameter being differentiated keeps every octave.
+        # size, 2^i·2^−i): a parameter being differentiated keeps every octave; so does a
+        # value the budget reads that is on the device (the budget is made on the host).
         self.octaves = values["octaves"]
         differentiated = any(dr.grad_enabled(self.editable[p.name]) for p in PARAMETERS
                              if p.in_place and p.name in self.editable)
-        self.octaves_evaluated = error_budget.octaves_needed(
-            0.0 if differentiated else self.tolerance, self.octaves, values["distortion"],
-            values["ramp"], self.function, gain=values["gain"],
-            positions=values.get("ramp_positions"))
+        budget_unknown = bool(on_device & {"distortion", "ramp", "ramp_positions", "gain"})
+        self.octaves_evaluated = self.octaves if values["gain"] is None else \
+            error_budget.octaves_needed(
+                0.0 if differentiated or budget_unknown else self.tolerance, self.octaves,
+                values["distortion"], values["ramp"], self.function, gain=values["gain"],
+                positions=values.get("ramp_positions"))
         # The octaves' gain and lacunarity: the traversed values themselves in JIT variants
-        # (opaque, differentiable), Python floats in the scalar one (mimarble/noise.py).
-        jit = dr.is_jit_v(mi.Float)
+        # (opaque, differentiable), Python floats in the scalar one (mimarble/noise.py);
+        # None for a value on the device, whose derived constants the device computes.
         self.spectrum = Spectrum(values["gain"], values["lacunarity"],
                                  self.editable["gain"] if jit else None,
                                  self.editable["lacunarity"] if jit else None,
@@ -128,18 +161,116 @@ class Marble(RGBTexture):
         # Distortion 0 needs no noise, unless distortion, gain or lacunarity is being
         # differentiated (their derivatives reach the colour through F: F, and 0·∂F).
         self.needs_noise = self.octaves_evaluated > 0 and (
-            values["distortion"] != 0.0 or dr.grad_enabled(self.distortion)
-            or self.spectrum.differentiated())
+            values["distortion"] is None or values["distortion"] != 0.0
+            or dr.grad_enabled(self.distortion) or self.spectrum.differentiated())
         if self.pixel_filter is not None and self._ramp_size == self.ramp.size:
             self.pixel_filter.changed()
         else:                       # a filter's tables are made for a number of colours
             self.pixel_filter = pixel_filter.choose(self, self.filter)
         self._ramp_size = self.ramp.size
-        self._max = float(np.max(values["ramp"]))
+        # The largest ramp component: what the host holds, else read when max() asks; in
+        # JIT variants also on the device (a reduction, no read back) for the kernels that
+        # read it (held_maximum).
+        self._max = None if values["ramp"] is None else float(np.max(values["ramp"]))
+        if jit:
+            c = dr.detach(self.editable["ramp"])
+            self._held_max = dr.max(dr.maximum(dr.maximum(c[0], c[1]), c[2]))
+            dr.make_opaque(self._held_max)
+        self.valid = self._kernel_check(on_device) if jit else None
+
+    def _host_value(self, name):
+        """The value of traversed ``name`` as the table holds it, if the host holds it (a
+        literal) or it is structural (read: it decides the kernel); else None."""
+        value = self.editable[name]
+        if dr.is_jit_v(mi.Float) and name != "octaves" and not _literal(value):
+            return None
+        if name == "to_world":
+            return _matrix(value)
+        parameter = BY_NAME[name]
+        if parameter.kind == COLOURS:
+            return tuple(map(tuple, self.ramp.numpy().tolist()))
+        if parameter.kind == POSITIONS:
+            return tuple(self.ramp.positions_numpy().tolist())
+        number = first_number(value)
+        return int(number) if parameter.kind == INTEGER and number.is_integer() else number
+
+    def _check_counts(self) -> None:
+        """The rules the host checks on every edit, from the arrays' widths (never a
+        read): the ramp's number of colours, one position for each."""
+        lo, hi = BY_NAME["ramp"].bounds
+        count = dr.width(self.editable["ramp"]) if dr.is_jit_v(mi.Float) \
+            else len(self.ramp.numpy())
+        if not lo <= count <= hi:
+            raise ParameterError(f"marble: ramp has {count} colours; it holds {lo}..{hi}")
+        if "ramp_positions" in self.editable:
+            positions = dr.width(self.editable["ramp_positions"]) \
+                if dr.is_jit_v(mi.Float) else len(self.ramp.positions_numpy())
+            problem = ramp_count_problem(range(count), range(positions))
+            if problem:
+                raise ParameterError(f"marble: {problem}")
+
+    def _kernel_check(self, on_device: set):
+        """The table's rules for the values on the device, as one opaque Dr.Jit Bool the
+        kernel reads (True when the host checked every value: the same kernel either way,
+        so that a first edit on the device compiles nothing new): scale > 0, period and
+        distortion finite, 0 < gain < 1, 1 < lacunarity ≤ MAX_LACUNARITY, every ramp
+        component finite, positions in [0, 1] and non-decreasing, to_world finite and
+        invertible (as texture_mapping.check_invertible). Its reductions run on the
+        device; nothing is read back."""
+        e = {name: dr.detach(value) for name, value in self.editable.items()}
+        rules = []
+        if "scale" in on_device:
+            rules.append((e["scale"] > 0.0) & dr.isfinite(e["scale"]))
+        for name in ("period", "distortion"):
+            if name in on_device:
+                rules.append(dr.isfinite(e[name]))
+        if "gain" in on_device:
+            rules.append((e["gain"] > 0.0) & (e["gain"] < 1.0))
+        if "lacunarity" in on_device:
+            rules.append((e["lacunarity"] > 1.0) & (e["lacunarity"] <= MAX_LACUNARITY))
+        if "ramp" in on_device:
+            c = e["ramp"]
+            rules.append(dr.all(dr.isfinite(c[0]) & dr.isfinite(c[1]) & dr.isfinite(c[2])))
+        if "ramp_positions" in on_device:
+            p = e["ramp_positions"]
+            rules.append(dr.all((p >= 0.0) & (p <= 1.0)))
+            if dr.width(p) > 1:
+                k = dr.arange(mi.UInt32, dr.width(p) - 1)
+                rules.append(dr.all(dr.gather(mi.Float, p, k + 1) >= dr.gather(mi.Float, p, k)))
+        if "to_world" in on_device:
+            m = e["to_world"].matrix
+            finite = mi.Bool(True)
+            for i in range(4):
+                for j in range(4):
+                    finite &= dr.isfinite(m[i][j])
+            linear = mi.Matrix3f(*(m[i][j] for i in range(3) for j in range(3)))
+            largest = dr.max(dr.abs(mi.Vector3f(*(dr.max(dr.abs(mi.Vector3f(
+                m[i][0], m[i][1], m[i][2]))) for i in range(3)))))
+            rules.append(finite & (largest > 0.0)
+                         & (dr.abs(dr.det(linear)) > dr.power(1e-6 * largest, 3)))
+        valid = mi.Bool(True)
+        for rule in rules:
+            valid = valid & rule
+        dr.make_opaque(valid)
+        return valid
+
+    def check_values(self) -> None:
+        """Every traversed value checked on the host with the table's rules, reading back
+        those on the device (a wait): ParameterError naming the first broken rule, as an
+        edit the host holds gets at ``params.update()``. Nothing is changed."""
+        for name in self.editable:
+            if name in BY_NAME:
+                value = self._read_back(BY_NAME[name])
+                checked(BY_NAME[name], value)
+        self._check_counts()
+        if "ramp_positions" in self.editable:
+            problem = ramp_count_problem(self.ramp.numpy(), self.ramp.positions_numpy())
+            if problem:
+                raise ParameterError(f"marble: {problem}")
+        self.mapping.check(_matrix(self.mapping.to_world, read=True))
 
     def _read_back(self, parameter):
-        """A traversed parameter's value as the table holds it (an edit may have left
-        anything there: it is checked next)."""
+        """A traversed parameter's value as the table holds it, read back now."""
         value = self.editable[parameter.name]
         if parameter.kind == COLOURS:
             return self.ramp.numpy()
@@ -163,7 +294,8 @@ class Marble(RGBTexture):
             "distortion": first_number(self.distortion),
             "octaves": f"{self.octaves} ({self.octaves_evaluated} within tolerance "
                        f"{self.tolerance:g})",
-            "gain": self.spectrum.gain_value, "lacunarity": self.spectrum.lacunarity_value,
+            "gain": first_number(self.spectrum.gain),
+            "lacunarity": first_number(self.spectrum.lacunarity),
             "turbulence": self.turbulence, "filter": self.filter,
             "ramp": f"{self.ramp.size} colours"
                     + (" at positions" if self.ramp.positioned else ""),
@@ -174,11 +306,24 @@ class Marble(RGBTexture):
 
     def mean(self):
         """The mean luminance where the phase is spread uniformly (mimarble/ramp.py);
-        differentiable with respect to the ramp."""
+        differentiable with respect to the ramp. Spectral variants: the spectral mean of
+        that mean colour's spectrum (as ``srgb``'s and ``bitmap``'s mean there)."""
+        if mi.is_spectral:
+            return srgb_model.mean(self.srgb_table, self.ramp.mean(self.stripe))
         return mi.luminance(self.ramp.mean(self.stripe))
 
     def max(self):
+        """The largest ramp component (read back, once, after an edit on the device)."""
+        if self._max is None:
+            self._max = first_number(self._held_max)
         return self._max
+
+    def held_maximum(self) -> tuple:
+        """(:meth:`max` as the texture holds it — JIT variants: a one-lane Dr.Jit value
+        made from the ramp without a read back, current after every edit of it, which a
+        kernel reads (``marble_medium``'s density bound) —, no host values:
+        plugins.held_maximum)."""
+        return (self._held_max if dr.is_jit_v(mi.Float) else self._max), ()
 
     # -- Evaluation ------------------------------------------------------------
 
@@ -191,11 +336,13 @@ class Marble(RGBTexture):
         """∇_v φ, given distortion·∇F (None: no noise)."""
         return self.stripe.phase_gradient(self.axis_index, self.period, noise_gradient)
 
-    def eval(self, si, active=True):
+    def eval_3(self, si, active=True):
         """The colour at ``si``; 0 where ``active`` is False, as Mitsuba's ``bitmap``
-        gives (every lookup is in bounds by construction, so none needs the mask)."""
+        gives (every lookup is in bounds by construction, so none needs the mask).
+        ``eval`` is this colour, or in spectral variants its spectrum (RGBTexture.eval)."""
         if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
-            return dr.select(active, self.ramp.constant(dr.width(si.p)), 0.0)
+            return self._kept_attached(dr.select(active, dr.select(
+                self._defined(True), self.ramp.constant(dr.width(si.p)), dr.nan), 0.0))
         if self.pixel_filter.needs_footprint and not self._quiet_about_footprints.value \
                 and not footprints_omitted():
             self._quiet_about_footprints.value = True
@@ -204,8 +351,33 @@ class Marble(RGBTexture):
         point = self.mapping.map(si, self.pixel_filter.needs_footprint)
         # A NaN or infinite point gets a NaN colour, decided here once rather than left to
         # how each backend's min/max and float→int conversions treat NaN (they differ).
-        colour = dr.select(point.finite, self.pixel_filter.colour(self, point), dr.nan)
-        return dr.select(active, colour, 0.0)
+        colour = dr.select(self._defined(point.finite), self.pixel_filter.colour(self, point),
+                           dr.nan)
+        return self._kept_attached(dr.select(active, colour, 0.0))
+
+    def _kept_attached(self, colour):
+        """``colour``, plus 0·p for each in-place parameter p being differentiated: where
+        the colour does not depend on p by structure — a one-colour ramp (scale, period,
+        distortion, gain, lacunarity, positions), one octave (gain: ω⁰ = 1; lacunarity:
+        λ⁰ = 1) — its derivative is then 0, and Mitsuba's ``prb`` finds the contribution
+        attached to the AD graph rather than raising. The 0 is an opaque value the texture
+        holds: Dr.Jit's AD drops a product with a literal 0 (and its edge). Nothing is added
+        while nothing is differentiated (the images are untouched)."""
+        if not dr.is_jit_v(mi.Float):
+            return colour
+        for p in PARAMETERS:
+            value = self.editable.get(p.name) if p.in_place else None
+            if value is not None and dr.grad_enabled(value):
+                first = dr.gather(type(value), value, mi.UInt32(0)) if dr.width(value) > 1 \
+                    else value
+                colour = colour + self._zero * (first if p.kind != COLOURS else first[0])
+        return colour
+
+    def _defined(self, finite):
+        """Where the colour is defined: at finite points (``finite``), and only while every
+        value on the device keeps its rule (:meth:`_kernel_check`); elsewhere NaN. (The
+        scalar variant holds every value on the host.)"""
+        return finite if self.valid is None else finite & self.valid
 
     def prepare_alternate(self) -> None:
         """Make what :meth:`eval_and_alternate` reads (the phase-average tables), before a
@@ -223,12 +395,12 @@ class Marble(RGBTexture):
         if self.ramp.size == 1 or self.pixel_filter.average is None:
             # A constant; or a marble not prepared (another scene's, traced by a symbolic
             # call over every live material): one estimate.
-            colour = self.eval(si, active)
+            colour = self.eval_3(si, active)          # (kept attached there)
             return colour, colour
         point = self.mapping.map(si, True)
         colour, alternate = self.pixel_filter.colour_and_alternate(self, point)
-        return tuple(dr.select(active, dr.select(point.finite, c, dr.nan), 0.0)
-                     for c in (colour, alternate))
+        return tuple(self._kept_attached(dr.select(active, dr.select(
+            self._defined(point.finite), c, dr.nan), 0.0)) for c in (colour, alternate))
 
     def _no_footprint_message(self) -> str:
         name = f" {self.id()!r}" if self.id() else ""
@@ -262,7 +434,28 @@ class Marble(RGBTexture):
         slope = mi.luminance(self.ramp.slope(self.stripe.t(phase)))
         gradient = self.mapping.gradient_to_world(
             (slope * self.stripe.slope(phase) * self.scale) * grad_phase)
-        return mi.Vector2f(dr.dot(gradient, si.dp_du), dr.dot(gradient, si.dp_dv))
+        return dr.select(self._defined(True), mi.Vector2f(dr.dot(gradient, si.dp_du),
+                                                         dr.dot(gradient, si.dp_dv)), dr.nan)
+
+
+def _literal(value) -> bool:
+    """Whether every component of a JIT value is a literal: a number the host holds (a
+    Python number set through ``mi.traverse`` is one), read without waiting."""
+    if isinstance(value, (mi.Transform4f, mi.ScalarTransform4f)) or hasattr(value, "matrix"):
+        value = value.matrix
+    if dr.depth_v(value) > 1:
+        return all(_literal(value[k]) for k in range(len(value)))
+    return value.state == dr.VarState.Literal
+
+
+def _matrix(transform, read: bool = False) -> np.ndarray | None:
+    """``transform``'s 4×4 matrix as float64, if its entries are literals (read without
+    waiting) or ``read``; else None (on the device)."""
+    if dr.is_jit_v(mi.Float) and not read and not _literal(transform):
+        return None
+    return transform_matrix(transform) if read or not dr.is_jit_v(mi.Float) else \
+        np.array([[transform.matrix[i][j][0] for j in range(4)] for i in range(4)],
+                 dtype=np.float64)
 
 
 def _editable(parameter, value):

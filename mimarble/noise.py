@@ -294,20 +294,29 @@ class Spectrum:
 
     def __init__(self, gain_value: float = 0.5, lacunarity_value: float = 2.0, gain=None,
                  lacunarity=None, opaque: bool = False, octaves: int | None = None):
-        # The table's ranges (a ParameterError, a ValueError, outside them).
-        self.gain_value = BY_NAME["gain"].check(float(gain_value))
-        self.lacunarity_value = BY_NAME["lacunarity"].check(float(lacunarity_value))
+        # The table's ranges (a ParameterError, a ValueError, outside them). A value None:
+        # held on the device only (an edit the host never read, mimarble/marble.py); its
+        # constants are then derived there, in single precision, from ``gain`` or
+        # ``lacunarity`` (no read back), and every octave is evaluated.
+        self.gain_value = None if gain_value is None else BY_NAME["gain"].check(float(gain_value))
+        self.lacunarity_value = None if lacunarity_value is None else \
+            BY_NAME["lacunarity"].check(float(lacunarity_value))
         self.gain = self.gain_value if gain is None else gain
         self.lacunarity = self.lacunarity_value if lacunarity is None else lacunarity
         self.octaves = octaves
-        power = self.gain_value ** (octaves or 0)
-        derived = {"inverse_log_lacunarity": 1.0 / math.log2(self.lacunarity_value),
-                   "log_gain": math.log2(self.gain_value),
-                   "gain_squared": self.gain_value * self.gain_value,
-                   "inverse_tail": 1.0 / (1.0 - self.gain_value),
-                   "inverse_tail_squared": 1.0 / (1.0 - self.gain_value * self.gain_value),
-                   "gain_power": power, "gain_power_squared": self.gain_value ** (
-                       2 * (octaves or 0))}
+        g = self.gain_value if self.gain_value is not None else dr.detach(self.gain)
+        lacunarity_held = self.lacunarity_value if self.lacunarity_value is not None \
+            else dr.detach(self.lacunarity)
+
+        def log2(x):
+            return math.log2(x) if isinstance(x, float) else dr.log2(x)
+        derived = {"inverse_log_lacunarity": 1.0 / log2(lacunarity_held),
+                   "log_gain": log2(g),
+                   "gain_squared": g * g,
+                   "inverse_tail": 1.0 / (1.0 - g),
+                   "inverse_tail_squared": 1.0 / (1.0 - g * g),
+                   "gain_power": g ** (octaves or 0),
+                   "gain_power_squared": g ** (2 * (octaves or 0))}
         for name, value in derived.items():
             if opaque:
                 value = mi.Float(value)
@@ -317,20 +326,24 @@ class Spectrum:
     @property
     def paper(self) -> bool:
         """The paper's ω = ½ and λ = 2."""
-        return self.gain_value == 0.5 and self.lacunarity_value == 2.0
+        return self.gain_value == 0.5 and self.lacunarity_value == 2.0   # (None: not known)
 
     def differentiated(self) -> bool:
         return dr.grad_enabled(self.gain) or dr.grad_enabled(self.lacunarity)
 
     def most(self, octaves: int) -> int:
-        """The octaves of a K-octave sum evaluated at this gain."""
+        """The octaves of a K-octave sum evaluated at this gain (a gain on the device:
+        every one)."""
+        if self.gain_value is None:
+            return octaves
         return octaves_evaluated(octaves, self.gain_value)
 
     def power(self, k: int, squared: bool = False):
         """ω^k (ω^2k): the held value for the spectrum's own ``octaves``, else a literal."""
         if k == self.octaves:
             return self.gain_power_squared if squared else self.gain_power
-        return self.gain_value ** (2 * k if squared else k)
+        held = self.gain_value if self.gain_value is not None else dr.detach(self.gain)
+        return held ** (2 * k if squared else k)
 
 
 #: The paper's octaves: ω = ½, λ = 2, as literals.

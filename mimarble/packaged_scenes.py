@@ -23,7 +23,7 @@ import os
 import shutil
 from pathlib import Path
 
-from .files import write_atomically
+from .files import output_name_problem, write_atomically
 
 #: Where the packaged scenes are (the checkout's ``scenes/`` through the link).
 FOLDER = (Path(__file__).resolve().parent / "scenes").resolve()
@@ -127,12 +127,41 @@ class CopyRefused(Exception):
     """A copy that would overwrite a file; the message is one sentence."""
 
 
+def _link_problem(path: Path) -> CopyRefused | None:
+    """A refusal if ``path``, a subfolder inside the folder copied into, is a symbolic
+    link or not a folder (None: it is a real folder, or nothing is there)."""
+    if path.is_symlink():
+        return CopyRefused(f"{path}: is a symbolic link (to {os.readlink(path)}); scenes "
+                           f"--copy never follows a link inside the folder it copies into, "
+                           f"so name a new or empty folder")
+    if os.path.lexists(path) and not path.is_dir():
+        return CopyRefused(f"{path}: exists and is not a folder; scenes --copy writes only "
+                           f"new files, so name a new or empty folder")
+    return None
+
+
 def copy_to(folder) -> list[Path]:
     """Copy every packaged file into ``folder`` (made if missing; its parent must exist),
     keeping the subfolders, so the scenes find their image maps. Refuses, before
-    copying anything, to overwrite a file that is there. Returns the files written."""
+    copying anything, to overwrite a file that is there, and to write through a symbolic
+    link inside ``folder`` (a subfolder planted there as a link would lead the copy
+    outside it): ``folder`` itself is what the user named, and may be one. Each
+    subfolder is looked at again (``lstat``) right before a file is written into it.
+    Returns the files written."""
+    problem = output_name_problem(folder)
+    if problem:
+        raise CopyRefused(f"{os.fspath(folder)!r}: {problem}")
     folder = Path(folder)
+    if folder.is_symlink() and not folder.exists():
+        raise CopyRefused(f"{folder}: is a symbolic link to {os.readlink(folder)}, which does "
+                          f"not exist; name a folder")
     plan = [(source, folder / source.relative_to(FOLDER)) for source in files()]
+    subfolders = sorted({folder / parent for _, target in plan
+                         for parent in target.relative_to(folder).parents[:-1]},
+                        key=lambda p: len(p.parts))
+    for path in subfolders:
+        if (problem := _link_problem(path)) is not None:
+            raise problem
     for _, target in plan:
         if os.path.lexists(target):
             raise CopyRefused(f"{target}: exists; scenes --copy writes only new files, so "
@@ -143,6 +172,8 @@ def copy_to(folder) -> list[Path]:
         folder.mkdir(exist_ok=True)
         for source, target in plan:
             for parent in reversed(target.relative_to(folder).parents[:-1]):
+                if (problem := _link_problem(folder / parent)) is not None:
+                    raise problem            # planted while the copy ran
                 if not (folder / parent).exists():
                     (folder / parent).mkdir()
                     made.append(folder / parent)

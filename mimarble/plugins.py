@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import environment
+from . import environment, srgb_model
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -89,6 +89,21 @@ def recording_key(plugin) -> tuple | None:
                                           if hasattr(plugin, "class_name") else None)
 
 
+def held_maximum(texture) -> tuple:
+    """(an upper bound of every component of ``texture``'s colour, the host values it was
+    made of). A mimarble texture's ``held_maximum()``: a Dr.Jit value computed from what
+    the texture holds (no read back), which a kernel reads as it is now — after an edit
+    that Mitsuba told only another parent of (``mi.traverse`` tells a node's first
+    parent). Any other texture's ``max()``, a Python float read now, and also the second
+    item: what a recording's key must hold, since a kernel traced with it holds it as a
+    constant. ``max()`` itself may raise (not implemented: ``checkerboard``)."""
+    own = getattr(texture, "held_maximum", None)
+    if own is not None:
+        return own()
+    value = float(texture.max())
+    return value, (value,)
+
+
 # kind -> (mitsuba base class name, registration function name)
 _KINDS = {
     "texture": ("Texture", "register_texture"),
@@ -143,17 +158,30 @@ def bound_class(name: str, variant: str | None = None) -> type:
 
 class RGBTexture:
     """The parts of Mitsuba's Texture interface that a texture of RGB colours answers
-    alike, as Mitsuba's ``bitmap`` and ``srgb`` do in RGB variants."""
+    alike, as Mitsuba's ``bitmap`` and ``srgb`` do: the texture computes its colour in
+    ``eval_3``; ``eval`` is that colour in RGB variants and, in spectral ones, its smooth
+    spectrum at the lane's wavelengths (mimarble/srgb_model.py, Mitsuba's sRGB model, from
+    the table the texture holds as ``srgb_table``). ``eval_1`` is the colour's luminance
+    in every variant (``bitmap`` refuses it in spectral variants; a marble still has one)."""
 
-    def eval_3(self, si, active=True):
-        return self.eval(si, active)
+    def eval(self, si, active=True):
+        colour = self.eval_3(si, active)
+        if not mi.is_spectral:
+            return colour
+        return srgb_model.spectrum(self.srgb_table, colour, si.wavelengths)
 
     def eval_1(self, si, active=True):
-        return mi.luminance(self.eval(si, active))
+        return mi.luminance(self.eval_3(si, active))
 
     def sample_spectrum(self, si, sample, active=True):
-        """RGB variants sample no wavelengths: (no wavelengths, the colour)."""
-        return dr.zeros(type(si.wavelengths)), self.eval(si, active)
+        """RGB variants sample no wavelengths: (no wavelengths, the colour). Spectral ones:
+        wavelengths uniform over Mitsuba's CIE range, weighted by the spectrum over their
+        density, as ``srgb`` and ``bitmap`` sample."""
+        if not mi.is_spectral:
+            return dr.zeros(type(si.wavelengths)), self.eval(si, active)
+        moved = mi.SurfaceInteraction3f(si)
+        moved.wavelengths = mi.MI_CIE_MIN + (mi.MI_CIE_MAX - mi.MI_CIE_MIN) * sample
+        return moved.wavelengths, self.eval(moved, active) * (mi.MI_CIE_MAX - mi.MI_CIE_MIN)
 
     def pdf_spectrum(self, si, active=True):
         return dr.zeros(type(si.wavelengths))

@@ -32,6 +32,7 @@ import math
 
 from . import marble_parameters
 from . import scene as scene_language
+from .scene.rules import spp_problem
 
 #: The channels of a material, as ``MATERIAL.CHANNEL.K`` names them.
 CHANNELS = ("ambient", "diffuse", "specular")
@@ -45,14 +46,27 @@ class KeyPathError(ValueError):
 # ---------------------------------------------------------------------------
 # Image size
 
-def with_image_size(scene, width: int | None = None, height: int | None = None):
+def with_image_size(scene, width: int | None = None, height: int | None = None,
+                    spp: int | None = None):
     """The scene at ``width`` × ``height`` pixels (None: the scene's own). The camera's
     fov is the full vertical angle (docs/scene-language.md), so a new height shows the
-    same view at another resolution and a new width crops or extends it sideways."""
+    same view at another resolution and a new width crops or extends it sideways.
+
+    ``spp``: the samples per pixel the render will take in place of the image's own
+    (``--spp``, ``render(spp=…)``). With a new size it becomes the image's ``samples``, so
+    that the sample limit is checked on what will be rendered: 16384² at 1 spp of a
+    ``samples 4`` scene is within it. ValueError (the model's sentence) when the size or
+    the samples are past it."""
     size = {name: value for name, value in (("width", width), ("height", height))
             if value is not None}
     if not size:
         return scene
+    if spp is not None:
+        problem = spp_problem(spp, size.get("width", scene.image.width),
+                              size.get("height", scene.image.height))
+        if problem:
+            raise ValueError(problem)
+        size["samples"] = spp
     return dataclasses.replace(scene, image=dataclasses.replace(scene.image, **size))
 
 
@@ -108,7 +122,21 @@ def filling_the_view(scene):
 def with_value(scene, key: str, value):
     """The scene with the value at key path ``key`` set to ``value`` (the module
     docstring lists the keys); :class:`KeyPathError` for a key the scene does not have
-    or a value it cannot take there."""
+    or a value it cannot take there — by the key's own rule, or by the scene model's
+    (its constructors check every value by the parser's rules: ``image.samples`` within
+    the sample limit, a light's intensity within float32's range, a fov that is not 0 in
+    single precision), so that a sweep checks every frame's values, before it renders
+    any, by calling this (``sweeps.frames``)."""
+    try:
+        return _with_value(scene, key, value)
+    except KeyPathError:
+        raise
+    except (TypeError, ValueError) as e:       # the model's rule, in the parser's words
+        raise KeyPathError(f"{key}: {e}") from None
+
+
+def _with_value(scene, key: str, value):
+    """:func:`with_value`, with the model's own errors left to it to word."""
     parts = key.split(".")
     if parts[0] == "camera" and parts[1:] == ["fov"]:
         fov = _number(key, value, above=0.0)

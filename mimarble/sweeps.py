@@ -41,6 +41,10 @@ already uses every core: on 2 cores ``workers`` was slower at every size measure
 (docs/benchmarks.md, "Sweeps"). Ctrl-C stops the workers with the sweep: they never
 see it themselves, and it is raised here only between Dask's calls (:class:`_Interrupts`).
 
+**One sweep at a time in a folder.** A sweep holds a lock on its folder while it runs
+(:class:`_FolderLock`, an ``flock`` the system drops when the process ends, by a kill
+too): a second sweep into it is refused in one sentence before it reads or writes there.
+
 **A sweep folder is data, not instructions.** A frame's image is always named by
 :func:`file_name` from its index and values inside the output folder; the ``file`` field
 of the index is written for readers and never read back. A damaged index (not JSON, the
@@ -72,11 +76,12 @@ from pathlib import Path
 
 import numpy as np
 
-from . import files
+from . import files, packaged_scenes
 from . import scene as scene_language
 from .contact_sheet import draw_contact_sheet
 from .scene.image_header import check_image_maps, png_facts
-from .scene.rules import spp_problem
+from .scene.python_numbers import plain_number, plain_numbers
+from .scene.rules import number_problem, shortened, spp_problem
 from .scene.reading import NotRegularFile, open_regular
 from .scene_edits import KeyPathError, with_value
 
@@ -165,20 +170,38 @@ def _value(text: str):
     return value
 
 
+#: How a sweep's settings are given, for the sentence that refuses another form.
+SETTINGS_FORMS = ("a mapping {key: values} (e.g. {'marble.period': [0.5, 1, 2]}), or "
+                  "--set strings ('marble.period=0.5,1,2', one or a list of them)")
+
+
 def settings_from(spec) -> tuple[Setting, ...]:
-    """Settings from ``--set`` strings, or a mapping {key: values} (Python)."""
+    """Settings from ``--set`` strings (one string is one setting), or a mapping
+    {key: values} (Python); values are numbers (NumPy's too, as the Python numbers they
+    hold: mimarble/scene/python_numbers.py) or words. Any other form is a SweepError."""
+    if isinstance(spec, str):
+        spec = (spec,)
     if isinstance(spec, dict):
         for key, values in spec.items():
+            if not isinstance(key, str):
+                raise SweepError(f"setting key {shortened(repr(key), 40)} is not a string: a "
+                                 f"key is a key path, e.g. 'marble.period'")
             count = (values.size if isinstance(values, np.ndarray) else
                      len(values) if isinstance(values, (list, tuple, range)) else 1)
             if count > MAX_FRAMES:       # before a range or an array is made into a list
                 raise SweepError(f"--set {key}: {count} values; a sweep renders at most "
                                  f"{MAX_FRAMES} frames")
-        # NumPy values (np.linspace, np.arange) become Python ones: JSON and checks take them.
-        return tuple(Setting(k, tuple(np.asarray(v, dtype=object).ravel().tolist()
-                                      if isinstance(v, (list, tuple, range, np.ndarray)) else
-                                      [np.asarray(v).item()]))
-                     for k, v in spec.items())
+        # NumPy values (np.linspace, np.arange, np.float32(…) in a list) become Python ones:
+        # JSON and the checks take them.
+        return tuple(Setting(k, tuple(plain_number(x) for x in (
+            np.asarray(v, dtype=object).ravel().tolist()
+            if isinstance(v, (list, tuple, range, np.ndarray)) else [v])))
+            for k, v in spec.items())
+    if not isinstance(spec, (list, tuple)):
+        raise SweepError(f"settings {shortened(repr(spec), 40)}: give {SETTINGS_FORMS}")
+    for item in spec:
+        if not isinstance(item, (str, Setting)):
+            raise SweepError(f"setting {shortened(repr(item), 40)}: give {SETTINGS_FORMS}")
     return tuple(parse_setting(s) if isinstance(s, str) else s for s in spec)
 
 
@@ -206,6 +229,11 @@ def frames(scene, settings) -> list[dict]:
     Each frame's scene is built here, so a bad key or value fails before any render
     (SweepError ``--set KEY: …``), and their number is checked first (:func:`frame_count`)."""
     frame_count(settings)
+    for setting in settings:             # every number of a scene: as the parser reads one
+        for value in setting.values:
+            problem = _number_problem(value)
+            if problem:
+                raise SweepError(f"--set {setting.key}: {problem}")
     out = []
     for index, combination in enumerate(itertools.product(*(s.values for s in settings))):
         frame_scene = scene
@@ -217,6 +245,19 @@ def frames(scene, settings) -> list[dict]:
         out.append({"index": index, "values": dict(zip((s.key for s in settings), combination)),
                     "scene": frame_scene})
     return out
+
+
+def _number_problem(value) -> str | None:
+    """The scene language's rule for any number (scene/rules.py ``number_problem``: finite,
+    within float32's range, as the renderers are single precision), said as the parser
+    says it of a number in a file; None for a value that is no number (a word)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    try:
+        problem = number_problem(float(value))
+    except OverflowError:                # an int past any double
+        problem = "is too large"
+    return None if problem is None else f"number {shortened(repr(value), 40)} {problem}"
 
 
 def file_name(frame, settings) -> str:
@@ -283,21 +324,42 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
           worker_threads: int | None = None) -> dict:
     """Render every combination of ``settings`` into ``out_dir``; returns the index.
 
-    ``settings``: ``--set``-style strings, or {key: values}. ``workers`` / ``scheduler``:
-    Dask (see the module docstring); neither: this process. ``compare``: each frame's
-    RMSE and PSNR against the reference tracer. ``stop_after``: stop after that many
-    frames (what an interruption does; the index says what is left). Already done frames
-    of the same sweep in ``out_dir`` are kept, not rendered again; a damaged index or
-    image there is said in a warning and rendered again. ``worker_threads``: Dr.Jit
-    threads per Dask worker (default: a LocalCluster's share of this machine's cores; a
-    scheduler's workers keep their own). Every limit (module docstring) is checked before
-    anything is written.
+    ``scene_or_path``: a scene model, a scene file's path or, when no such file exists, a
+    packaged scene's name (``"fig11a"``, as ``render`` takes it). ``settings``:
+    ``--set``-style strings (one string is one setting), or {key: values}; every number
+    in them is checked by the scene language's rule for numbers before any frame.
+    ``workers`` / ``scheduler``: Dask (see the module docstring); neither: this process.
+    ``compare``: each frame's RMSE and PSNR against the reference tracer. ``stop_after``:
+    a whole number ≥ 0, stop after that many frames (what an interruption does; the index
+    says what is left). NumPy's numbers are the Python numbers they hold
+    (mimarble/scene/python_numbers.py). Already done frames of the same sweep in
+    ``out_dir`` are kept, not rendered again; a damaged index or image there is said in a
+    warning and rendered again; a folder another sweep is writing into is refused
+    (:class:`_FolderLock`). ``worker_threads``: Dr.Jit threads per Dask worker (default: a
+    LocalCluster's share of this machine's cores; a scheduler's workers keep their own).
+    Every limit (module docstring) and the folder's name (``files.output_name_problem``)
+    are checked before anything is written.
     """
     import mimarble
     from .progress import report
+    spp, stop_after, workers, worker_threads = plain_numbers(spp, stop_after, workers,
+                                                             worker_threads)
+    problem = files.output_name_problem(out_dir) if isinstance(out_dir, (str, bytes,
+                                                                          os.PathLike)) \
+        else f"the sweep's folder must be a path, not {type(out_dir).__name__}"
+    if problem:
+        raise SweepError(f"{shortened(repr(out_dir), 60)}: {problem}")
+    if stop_after is not None and (isinstance(stop_after, bool) or not isinstance(stop_after, int)
+                                   or stop_after < 0):
+        raise SweepError(f"stop_after={shortened(repr(stop_after), 40)} must be a whole number "
+                         f"≥ 0 (the frames to render before stopping), or None")
     scene = scene_or_path
-    if isinstance(scene_or_path, (str, os.PathLike)):
+    if isinstance(scene_or_path, (str, os.PathLike)):   # a file, else a packaged scene's name
+        scene_or_path = packaged_scenes.resolve(scene_or_path)
         scene = scene_language.load(scene_or_path)
+    elif not isinstance(scene_or_path, scene_language.Scene):
+        raise TypeError(f"sweep: {shortened(repr(scene_or_path), 80)} is not a scene: give a "
+                        f"scene file's path, a packaged scene's name or a mimarble.scene.Scene")
     settings = settings_from(settings)
     if not settings:
         raise SweepError("a sweep needs at least one setting (--set KEY=VALUES)")
@@ -330,54 +392,58 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     except OSError as e:                 # a file there, a name too long, no permission
         raise SweepError(f"{out_dir}: cannot make the sweep's folder "
                          f"({e.strerror or e})") from None
-    mimarble.start()
-    variant = mimarble.mi.variant()
-    index = _open_index(out_dir, scene_or_path, scene, settings, spp, compare, all_frames, variant)
-    # The only names ever written or read in the folder: derived, never taken from the index.
-    names = [file_name(f, settings) for f in all_frames]
-    todo = _todo(all_frames, index, out_dir, names)
-    finished = len(all_frames) - len(todo)
-    if stop_after is not None:
-        todo = todo[:stop_after]
-    done = report(progress, "sweep", unit="frame")
-    done(finished, len(all_frames))
-    rendered = set()                     # the frames this run rendered (for the summary)
-
-    def one_more():
-        nonlocal finished
-        finished += 1
+    # One sweep at a time in a folder: a second one is refused while this one runs
+    # (_FolderLock: the lock dies with the process, so a killed sweep leaves none).
+    with _FolderLock(out_dir):
+        mimarble.start()
+        variant = mimarble.mi.variant()
+        index = _open_index(out_dir, scene_or_path, scene, settings, spp, compare, all_frames,
+                            variant)
+        # The only names ever written or read in the folder: derived, never taken from the index.
+        names = [file_name(f, settings) for f in all_frames]
+        todo = _todo(all_frames, index, out_dir, names)
+        finished = len(all_frames) - len(todo)
+        if stop_after is not None:
+            todo = todo[:stop_after]
+        done = report(progress, "sweep", unit="frame")
         done(finished, len(all_frames))
-    # A LocalCluster's workers share this machine's cores (Dr.Jit would start a thread per
-    # core in each); a remote scheduler's workers keep their own machines' defaults.
-    threads = worker_threads or (max(1, (os.cpu_count() or 1) // int(workers))
-                                 if workers and not scheduler else None)
-    options = {"spp": spp, "compare": compare, "variant": variant, "threads": threads,
-               "encode": bool(workers or scheduler)}
-    _render(todo, options, index, out_dir, names, workers, scheduler, one_more, rendered)
-    # An image that passed its header check but does not decode is found by the contact
-    # sheet: it is rendered again once, and the sheet drawn again.
-    for attempt in range(2):
-        if not (contact_sheet and any(e["status"] == "done" for e in index["frames"])
-                and all(e["status"] != "todo" for e in index["frames"])):
-            break
-        was_done = [k for k, e in enumerate(index["frames"]) if e["status"] == "done"]
-        try:
-            write_contact_sheet(out_dir, index, size=_size(scene))
-        except OSError as e:             # the frames are there; only their overview is not
-            warnings.warn(f"{out_dir / CONTACT_SHEET}: cannot write the contact sheet "
-                          f"({e.strerror or e})", stacklevel=2)
-        undecodable = [k for k in was_done if index["frames"][k]["status"] != "done"]
-        if not undecodable:
-            break
-        _write_index(out_dir, index, rendered)
-        if attempt == 0:
-            warnings.warn(f"{out_dir}: {_count(len(undecodable), 'frame image')} did not "
-                          f"decode ({names[undecodable[0]]}"
-                          f"{', …' if len(undecodable) > 1 else ''}); rendering "
-                          f"{_them(len(undecodable))} again", stacklevel=2)
-            _render([all_frames[k] for k in undecodable], options, index, out_dir, names,
-                    workers, scheduler, lambda: None, rendered)
-    return index
+        rendered = set()                     # the frames this run rendered (for the summary)
+
+        def one_more():
+            nonlocal finished
+            finished += 1
+            done(finished, len(all_frames))
+        # A LocalCluster's workers share this machine's cores (Dr.Jit would start a thread per
+        # core in each); a remote scheduler's workers keep their own machines' defaults.
+        threads = worker_threads or (max(1, (os.cpu_count() or 1) // int(workers))
+                                     if workers and not scheduler else None)
+        options = {"spp": spp, "compare": compare, "variant": variant, "threads": threads,
+                   "encode": bool(workers or scheduler)}
+        _render(todo, options, index, out_dir, names, workers, scheduler, one_more, rendered)
+        # An image that passed its header check but does not decode is found by the contact
+        # sheet: it is rendered again once, and the sheet drawn again.
+        for attempt in range(2):
+            if not (contact_sheet and any(e["status"] == "done" for e in index["frames"])
+                    and all(e["status"] != "todo" for e in index["frames"])):
+                break
+            was_done = [k for k, e in enumerate(index["frames"]) if e["status"] == "done"]
+            try:
+                write_contact_sheet(out_dir, index, size=_size(scene))
+            except OSError as e:             # the frames are there; only their overview is not
+                warnings.warn(f"{out_dir / CONTACT_SHEET}: cannot write the contact sheet "
+                              f"({e.strerror or e})", stacklevel=2)
+            undecodable = [k for k in was_done if index["frames"][k]["status"] != "done"]
+            if not undecodable:
+                break
+            _write_index(out_dir, index, rendered)
+            if attempt == 0:
+                warnings.warn(f"{out_dir}: {_count(len(undecodable), 'frame image')} did not "
+                              f"decode ({names[undecodable[0]]}"
+                              f"{', …' if len(undecodable) > 1 else ''}); rendering "
+                              f"{_them(len(undecodable))} again", stacklevel=2)
+                _render([all_frames[k] for k in undecodable], options, index, out_dir, names,
+                        workers, scheduler, lambda: None, rendered)
+        return index
 
 
 def check_workers(workers) -> int:
@@ -715,6 +781,89 @@ class _Interrupts:
         signal.signal(signal.SIGINT, self.previous)
         if kind is None or kind is GeneratorExit:   # closed early: still say it was asked
             self.check()
+        return False
+
+
+# ---------------------------------------------------------------------------
+# One sweep at a time in a folder
+
+#: The lock file in a sweep's folder while a sweep writes there: held (``flock``), holding
+#: its process id for the message a second sweep gets.
+LOCK = ".sweep.lock"
+
+
+class _FolderLock:
+    """An exclusive ``flock`` on :data:`LOCK` in the sweep's folder, taken without waiting
+    (a second sweep into the folder is refused in one sentence while the first runs) and
+    released when the block is left, the file removed then. The system drops the lock when
+    the process ends, by a kill too, so a lock file a killed sweep left blocks nothing. The
+    file is opened without following a link (a sweep folder is data). A lock taken on a
+    file that its holder removed meanwhile is no lock (a third sweep could make a new one):
+    the file locked must still be the one at the name, else it is taken again. Where
+    ``fcntl`` does not exist (Windows), sweeps are not locked."""
+
+    def __init__(self, folder: Path):
+        self.path = Path(folder) / LOCK
+        self.fd = None
+
+    def __enter__(self):
+        try:
+            import fcntl
+        except ImportError:
+            return self
+        for _ in range(100):             # each retry: a holder removed the file as we took it
+            fd = self._open()
+            try:
+                try:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                except BlockingIOError:
+                    holder = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+                    who = f"process {holder}" if holder.isdigit() else "another process"
+                    raise SweepError(f"{self.path.parent}: another sweep ({who}) is writing "
+                                     f"into this folder; wait for it to end, or write this "
+                                     f"one elsewhere") from None
+                if self._still_named(fd):
+                    os.ftruncate(fd, 0)
+                    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+                    self.fd = fd
+                    return self
+            except BaseException:
+                os.close(fd)
+                raise
+            os.close(fd)
+        raise SweepError(f"{self.path}: cannot lock the sweep's folder (its lock file keeps "
+                         f"being replaced)")
+
+    def _open(self) -> int:
+        import stat
+        flags = os.O_RDWR | os.O_CREAT | getattr(os, "O_NOFOLLOW", 0) | \
+            getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
+        try:
+            fd = os.open(self.path, flags, 0o666)
+        except OSError as e:
+            raise SweepError(f"{self.path}: cannot lock the sweep's folder "
+                             f"({_unreadable(e)})") from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise SweepError(f"{self.path}: is not a regular file, where the sweep's lock "
+                             f"goes; move it away")
+        return fd
+
+    def _still_named(self, fd: int) -> bool:
+        """Whether the file open as ``fd`` is the one at the lock's name."""
+        held = os.fstat(fd)
+        try:
+            named = os.lstat(self.path)
+        except FileNotFoundError:
+            return False
+        return (held.st_dev, held.st_ino) == (named.st_dev, named.st_ino)
+
+    def __exit__(self, *exc):
+        if self.fd is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(self.path)     # while still held: no sweep takes it meanwhile
+            os.close(self.fd)            # closing the file releases the lock
+            self.fd = None
         return False
 
 

@@ -74,9 +74,10 @@ class TextureMapping:
     def changed(self, scale, matrix: np.ndarray) -> None:
         """After the parameters changed: the scale (in JIT variants the texture's very
         opaque ``mi.Float``, which ``mi.traverse`` edits in place), and to_world⁻¹
-        (None: the identity)."""
+        (None: the identity). ``matrix`` None: to_world is on the device only (an edit the
+        host never read), inverted there, whatever it is."""
         self.scale = scale
-        identity = np.array_equal(matrix, np.eye(4))
+        identity = matrix is not None and np.array_equal(matrix, np.eye(4))
         self.to_texture = None if identity else self.to_world.inverse()
         if dr.is_jit_v(mi.Float):   # an edit's new value reuses the kernel and its recording
             dr.make_opaque(self.to_world)

@@ -171,3 +171,23 @@ def test_a_weight_being_differentiated_is_not_folded_away_at_0_or_1(llvm, start)
     params.update()
     dr.backward(dr.sum(tex.eval(points(10)).x))
     assert float(np.array(dr.grad(params["weight"]))[0]) == pytest.approx(10 * (0.1 - 0.8), rel=1e-5)
+
+
+@pytest.mark.parametrize("channel", [
+    S.Add((RED, MARBLE, OTHER_MARBLE)),
+    S.Multiply((RED, OTHER_MARBLE)),
+    S.Mix(MARBLE, BLUE, 0.3),
+    S.Mix(MARBLE, BLUE, 1.7),
+    S.Mix(RED, OTHER_MARBLE, S.Multiply((OTHER_MARBLE, S.ColorChannel((0.5, 0.5, 0.5))))),
+])
+def test_max_is_the_bound_of_the_channel_model(variant, channel):
+    # max() (made from the operands' held maxima, issue 37 item 2) against the same rules
+    # applied to the scene model in float64 (error_budget.channel_bound), and against the
+    # colours; a mix whose weight texture stays ≤ 1: the larger side.
+    from mimarble import error_budget
+    expected = error_budget.channel_bound(channel)
+    if isinstance(channel, S.Mix) and not isinstance(channel.weight, float):
+        expected = max(error_budget.channel_bound(channel.a), error_budget.channel_bound(channel.b))
+    assert texture(channel).max() == pytest.approx(expected, rel=1e-6)
+    if dr.is_jit_v(mi.Float):
+        assert colour(texture(channel), points()).max() <= expected * (1 + 1e-6)

@@ -123,20 +123,23 @@ def test_unknown_variant_is_a_clear_error():
     assert "Unknown Mitsuba variant 'nonsense_rgb'" in result.stdout
 
 
-@pytest.mark.parametrize("variant", ["llvm_ad_spectral", "llvm_ad_mono", "scalar_spectral"])
-def test_a_non_rgb_variant_is_one_clear_sentence_before_any_work(variant):
+@pytest.mark.parametrize("variant", ["llvm_ad_mono", "llvm_ad_spectral_polarized",
+                                     "scalar_spectral_polarized"])
+def test_a_variant_neither_rgb_nor_spectral_is_one_clear_sentence_before_any_work(variant):
     if variant not in mimarble.mi.variants():
         pytest.skip(f"this Mitsuba has no {variant}")
     scene = os.path.join(ROOT, "scenes", "fig10a.scene")
     render = run(["--variant", variant, "render", scene, "-o", os.devnull + ".png"], module=True)
     assert render.returncode == 2, render.stderr
-    assert f"Variant {variant} is not an RGB variant" in render.stderr
+    assert f"Variant {variant} is neither an RGB nor a spectral variant" in render.stderr
     assert "Traceback" not in render.stderr and len(render.stderr.strip().splitlines()) == 1
     doctor = run(["--variant", variant, "doctor"], module=True)
     assert doctor.returncode == 1
-    assert "not an RGB variant" in doctor.stdout and "rendering can work" not in doctor.stdout
+    assert "neither an RGB nor a spectral" in doctor.stdout \
+        and "rendering can work" not in doctor.stdout
     from_environment = run(["render", scene], {environment.VARIANT_ENV: variant}, module=True)
-    assert from_environment.returncode == 2 and "not an RGB variant" in from_environment.stderr
+    assert from_environment.returncode == 2 \
+        and "neither an RGB nor a spectral" in from_environment.stderr
 
 
 def test_doctor_reports_library_variant_and_versions():

@@ -304,3 +304,58 @@ def test_an_unwritable_output_is_one_line_and_exit_2(tmp_path):
         (tmp_path / "read-only").chmod(0o700)
     assert result.returncode == 2 and "could not write it" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------------------
+# Issue 38: names Mitsuba reads as its own, and files that shadow what a script imports
+
+NAMED = """
+image { width 8 height 8 } camera { eye < 0 0 6 > } light { position < 4 4 4 > }
+texture "NAME" { marble { period 1.3 distortion 2 octaves 4 } }
+material "m" { diffuse { texture "NAME" } }
+sphere { material "m" }
+"""
+
+
+@pytest.mark.parametrize("name", ["id", "type", "id!", " id ", "id_2"])
+def test_a_texture_named_as_a_load_dict_key_renders_as_the_reference_and_exports(name, tmp_path):
+    """``id`` and ``type`` are the keys ``mi.load_dict`` reads as a dict's own: a texture
+    whose id would be one gets another, in the dict and in both files."""
+    from mimarble import reference
+    scene_file = tmp_path / "named.scene"
+    scene_file.write_text(NAMED.replace("NAME", name), encoding="utf-8")
+    scene = scene_language.load(scene_file)
+    np.testing.assert_allclose(mimarble.render(scene), reference.render(scene), atol=1e-4)
+    scene_dict = to_mitsuba(scene)
+    assert not any(isinstance(scene_dict.get(k), dict) for k in ("id", "type"))
+    assert_both_render_as_the_dict(scene_dict, tmp_path)
+
+
+def test_a_plugin_under_a_key_load_dict_reads_as_its_own_is_refused_by_both_writers():
+    for key in ("id", "type"):
+        scene_dict = {"type": "scene", key: {"type": "marble"}} if key == "id" else \
+            {key: {"type": "marble"}}
+        for write in (export.to_xml, lambda d: export.to_python(d, mi.variant())):
+            with pytest.raises((export.ExportError, TypeError), match="scene dict|its own"):
+                write(scene_dict)
+
+
+@pytest.mark.parametrize("stem", ["mimarble", "mitsuba", "drjit", "numpy"])
+def test_export_refuses_a_python_file_that_would_shadow_what_it_imports(stem, tmp_path):
+    result = mimarble_cli("export", "fig11a", "--python", "-o", f"{stem}.py", cwd=tmp_path)
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert f"imported in place of the {stem} module" in result.stderr
+    with pytest.raises(export.ExportError, match="imported in place"):
+        export.export(small(ROOT / "scenes" / "fig11a.scene", 4), tmp_path / f"{stem}.py",
+                      python=True)
+    assert os.listdir(tmp_path) == []
+
+
+def test_an_xml_or_another_python_name_is_not_taken_for_a_shadowing_one(tmp_path):
+    """Only a Python file named as a module the script imports shadows it."""
+    scene = small(ROOT / "scenes" / "fig11a.scene", 4)
+    for name, python in (("mimarble.xml", False), ("mimarble_scene.py", True),
+                         ("Mitsuba.py", True)):
+        export.export(scene, tmp_path / name, python=python)
+    assert sorted(os.listdir(tmp_path)) == ["Mitsuba.py", "mimarble.xml", "mimarble_scene.py"]

@@ -2,6 +2,7 @@
 (issue 23): one sentence, no traceback of ours, nothing left half written or outside."""
 
 import os
+import re
 import subprocess
 import sys
 
@@ -137,3 +138,65 @@ def test_colours_past_one_and_python_built_negative_ones_render_as_the_reference
                     S.Add((S.ColorChannel((0.9, 0.9, 0.9)), S.ColorChannel((-0.5, 0.0, 0.0))))):
         scene = tiny(diffuse)
         np.testing.assert_allclose(mimarble.render(scene), reference.render(scene), atol=1e-5)
+
+
+# ---------------------------------------------------------------------------
+# Issue 38: one rule for numbers (NumPy's are the Python numbers they hold); scene names
+
+@pytest.mark.parametrize("numpy_arguments, python_arguments", [
+    (dict(spp=np.int64(4)), dict(spp=4)),
+    (dict(spp=np.uint8(1), seed=np.int32(7), mode="path"), dict(spp=1, seed=7, mode="path")),
+    (dict(width=np.int16(12), height=np.float64(10.0)), dict(width=12, height=10)),
+    (dict(tolerance=np.float32(0.25)), dict(tolerance=float(np.float32(0.25)))),
+    (dict(edge_spp=np.int64(4)), dict(edge_spp=4)),
+    (dict(adaptive=np.float64(0.01), max_spp=np.int64(16)), dict(adaptive=0.01, max_spp=16)),
+    (dict(spp=np.array(4)), dict(spp=4)),
+])
+def test_render_takes_numpy_numbers_as_the_python_numbers_they_hold(llvm, numpy_arguments,
+                                                                    python_arguments):
+    np.testing.assert_array_equal(mimarble.render(tiny(), **numpy_arguments),
+                                  mimarble.render(tiny(), **python_arguments))
+
+
+def test_the_reference_takes_a_numpy_spp_as_the_python_number(llvm):
+    from mimarble import reference
+    np.testing.assert_array_equal(reference.render(tiny(), spp=np.int64(4)),
+                                  reference.render(tiny(), spp=4))
+
+
+@pytest.mark.parametrize("arguments, words", [
+    (dict(spp=np.bool_(True)), "spp=True must be a whole number"),
+    (dict(spp=np.float64(4.0)), "spp=4.0 must be a whole number"),
+    (dict(width=np.bool_(True)), "width must be an integer, found True"),
+    (dict(seed=np.float32(1.5)), "seed=1.5"),
+    (dict(tolerance=np.float64("nan")), "tolerance=nan must be a finite number"),
+])
+def test_numpy_numbers_a_python_number_would_not_pass_are_refused_alike(llvm, arguments, words):
+    with pytest.raises((TypeError, ValueError), match=re.escape(words)):
+        mimarble.render(tiny(), **arguments)
+
+
+@pytest.mark.parametrize("name, words", [
+    ("", "'': cannot read scene file: the name is empty"),
+    ("a\0b", "'a\\x00b': cannot read scene file: the name holds a NUL character"),
+])
+def test_an_empty_or_nul_scene_name_is_one_clear_sentence(llvm, tmp_path, name, words):
+    from mimarble import reference, sweeps
+    for call in (mimarble.render, reference.render, S.load,
+                 lambda n: sweeps.sweep(n, {"marble.period": [1]}, tmp_path / "out")):
+        with pytest.raises(S.SceneError) as caught:
+            call(name)
+        assert str(caught.value).startswith(words)
+
+
+def test_the_command_line_says_an_empty_scene_name_in_one_sentence(tmp_path):
+    for command in ("render", "reference", "export", "sweep", "bake", "compare"):
+        extra = {"sweep": ["--set", "marble.period=1", "-o", "out"],
+                 "bake": ["--shape", "sphere_0", "-o", "b.png"]}.get(command, [])
+        result = subprocess.run([sys.executable, "-m", "mimarble", command, "", *extra],
+                                cwd=tmp_path, capture_output=True, text=True,
+                                env=dict(os.environ, PYTHONPATH=ROOT))
+        assert result.returncode == 2 and "Traceback" not in result.stderr, result.stderr
+        assert len(result.stderr.strip().splitlines()) == 1
+        assert "''" in result.stderr and "empty" in result.stderr
+    assert os.listdir(tmp_path) == []

@@ -493,7 +493,8 @@ def test_the_model_refuses_what_the_parser_refuses_in_the_same_words(text, build
     (lambda: S.Sphere("m", radius=float("nan")), ValueError, "radius: number nan is not finite"),
     (lambda: S.Light((float("nan"), 0, 0)), ValueError, "position: number nan is not finite"),
     (lambda: S.Light((1e39, 0, 0)), ValueError,
-     "position: number 1e+39 is too large: the renderer is single precision, |x| <= 3.4e38"),
+     "position: number 1e+39 is too large: the renderer is single precision, "
+     "|x| <= 3.4028234663852886e+38"),
     (lambda: S.Image(width="big"), TypeError, "width must be an integer, found 'big'"),
     (lambda: S.Image(samples=True), TypeError, "samples must be an integer, found True"),
     (lambda: S.Light(5), TypeError, "position must be 3 numbers, found 5"),

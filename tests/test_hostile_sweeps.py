@@ -5,6 +5,7 @@ sentence before anything large is made; nothing is written outside the output fo
 import json
 import os
 import random
+import re
 import socket
 import threading
 import tracemalloc
@@ -396,3 +397,140 @@ def test_an_output_name_too_long_is_one_sentence(tmp_path):
 def test_an_output_name_too_long_from_python_is_a_sweep_error(llvm, tmp_path):
     with pytest.raises(sweeps.SweepError, match="cannot make the sweep's folder"):
         sweeps.sweep(tiny(), SETTING, tmp_path / ("x" * 300), spp=1)
+
+
+# ---------------------------------------------------------------------------
+# Issue 38: one sweep at a time in a folder; the API's settings, numbers and names
+
+HOLD_LOCK = """
+import fcntl, os, sys, time
+fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT, 0o666)
+fcntl.flock(fd, fcntl.LOCK_EX)
+os.write(fd, str(os.getpid()).encode())
+print("held", flush=True)
+time.sleep(600)
+"""
+
+
+def another_process_holding_the_lock(out):
+    """A process that holds the folder's lock as a running sweep does (its own flock)."""
+    import subprocess
+    import sys
+    out.mkdir(exist_ok=True)
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out / sweeps.LOCK)],
+                              stdout=subprocess.PIPE, text=True)
+    assert holder.stdout.readline().strip() == "held"
+    return holder
+
+
+def test_a_second_sweep_into_a_folder_in_use_is_refused_and_writes_nothing(llvm, tmp_path):
+    out = tmp_path / "out"
+    holder = another_process_holding_the_lock(out)
+    try:
+        with pytest.raises(sweeps.SweepError, match=rf"another sweep \(process {holder.pid}\) "
+                                                    r"is writing into this folder"):
+            sweeps.sweep(tiny(), SETTING, out, spp=1)
+        (tmp_path / "s.scene").write_text((ROOT / "scenes" / "fig11a.scene").read_text())
+        sentence = one_sentence(cli("sweep", tmp_path / "s.scene", "--set",
+                                    "marble.period=1,2", "--width", "8", "--height", "8",
+                                    "--spp", "1", "-o", out))
+        assert "another sweep" in sentence
+        assert sorted(os.listdir(out)) == [sweeps.LOCK]
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_a_lock_left_by_a_killed_sweep_blocks_nothing(llvm, tmp_path):
+    out = tmp_path / "out"
+    holder = another_process_holding_the_lock(out)
+    holder.kill()                                   # SIGKILL: no chance to let go
+    holder.wait()
+    assert (out / sweeps.LOCK).read_text() == str(holder.pid)
+    index = sweeps.sweep(tiny(), SETTING, out, spp=1)
+    assert [f["status"] for f in index["frames"]] == ["done", "done"]
+    sweeps.sweep(tiny(), SETTING, out, spp=1)       # and this one let go of it when it ended
+    usable(out)
+
+
+@pytest.mark.parametrize("plant", ["link", "fifo"])
+def test_a_lock_file_that_is_a_link_or_a_pipe_is_refused(llvm, tmp_path, plant):
+    out = tmp_path / "out"
+    out.mkdir()
+    victim = tmp_path / "victim"
+    victim.write_text("keep")
+    if plant == "link":
+        (out / sweeps.LOCK).symlink_to(victim)
+    else:
+        os.mkfifo(out / sweeps.LOCK)
+    with pytest.raises(sweeps.SweepError, match="symbolic link|not a regular file"):
+        sweeps.sweep(tiny(), SETTING, out, spp=1)
+    assert victim.read_text() == "keep" and sorted(os.listdir(out)) == [sweeps.LOCK]
+
+
+def test_sweep_resolves_a_packaged_scene_name_as_render_does(llvm, tmp_path, monkeypatch):
+    from mimarble import packaged_scenes
+    monkeypatch.chdir(tmp_path)                     # no file called fig11a here
+    index = sweeps.sweep("fig11a", {"camera.fov": [30.0]}, "out", spp=1, stop_after=0)
+    assert index["scene"] == str(packaged_scenes.find("fig11a"))
+    assert [f["status"] for f in index["frames"]] == ["todo"]
+
+
+@pytest.mark.parametrize("settings, words", [
+    (None, "settings None: give a mapping"),
+    (42, "settings 42: give a mapping"),
+    ({1: [1]}, "setting key 1 is not a string"),
+    ({("marble", "period"): [1]}, "is not a string"),
+    ([1, 2], "setting 1: give a mapping"),
+    ({"marble.period": [1e39]}, "number 1e+39 is too large"),
+    ({"marble.period": [-3.5e38]}, "is too large"),
+    ({"marble.scale": [float("inf")]}, "is not finite"),
+    ({"light.0.intensity": [10 ** 400]}, "is too large"),
+])
+def test_settings_in_another_form_or_past_float32_are_one_sentence(llvm, tmp_path, settings,
+                                                                    words):
+    with pytest.raises(sweeps.SweepError, match=re.escape(words)):
+        sweeps.sweep(tiny(), settings, tmp_path / "out", spp=1)
+    assert not (tmp_path / "out").exists()
+
+
+def test_one_set_string_is_one_setting(llvm, tmp_path):
+    index = sweeps.sweep(tiny(), "marble.period=1,2", tmp_path / "out", spp=1)
+    assert [f["values"] for f in index["frames"]] == [{"marble.period": 1},
+                                                      {"marble.period": 2}]
+
+
+@pytest.mark.parametrize("value", ["1e39", "-1e39", "3.5e38", "1e309"])
+def test_a_value_past_float32_is_refused_before_any_frame(tmp_path, value):
+    sentence = one_sentence(cli("sweep", "fig11a", "--set", f"marble.period=1,{value}",
+                                "--width", "8", "--height", "8", "-o", tmp_path / "out"))
+    assert "marble.period" in sentence and ("too large" in sentence or "not finite" in sentence)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("stop_after", [-1, 1.5, True, "1", np.float64(1.0)])
+def test_stop_after_is_a_whole_number_at_least_0(llvm, tmp_path, stop_after):
+    with pytest.raises(sweeps.SweepError, match="stop_after=.* must be a whole number ≥ 0"):
+        sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, stop_after=stop_after)
+    assert not (tmp_path / "out").exists()
+
+
+def test_numpy_numbers_are_taken_as_the_python_numbers_they_hold(llvm, tmp_path):
+    python = sweeps.sweep(tiny(), {"marble.period": [1.5, 2.0], "marble.octaves": [3]},
+                          tmp_path / "python", spp=1, stop_after=1)
+    numpy = sweeps.sweep(tiny(), {"marble.period": np.array([1.5, 2.0], np.float32),
+                                  "marble.octaves": [np.int64(3)]},
+                         tmp_path / "numpy", spp=np.int64(1), stop_after=np.int64(1))
+    assert [f["status"] for f in numpy["frames"]] == ["done", "todo"]
+    assert [f["values"] for f in numpy["frames"]] == [f["values"] for f in python["frames"]]
+    assert (tmp_path / "numpy" / NAMES[0].replace("period-1", "period-1.5_octaves-3")
+            ).read_bytes() == (tmp_path / "python" / NAMES[0].replace(
+                "period-1", "period-1.5_octaves-3")).read_bytes()
+
+
+@pytest.mark.parametrize("out", ["", "a\0b", os.fsdecode(b"o\xff")])
+def test_a_sweep_folder_name_no_writer_takes_is_refused(llvm, tmp_path, monkeypatch, out):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(sweeps.SweepError, match="empty name|NUL|not UTF-8"):
+        sweeps.sweep(tiny(), SETTING, out, spp=1)
+    assert os.listdir(tmp_path) == []

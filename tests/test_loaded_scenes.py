@@ -4,6 +4,7 @@
 import shutil
 
 import numpy as np
+import pytest
 from PIL import Image
 
 import mimarble
@@ -127,3 +128,29 @@ def test_an_image_map_copied_over_with_its_old_modification_time_is_seen(llvm, t
     os.utime(image_map, ns=(facts.st_atime_ns, facts.st_mtime_ns))
     after = mimarble.render(str(path))
     assert not np.array_equal(before, after)
+
+
+@pytest.mark.parametrize("freeze", ["1", "0"])
+def test_a_mesh_file_rewritten_with_the_same_counts_and_bounds_is_seen(llvm, tmp_path,
+                                                                      monkeypatch, freeze):
+    # Issue 37 item 1: an OBJ square's triangle rewritten as the other half of the square
+    # (4 vertices, 1 face, the same bounds and size), its modification time kept.
+    import os
+    monkeypatch.setenv("MIMARBLE_FREEZE", freeze)
+    obj = tmp_path / "quad.obj"
+    quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf {}\n"
+    obj.write_text(quad.format("1 2 3"))
+    path = tmp_path / "s.scene"
+    path.write_text(SCENE.replace('sphere { center < 0 0 0 > radius 2 material "m" }',
+                                  'mesh { file "quad.obj" transform { scale 3 } material "m" }')
+                    .replace("PERIOD", "1.3").replace("eye < 0 0 9 >", "eye < 1.5 1.5 9 >")
+                    .replace("lookat < 0 0 0 >", "lookat < 1.5 1.5 0 >"))
+    before = mimarble.render(str(path))
+    facts = os.stat(obj)
+    obj.write_text(quad.format("1 3 4"))
+    os.utime(obj, ns=(facts.st_atime_ns, facts.st_mtime_ns))
+    after = mimarble.render(str(path))
+    assert not np.array_equal(before, after)
+    LOADED.clear()
+    np.testing.assert_array_equal(after, mimarble.render(scene_language.parse(
+        path.read_text(), filename=str(path))))

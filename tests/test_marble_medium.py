@@ -13,6 +13,7 @@ roulette off: rr_depth = max_depth), so the two walks take the same paths and th
 differ only by what the albedos differ by at the same points.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -216,9 +217,11 @@ def test_scale_and_bound_are_traversed_and_a_bad_edit_is_refused(llvm):
                            "density": texture_dict(VEINS)})
     assert isinstance(medium, MarbleMedium)
     params = mi.traverse(medium)
-    assert {"scale", "density_bound", "albedo.ramp", "density.ramp"} <= set(params.keys())
+    assert {"scale", "albedo.ramp", "density.ramp"} <= set(params.keys())
+    assert "density_bound" not in params.keys()          # not given: the texture's, in the kernel
+    given = mi.traverse(mi.load_dict({"type": "marble_medium", "density_bound": 2.0}))
     fixed = int(mi.ParamFlags.NonDifferentiable)         # Differentiable is its absence
-    assert not params.flags("scale") & fixed and params.flags("density_bound") & fixed
+    assert not params.flags("scale") & fixed and given.flags("density_bound") & fixed
     point = [[0.1, 0.2, 0.3]]
     _, _, before = coefficients(medium, point)
     params["scale"] = 2.5
@@ -226,10 +229,10 @@ def test_scale_and_bound_are_traversed_and_a_bad_edit_is_refused(llvm):
     _, _, after = coefficients(medium, point)
     np.testing.assert_allclose(after, 2.5 * before, rtol=1e-6)
     # The default bound is the density's max(), and follows an edit of its ramp.
-    assert dr.allclose(params["density_bound"], 1.0)
+    assert dr.allclose(medium.density_bound(), 1.0)
     params["density.ramp"] = dr.ravel(mi.TensorXf(np.array([[0.3] * 3, [2.0] * 3], np.float32)))
     params.update()
-    assert dr.allclose(params["density_bound"], 2.0)
+    assert dr.allclose(medium.density_bound(), 2.0)
     params["scale"] = -1.0
     with pytest.raises(MarbleMediumError, match=r"^marble_medium: scale=-1\.0 must be a finite "
                                                 r"number > 0$"):
@@ -284,3 +287,65 @@ def test_scale_gradients_through_prbvolpath_match_finite_differences(llvm):
                    for s in range(4)])
     error = fd.std(ddof=1) / math.sqrt(len(fd))
     assert ad < 0 and abs(ad - fd.mean()) < 5 * error + 0.05 * abs(fd.mean()), (ad, fd)
+
+
+# ---------------------------------------------------------------------------
+# The bound follows its texture, whoever Mitsuba tells (issue 37, item 2)
+
+#: The medium's density around the shared marble: itself, or an expression holding it
+#: (whose maximum is made from its operands' as they are when the kernel runs).
+DENSITIES = {"marble": lambda veins: veins,
+             "expression": lambda veins: S.Add((veins, S.ColorChannel((0.1, 0.2, 0.3))))}
+
+
+def shared_density_scene(ramp, density):
+    """A translucent sphere whose density holds a marble that a second shape's diffuse
+    BSDF shares (one object, a ``ref``): mi.traverse reaches it first through that shape,
+    so an edit of it tells that shape's BSDF, not the medium. Path-traced with volpath."""
+    medium = {"type": "marble_medium", "albedo": {"type": "rgb", "value": 0.8}, "scale": 4.0,
+              "sample_emitters": False}
+    channel = DENSITIES[density](VEINS)
+    medium["density"] = {"type": "ref", "id": "veins"} if channel is VEINS else {
+        "type": "channel_expression", "op": "add", "operand_0": {"type": "ref", "id": "veins"},
+        "operand_1": {"type": "rgb", "value": [0.1, 0.2, 0.3]}}
+    return {"veins": {**texture_dict(dataclasses.replace(VEINS, ramp=ramp)), "id": "veins"},
+            "floor": {"type": "rectangle", "bsdf": {"type": "diffuse",
+                                                     "reflectance": {"type": "ref", "id": "veins"}},
+                      "to_world": mi.ScalarTransform4f().translate([0, 0, -3]).scale(4.0)},
+            **sphere_scene(medium, size=16, spp=4)}
+
+
+@pytest.mark.parametrize("density", list(DENSITIES))
+def test_an_edit_of_a_shared_density_moves_the_bound_of_a_medium_it_was_not_told_of(
+        llvm, monkeypatch, density):
+    from mimarble.mitsuba.render import render_in_passes
+    low = ((0.3, 0.3, 0.3), (0.9, 0.9, 0.9))
+    high = ((0.3, 0.3, 0.3), (2.7, 2.7, 2.7))
+    scene = mi.load_dict(shared_density_scene(low, density))
+    for _ in range(3):                                    # recorded, then replayed
+        render_in_passes(scene, 4, "path")
+    params = mi.traverse(scene)
+    texture_key = next(k for k in params.keys() if k.endswith(".ramp"))
+    assert not texture_key.startswith("sphere.")          # the medium is not its first parent
+    medium = scene.shapes()[[s.id() for s in scene.shapes()].index("sphere")].interior_medium()
+    params[texture_key] = mi.Color3f(*zip(*high))
+    params.update()
+    # σ_t at points inside: scale · the reference's mean density of the edited channel,
+    # none clamped at the old bound, and σ_n ≥ 0 (the majorant bounds it).
+    points = in_ball(64, 1.0, seed=4)
+    d = channel_color(DENSITIES[density](dataclasses.replace(VEINS, ramp=high)),
+                      points).mean(axis=1)
+    assert d.max() > 1.2
+    sigma_s, sigma_n, sigma_t = coefficients(medium, points)
+    np.testing.assert_allclose(sigma_t[:, 0], 4.0 * d, atol=4.0 * error_budget.DEFAULT_TOLERANCE)
+    assert (sigma_n >= 0).all()
+    # The image: as the same scene loaded with that ramp; replayed, as traced afresh.
+    np.testing.assert_array_equal(rendered_scene(scene), rendered_scene(
+        mi.load_dict(shared_density_scene(high, density))))
+    replayed = render_in_passes(scene, 4, "path")
+    monkeypatch.setenv("MIMARBLE_FREEZE", "0")
+    np.testing.assert_array_equal(replayed, render_in_passes(scene, 4, "path"))
+
+
+def rendered_scene(scene, seed=3):
+    return np.array(mi.render(scene, seed=seed))

@@ -14,9 +14,12 @@ import numpy as np
 import pytest
 
 import mimarble
+from mimarble.marble import Marble
 from mimarble.marble_parameters import PARAMETERS
+from mimarble.mitsuba.translate import texture_dict
 from mimarble.reference import marble as reference_marble
-from mimarble.scene import MarbleChannel
+from mimarble.reference.channels import channel_color
+from mimarble.scene import ColorChannel, MarbleChannel, Mix, Multiply
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -106,3 +109,81 @@ def test_each_differentiable_parameter_has_the_reference_derivative(llvm, case, 
     assert np.quantile(error / (1 + np.abs(truth[smooth])), 0.99) < 5e-3, (case, name)
     if np.abs(truth[smooth]).max() > 1e-3:   # a derivative that is there is not lost
         assert np.abs(ours[smooth]).max() > 0.5 * np.abs(truth[smooth]).max()
+
+
+# ---------------------------------------------------------------------------
+# Derivatives that are 0 by structure (issue 37, item 4): the colour does not depend on
+# the parameter at all — one octave (ω⁰ = 1, λ⁰ = 1), one ramp colour, a factor 0 or a
+# mix weight 0 around the marble. The dependence stays attached: through Mitsuba's prb
+# and dr.backward the gradient is 0, not prb's "not attached to the AD graph" error.
+
+ONE_COLOUR = ((0.3, 0.5, 0.7),)
+VEINED = dict(scale=1.3, period=1.7, distortion=2.5, octaves=3,
+              ramp=((0.1, 0.0, 0.05), (0.9, 0.6, 0.2), (0.3, 0.8, 1.0)))
+ZERO_BY_STRUCTURE = {
+    "one octave": (MarbleChannel(**{**VEINED, "octaves": 1}), ("gain", "lacunarity")),
+    "one colour": (MarbleChannel(**{**VEINED, "ramp": ONE_COLOUR}),
+                   ("scale", "period", "distortion", "gain", "lacunarity")),
+    "one colour at a position": (MarbleChannel(**{**VEINED, "ramp": ONE_COLOUR,
+                                                  "ramp_positions": (0.4,)}),
+                                 ("scale", "period", "distortion", "gain", "lacunarity",
+                                  "ramp_positions")),
+    "times a constant 0": (Multiply((ColorChannel((0.0, 0.0, 0.0)), MarbleChannel(**VEINED))),
+                           tuple(DIFFERENTIABLE)),
+    "mixed in with weight 0": (Mix(ColorChannel((0.2, 0.4, 0.6)), MarbleChannel(**VEINED), 0.0),
+                               tuple(DIFFERENTIABLE)),
+}
+ROWS = [(case, name) for case, (_, names) in ZERO_BY_STRUCTURE.items() for name in names
+        if name != "ramp_positions" or case == "one colour at a position"]
+
+
+def marble_of(channel):
+    return channel if isinstance(channel, MarbleChannel) else \
+        next(c for c in (getattr(channel, "operands", None) or (channel.a, channel.b))
+             if isinstance(c, MarbleChannel))
+
+
+def with_marble_moved(channel, name, h):
+    marble = marble_of(channel)
+    if name == "ramp_positions" and len(marble.ramp) == 1:
+        return dataclasses.replace(marble, ramp_positions=(marble.ramp_positions[0] + h,))
+    if channel is marble:
+        return moved(channel, name, h)
+    if isinstance(channel, Mix):
+        return dataclasses.replace(channel, b=moved(marble, name, h))
+    return dataclasses.replace(channel, operands=tuple(
+        moved(c, name, h) if c is marble else c for c in channel.operands))
+
+
+def test_every_differentiable_row_has_a_structural_zero_case():
+    assert {name for _, name in ROWS} == set(DIFFERENTIABLE)
+
+
+@pytest.mark.parametrize("case, name", ROWS)
+def test_a_derivative_zero_by_structure_is_a_gradient_of_zero_through_prb(llvm, case, name):
+    channel, _ = ZERO_BY_STRUCTURE[case]
+    # The reference's colours do not move with the parameter: the derivative is 0.
+    points = np.random.default_rng(4).uniform(-2, 2, (500, 3))
+    here = channel_color(channel, points)
+    for h in (1e-3, -1e-3):
+        np.testing.assert_array_equal(channel_color(with_marble_moved(channel, name, h), points),
+                                      here)
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "prb", "max_depth": 2},
+        "sensor": {"type": "perspective", "fov": 40,
+                   "to_world": mi.ScalarTransform4f().look_at([0, 0, 4], [0, 0, 0], [0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 8, "height": 8},
+                   "sampler": {"type": "independent", "sample_count": 1}},
+        "sky": {"type": "constant"},
+        "ball": {"type": "sphere", "bsdf": {"type": "diffuse",
+                                             "reflectance": texture_dict(channel)}}})
+    params = mi.traverse(scene)
+    (key,) = [k for k in params.keys() if k.endswith("." + name)
+              and isinstance(params.properties[k][2], Marble)]
+    dr.enable_grad(params[key])
+    params.update()
+    image = mi.render(scene, params, spp=1, seed=0)
+    assert np.array(image).max() > 0
+    dr.backward(dr.mean(image, axis=None))
+    gradient = np.array(dr.grad(params[key]))
+    assert gradient.size and (gradient == 0).all(), (case, name, gradient)

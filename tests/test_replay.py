@@ -298,3 +298,56 @@ def test_a_recording_stopped_by_a_plugin_error_raises_that_error(llvm):
     bad["sphere_0"]["bsdf"] = {"type": "diffuse"}
     with pytest.raises(ValueError, match="needs 'channel_material'"):
         render_in_passes(mi.load_dict(bad), 1)
+
+
+# ---------------------------------------------------------------------------
+# The key made exact (issue 37, item 6): what Mitsuba's C++ plugins fix when they are
+# loaded (a bitmap's filter_type and wrap_mode: neither traversed nor in its repr) cannot
+# change in a loaded scene, so only another scene could share a recording with different
+# ones — one that took a freed scene's id. Simulated here by giving every scene one id.
+
+def _bitmap_scene(filter_type, wrap_mode, variant_image):
+    return mi.load_dict({
+        "type": "scene", "integrator": {"type": "path", "max_depth": 2},
+        "sensor": {"type": "perspective", "fov": 40,
+                   "to_world": mi.ScalarTransform4f().look_at([0, 0, 4], [0, 0, 0], [0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 16, "height": 12},
+                   "sampler": {"type": "independent", "sample_count": 1}},
+        "sky": {"type": "constant"},
+        "quad": {"type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": {
+            "type": "bitmap", "data": mi.TensorXf(variant_image), "raw": True,
+            "filter_type": filter_type, "wrap_mode": wrap_mode,
+            "to_uv": mi.ScalarTransform4f().scale([3.0, 3.0, 1.0]).translate([-0.4, -0.4, 0])}}}})
+
+
+def test_a_new_scene_with_a_freed_ones_id_never_replays_its_recording(llvm, monkeypatch):
+    from mimarble.mitsuba import replay
+    monkeypatch.setattr(replay, "id", lambda obj: 0, raising=False)
+    image = np.random.default_rng(37).uniform(0.0, 1.0, (4, 4, 3)).astype(np.float32)
+    for filter_type, wrap_mode in (("bilinear", "repeat"), ("bilinear", "mirror"),
+                                   ("nearest", "mirror"), ("nearest", "clamp"),
+                                   ("bilinear", "clamp")):
+        scene = _bitmap_scene(filter_type, wrap_mode, image)
+        replayed = render_in_passes(scene, 4, "path")
+        np.testing.assert_array_equal(replayed, traced_afresh(scene, monkeypatch, 4, mode="path"),
+                                      err_msg=f"{filter_type}, {wrap_mode}")
+
+
+@pytest.mark.parametrize("mode", ["whitted", "path"])
+def test_the_recording_call_gives_the_bits_of_its_replays_and_of_a_fresh_trace(llvm, monkeypatch,
+                                                                               mode):
+    # Issue 37, item 3: the first call of a new key records (Dr.Jit runs the kernels as it
+    # records them, and path mode records once more when the sampler first holds its
+    # state); every call, recording or replaying, gives the unfrozen render's bits.
+    scene = mi.load_dict(mimarble.to_mitsuba(
+        scene_language.parse(SCENE.replace("FILTER", "prefilter" if mode == "whitted"
+                                           else "none")), mode=mode))
+    fresh = traced_afresh(scene, monkeypatch, 4, mode=mode, seed=7)
+    calls = []
+    for _ in range(4):
+        before = passes._traced_pass.recordings
+        calls.append((render_in_passes(scene, 4, mode, seed=7),
+                      passes._traced_pass.recordings > before))
+    assert calls[0][1] and not calls[-1][1]          # a recording call, then replays
+    for image, _ in calls:
+        np.testing.assert_array_equal(image, fresh)

@@ -53,7 +53,10 @@ def assert_error_at(text: str, line: int, column: int, fragment: str, filename: 
     head, src, caret, *hint = str(e).split("\n")
     assert hint == ([f"hint: {e.hint}"] if e.hint else [])     # a POV-Ray habit's hint line
     assert head == f"{filename}:{line}:{column}: {e.message}"
-    assert src == text.split("\n")[line - 1].expandtabs(8)
+    # The line as written, a character a terminal would act on shown escaped (issue 38).
+    shown = "".join(c if c == "\t" or c.isprintable() else repr(c)[1:-1]
+                    for c in text.split("\n")[line - 1])
+    assert src == shown.expandtabs(8)
     assert caret.endswith("^") and caret.strip() == "^"
     return e
 

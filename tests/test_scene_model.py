@@ -272,10 +272,10 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
         "density": "color <1 1 1>", "ior": "1.3",
     }
     wrap = {
-        "image": "image {{ {} }}", "camera": "camera {{ {} }}", "light": "light {{ position <0 0 0> {} }}",
+        "image": "image {{ {} }}", "camera": "camera {{ {} }}", "light": "light {{ position <0 5 0> {} }}",
         "material": 'material "m" {{ {} }}', "marble": 'material "m" {{ diffuse {{ marble {{ {} }} }} }}',
         "sphere": 'material "m" {{ }} sphere {{ material "m" {} }}',
-        "area": 'light {{ position <0 0 0> area {{ {} }} }}',
+        "area": 'light {{ position <0 5 0> area {{ {} }} }}',
         "transform": 'material "m" {{ diffuse {{ marble {{ transform {{ {} }} }} }} }}',
         "plane": 'material "m" {{ }} plane {{ material "m" {} }}',
         "box": 'material "m" {{ }} box {{ material "m" {} }}',

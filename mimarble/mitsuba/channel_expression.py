@@ -43,6 +43,7 @@ merges identical unrolled code.
 from __future__ import annotations
 
 import contextlib
+import functools
 import operator
 import threading
 from typing import NamedTuple
@@ -50,7 +51,8 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import environment
-from ..plugins import Kept, RGBTexture, describe, luminance, numbers, plugin, recording_key
+from ..plugins import (Kept, RGBTexture, describe, held_maximum, luminance, numbers, plugin,
+                       recording_key)
 from ..properties import numbered_properties
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -203,24 +205,43 @@ class ChannelExpression(RGBTexture):
             cb.put("weight", self.weight_value, flags)
 
     def parameters_changed(self, keys=[]):
-        """Decide again what can be skipped, from the operands' values as they are now."""
+        """Decide again what can be skipped, from the operands' values as they are now. At
+        an update (Mitsuba names ``keys``) nothing is read back — on a GPU a read waits
+        for every queued kernel, at every step of an optimisation: the folded constant
+        is kept (on the device), the shortcuts that need its value (a product by 0, a mix
+        at weight 0 or 1) are taken only where the host holds it — a number ``weight`` set
+        as a Python number, a literal (docs/design-decisions.md, "The update path")."""
+        reading = not keys or not dr.is_jit_v(mi.Float)   # at load, or values on the host
+        weight_held = None          # the number weight, where the host holds it
         if self.weight_value is not None:
+            if reading or self.weight_value.state == dr.VarState.Literal:
+                weight_held = self.weight_value[0] if dr.is_jit_v(mi.Float) \
+                    else numbers(self.weight_value)[0]     # a literal's: read without waiting
             dr.make_opaque(self.weight_value)
         self._operand_parameters = None          # traversed again: an operand may be new
         self._state = self._operand_state()
         self.constants = [_constant(t) for t in self.operands]
         self.constant = _opaque(self._combined(self.constants))
-        # Structural decisions (a new one traces a new kernel); never for a value being
-        # differentiated, whose derivative needs the part that would be left out.
+        # Structural decisions (a new one traces a new kernel); never while a value is
+        # differentiated — the constant's, or any inside the operands: the part left out
+        # carries its derivative, 0 by structure there (a factor 0, a weight 0 or 1), and
+        # left out it would leave the parameter unattached (prb raises).
+        differentiated = self._operands_differentiated()
         self.zero_product = self.op == "multiply" and self.constant is not None \
+            and not differentiated and reading \
             and not dr.grad_enabled(self.constant) and not np.any(numbers(self.constant))
         self.mix_side = None          # "a" or "b" when the weight is the constant 0 or 1
-        if self.op == "mix":
+        if self.op == "mix" and not differentiated and (reading or weight_held is not None):
             weight = self.weight_value if self.weight is None else _constant(self.weight)
             if weight is not None and not dr.grad_enabled(weight):
-                w = numbers(weight)
+                w = np.array([weight_held]) if self.weight is None else numbers(weight)
                 self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
         self._mean, self._mean_state = None, None
+
+    def _operands_differentiated(self) -> bool:
+        """Some value inside the operands (or a weight texture) has its gradient enabled."""
+        return any(dr.grad_enabled(params[key]) for params in self._operand_parameters
+                   for key in params.keys())
 
     def _operand_state(self):
         """A fingerprint of every value inside the operands (and a weight texture): their
@@ -288,58 +309,103 @@ class ChannelExpression(RGBTexture):
         return bool(self.varying)
 
     def max(self):
-        """An upper bound: sums and products of the operands' maxima (mix: the larger side,
-        for weights in [0, 1]; otherwise |1 − w|·max a + |w|·max b)."""
-        maxima = [float(t.max()) for t in self.operands]
+        """An upper bound: :meth:`held_maximum`, read back."""
+        return float(numbers(self.held_maximum()[0])[0])
+
+    def held_maximum(self) -> tuple:
+        """(an upper bound of every component, the host values it was made of:
+        plugins.held_maximum): sums and products of the operands' maxima (mix: the larger
+        side, for weights in [0, 1]; otherwise |1 − w|·max a + |w|·max b). Made from the
+        operands' own held maxima as they are now, in Dr.Jit arithmetic (a kernel may read
+        it: ``marble_medium``'s density bound), so an edit of a shared operand shows."""
+        parts = [held_maximum(t) for t in self.operands]
+        maxima, host = [m for m, _ in parts], tuple(v for _, read in parts for v in read)
         if self.op == "add":
-            return float(sum(maxima))
+            return functools.reduce(operator.add, maxima), host
         if self.op == "multiply":
-            return float(np.prod(maxima))
+            return functools.reduce(operator.mul, maxima), host
         if self.weight is None:
-            w = float(numbers(self.weight_value)[0])
-            return abs(1.0 - w) * maxima[0] + abs(w) * maxima[1]
-        w_max = float(self.weight.max())
-        return max(maxima) if w_max <= 1.0 else maxima[0] * (1.0 + w_max) + maxima[1] * w_max
+            w = self.weight_value
+            return dr.abs(1.0 - w) * maxima[0] + dr.abs(w) * maxima[1], host
+        w_max, read = held_maximum(self.weight)
+        return dr.select(w_max <= 1.0, dr.maximum(maxima[0], maxima[1]),
+                         maxima[0] * (1.0 + w_max) + maxima[1] * w_max), host + read
 
     def mean(self):
         """The mean luminance: exact for sums, grey constant weights and grey constant
         factors (linear in the operands' means); otherwise the average over
         :data:`MEAN_POINTS` deterministic points (world points in [−16, 16]³, (u, v) over
         the unit square) — in the scalar variant, the operands' means combined as if
-        independent."""
+        independent. Made so once, when first asked (at load); again after an edit
+        (Mitsuba asks from a BSDF's parameters_changed: every step of an optimisation)
+        in JIT variants the operands' means combined as if independent, on the device:
+        no point evaluated, nothing read back (exact for sums, grey constant factors and
+        grey weights)."""
         state = self._operand_state()
         if self._mean is None or self._mean_state.fingerprint != state.fingerprint:
-            self._mean, self._mean_state = self._compute_mean(), state
+            edited = getattr(self, "_mean_made", False) and dr.is_jit_v(mi.Float)
+            self._mean = _means_combined_on_device(self) if edited else self._compute_mean()
+            self._mean_state, self._mean_made = state, True
         return mi.Float(self._mean)
 
     # -- Evaluation ------------------------------------------------------------
 
     def eval(self, si, active=True):
+        """The combination of the operands' ``eval``: colours in RGB variants, spectra at
+        the lane's wavelengths in spectral ones (a sum, product or mix of spectra)."""
+        return self._combine(si, active, rgb=False)
+
+    def eval_3(self, si, active=True):
+        """The combination of the operands' colours. Spectral variants: of their
+        ``eval_3``, where every operand gives its RGB colour (:func:`gives_rgb`)."""
+        if not mi.is_spectral:
+            return self.eval(si, active)
+        if not gives_rgb(self):
+            raise ChannelExpressionError(
+                "channel_expression: eval_3 in a spectral variant needs operands that keep "
+                "an RGB colour (marble, channel_expression, uniform); Mitsuba's srgb and "
+                "bitmap hold spectra there")
+        return self._combine(si, active, rgb=True)
+
+    def eval_1(self, si, active=True):
+        """The luminance; in spectral variants of the RGB colour where the operands keep
+        one, else of the spectrum at the lane's wavelengths (Mitsuba's ``luminance``)."""
+        if mi.is_spectral and not gives_rgb(self):
+            return mi.luminance(self.eval(si, active), si.wavelengths, active)
+        return mi.luminance(self.eval_3(si, active))
+
+    def _combine(self, si, active, rgb: bool):
+        """:meth:`eval` (``rgb`` False) or, in spectral variants, :meth:`eval_3` (True)."""
         width = dr.width(si.p) if dr.is_jit_v(mi.Float) else 1
         shortcuts = self._shortcuts()
+
+        def value_of(texture):
+            return texture.eval_3(si, active) if rgb else evaluate(texture, si, active)
+
         if self.op != "mix":
             if self.zero_product and shortcuts:
-                return _full(None, width)
+                return _full(None, width, rgb)
             combine = operator.add if self.op == "add" else operator.mul
             # The constants first, as one constant (folded when the operands last changed
-            # through this expression), then the rest.
-            total = self.constant if shortcuts else None
-            for constant in ((False,) if shortcuts else (True, False)):
+            # through this expression; never in spectral variants), then the rest.
+            folded = shortcuts and self.constant is not None
+            total = self.constant if folded else None
+            for constant in ((False,) if folded else (True, False)):
                 for texture in self.operands:
                     if texture.is_spatially_varying() != constant:
-                        value = evaluate(texture, si, active)
+                        value = value_of(texture)
                         total = value if total is None else combine(total, value)
-            return _full(total, width)
+            return _full(total, width, rgb)
         mix_side = self.mix_side if shortcuts else None
         a, b = (None if mix_side == "ab"[1 - k] else
                 self.constants[k] if shortcuts and self.constants[k] is not None else
-                evaluate(self.operands[k], si, active) for k in (0, 1))
+                value_of(self.operands[k]) for k in (0, 1))
         if mix_side == "a":
-            return _full(a, width)
+            return _full(a, width, rgb)
         if mix_side == "b":
-            return _full(b, width)
-        w = self.weight_value if self.weight is None else evaluate(self.weight, si, active)
-        return _full(a * (1.0 - w) + b * w, width)
+            return _full(b, width, rgb)
+        w = self.weight_value if self.weight is None else value_of(self.weight)
+        return _full(a * (1.0 - w) + b * w, width, rgb)
 
     def eval_1_grad(self, si, active=True):
         """∂(luminance)/∂(u, v): the operands' own gradients for a sum (luminance is
@@ -379,6 +445,8 @@ class ChannelExpression(RGBTexture):
         return total
 
     def _compute_mean(self) -> float:
+        if mi.is_spectral:     # nothing folded there: the operands' spectral means combined
+            return _means_combined(self)
         # Luminance, as marble's and Mitsuba's bitmap's mean() (its rgb averages the three
         # components instead: constants are taken by their luminance here).
         constants = [_constant(t) for t in self.operands]
@@ -412,12 +480,7 @@ def _sampled_mean(texture) -> float:
     if not dr.is_jit_v(mi.Float):
         # The scalar variant evaluates one point at a time: the operands' means combined
         # as if independent (a product of means; a mix at the weight's mean) instead.
-        means = [float(numbers(t.mean())[0]) for t in texture.operands]
-        if texture.op == "multiply":
-            return float(np.prod(means))
-        w = float(numbers(texture.weight.mean())[0]) if texture.weight is not None else \
-            float(numbers(texture.weight_value)[0])
-        return (1.0 - w) * means[0] + w * means[1]
+        return _means_combined(texture)
     rng = np.random.default_rng(0)
     points = rng.uniform(-16.0, 16.0, (MEAN_POINTS, 3)).astype(np.float32)
     uv = rng.uniform(0.0, 1.0, (MEAN_POINTS, 2)).astype(np.float32)
@@ -428,19 +491,62 @@ def _sampled_mean(texture) -> float:
         return float(np.mean(np.array(texture.eval_1(si))))
 
 
+def _means_combined(texture) -> float:
+    """The operands' means combined as if independent: a sum or product of means, a mix at
+    the weight's mean (exact for sums and constant weights)."""
+    means = [float(numbers(t.mean())[0]) for t in texture.operands]
+    if texture.op == "add":
+        return float(sum(means))
+    if texture.op == "multiply":
+        return float(np.prod(means))
+    w = float(numbers(texture.weight.mean())[0]) if texture.weight is not None else \
+        float(numbers(texture.weight_value)[0])
+    return (1.0 - w) * means[0] + w * means[1]
+
+
+def _means_combined_on_device(texture):
+    """:func:`_means_combined` as a Dr.Jit value (JIT variants): the operands' ``mean()``
+    combined in Dr.Jit arithmetic, a mix's weight at its mean luminance, without a read;
+    a constant operand by its luminance, as :meth:`ChannelExpression._compute_mean` takes
+    it (Mitsuba's ``rgb`` mean averages the components)."""
+    means = [dr.detach(mi.Float(t.mean() if c is None else mi.luminance(mi.Color3f(c))))
+             for t, c in zip(texture.operands, map(_constant, texture.operands))]
+    if texture.op == "add":
+        return functools.reduce(operator.add, means)
+    if texture.op == "multiply":
+        return functools.reduce(operator.mul, means)
+    w = dr.detach(mi.Float(texture.weight.mean() if texture.weight is not None
+                           else texture.weight_value))
+    return (1.0 - w) * means[0] + w * means[1]
+
+
 def _constant(texture):
-    """The colour of a texture that is the same everywhere, else None."""
-    if texture.is_spatially_varying():
+    """The colour of a texture that is the same everywhere, else None (always None in
+    spectral variants: there its value is a spectrum that depends on the wavelengths)."""
+    if texture.is_spatially_varying() or mi.is_spectral:
         return None
     si = dr.zeros(mi.SurfaceInteraction3f, 1) if dr.is_jit_v(mi.Float) \
         else dr.zeros(mi.SurfaceInteraction3f)
     return texture.eval(si)
 
 
-def _full(value, width: int):
-    """A Color3f of ``width`` lanes (a folded constant has one)."""
+def _full(value, width: int, rgb: bool = True):
+    """A Color3f of ``width`` lanes (a folded constant has one); a spectrum (the variant's
+    UnpolarizedSpectrum, Color3f in RGB variants) unless ``rgb``."""
+    kind = mi.Color3f if rgb else mi.UnpolarizedSpectrum
     if value is None:
-        return dr.zeros(mi.Color3f, width)
+        return dr.zeros(kind, width)
     if dr.is_jit_v(mi.Float):
-        return mi.Color3f(value) + dr.zeros(mi.Color3f, width)
-    return mi.Color3f(value)
+        return kind(value) + dr.zeros(kind, width)
+    return kind(value)
+
+
+def gives_rgb(texture) -> bool:
+    """Whether ``texture``'s ``eval_3`` is its RGB colour in a spectral variant: a marble
+    (and any texture of mimarble that computes a colour), an expression of such operands,
+    Mitsuba's ``uniform``. (``srgb``'s ``eval_3`` there gives its model coefficients,
+    ``bitmap``'s raises.)"""
+    if isinstance(texture, ChannelExpression):
+        return all(gives_rgb(t) for t in texture.operands
+                   + ([texture.weight] if texture.weight is not None else []))
+    return hasattr(texture, "srgb_table") or texture.class_name() == "UniformSpectrum"

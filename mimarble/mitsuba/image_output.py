@@ -38,7 +38,12 @@ def write_image(path, image: np.ndarray, quality: int | None = None,
     the 8-bit pixels are dithered as that image's are there, so a crop's PNG is the full
     PNG's window, code value for code value. The file is written under a temporary name
     in the same folder and renamed into place, so a failure never leaves half a file.
+    A name no writer takes (``files.output_name_problem``: empty, NUL, not UTF-8) is a
+    ValueError before anything is converted.
     """
+    problem = files.output_name_problem(path)
+    if problem:
+        raise ValueError(f"{str(path)!r}: {problem}")
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in IMAGE_FORMATS:

@@ -4,13 +4,15 @@
 the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
 :data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
 in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, times and
-inode of every image file it reads — matches a loaded one gets that loaded ``mi.Scene``,
+inode of every image map and mesh file it reads, and the content digest of every mesh
+file the parser read (``Mesh.digest``) — matches a loaded one gets that loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
 ``mi.traverse``; anything else is loaded anew (``mi.load_dict``). So repeated renders
 of one scene, and frames that differ only in a marble's scale, period or distortion,
 re-use the loaded scene, its compiled kernels and its recorded passes
-(mimarble/mitsuba/replay.py); an edited scene file or image map is seen, because its
-new text or bytes make another structure.
+(mimarble/mitsuba/replay.py); an edited scene file, image map or mesh file is seen,
+because its new text, file facts or digest make another structure (a file rewritten with
+its old modification time put back has a new change time).
 """
 
 from __future__ import annotations
@@ -59,11 +61,12 @@ class LoadedScenes:
         except TypeError:            # a model built in Python with unhashable parts
             return self.scene_for(to_mitsuba(scene, **options))
         kept = self.translated.get(memo)
-        if kept is None or _image_files(kept[0]) != kept[3]:
+        if kept is None or _files_read(kept[0]) != kept[3]:
             scene_dict = to_mitsuba(scene, **options)
             if len(self.translated) >= 4 * self.size:
                 self.translated.pop(next(iter(self.translated)))
-            kept = self.translated[memo] = (scene_dict, *_structure(scene_dict))
+            digests = [mesh.digest for mesh in scene.meshes]
+            kept = self.translated[memo] = (scene_dict, *_structure(scene_dict, digests))
         return self._loaded(kept[0], kept[1], kept[2])
 
     def scene_for(self, scene_dict: dict):
@@ -116,9 +119,10 @@ def forget(mitsuba_scene) -> None:
     SphereTable.forget(mitsuba_scene)
 
 
-def _structure(scene_dict) -> tuple[str, dict, list]:
-    """(the dict with in-place marble values masked and image files' facts added, as JSON;
-    those values by traverse key; the image files' facts, :func:`_image_files`)."""
+def _structure(scene_dict, digests=()) -> tuple[str, dict, list]:
+    """(the dict with in-place marble values masked and the facts of the files it reads
+    added, and the mesh files' ``digests`` as the parser read them, as JSON; those values
+    by traverse key; the files' facts, :func:`_files_read`)."""
     values, masked = {}, {}
     for name, item in scene_dict.items():
         if isinstance(item, dict) and item.get("type") == "marble":
@@ -127,8 +131,9 @@ def _structure(scene_dict) -> tuple[str, dict, list]:
                 if key in item:
                     values[f"{name}.{key}"] = item.pop(key)
         masked[name] = item
-    files = _image_files(scene_dict)
-    return json.dumps([masked, files], sort_keys=True, default=_exact), values, files
+    files = _files_read(scene_dict)
+    return json.dumps([masked, files, list(digests)], sort_keys=True, default=_exact), values, \
+        files
 
 
 def _exact(item):
@@ -142,13 +147,18 @@ def _exact(item):
     return str(item)
 
 
-def _image_files(item) -> list:
-    """(path, size, modification and change times, inode) of every ``bitmap``'s file in
-    the dict, nested. The change time is the kernel's: a copy that puts the modification
-    time back (``cp -p``, ``rsync -t``) still changes it."""
+#: The plugins that read a file named by their ``filename``: image maps and meshes.
+_FILE_PLUGINS = ("bitmap", "ply", "obj")
+
+
+def _files_read(item) -> list:
+    """(path, size, modification and change times, inode) of every file a ``bitmap``,
+    ``ply`` or ``obj`` of the dict reads, nested. The change time is the kernel's: a
+    rewrite that puts the modification time back (``cp -p``, ``rsync -t``, ``touch -r``)
+    still changes it."""
     found = []
     if isinstance(item, dict):
-        if item.get("type") == "bitmap" and isinstance(item.get("filename"), str):
+        if item.get("type") in _FILE_PLUGINS and isinstance(item.get("filename"), str):
             try:
                 facts = os.stat(item["filename"])
                 found.append((item["filename"], facts.st_size, facts.st_mtime_ns,
@@ -156,7 +166,7 @@ def _image_files(item) -> list:
             except OSError:
                 found.append((item["filename"], None, None, None))   # load_dict will say
         for value in item.values():
-            found += _image_files(value)
+            found += _files_read(value)
     return found
 
 

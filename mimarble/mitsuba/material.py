@@ -21,7 +21,10 @@ dict), also inside ``channel_expression`` operands, is evaluated once.
      - Phong exponent of the specular channel.
 
 Under any other integrator it behaves as a Lambertian BSDF with reflectance
-``diffuse`` (so ``path`` and the ``aov`` albedo still make sense).
+``diffuse`` (so ``path`` and the ``aov`` albedo still make sense); in spectral variants
+that reflectance is the channel's spectrum (its textures upsample their colours as
+Mitsuba's ``bitmap`` does), while the ``whitted`` integrator, which reads the channels as
+colours, stays RGB-only.
 """
 
 from __future__ import annotations
@@ -103,8 +106,9 @@ class ChannelMaterial:
     # -- a Lambertian BSDF for every other integrator -------------------------
 
     def _albedo(self, si, active):
+        """The diffuse channel's value: a colour, or in spectral variants a spectrum."""
         if self.diffuse is None:
-            return dr.zeros(mi.Color3f, dr.width(si.p))
+            return dr.zeros(mi.UnpolarizedSpectrum, dr.width(si.p))
         return self.diffuse.eval(si, active)
 
     def sample(self, ctx, si, sample1, sample2, active=True):

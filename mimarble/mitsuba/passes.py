@@ -81,7 +81,8 @@ class TracedPass(NamedTuple):
     ``pixels`` indexes the image's pixels (a slice, or an array of pixel
     indices); it is empty after a pass that took only some of a split pixel's
     samples, which the arrays then match. ``means``: (len, 3) float32, each
-    pixel's radiance summed over all of its spp samples in float64, divided by
+    pixel's radiance summed over all of its spp samples (float32 with compensation,
+    the pair added in float64: :func:`compensated_block_sum`), divided by
     the spp and rounded once (None when radiance was not traced);
     ``first_shape``, ``last_shape``: uint32, the smallest and largest id of the
     first shape hit among them, 0 for a miss (None unless asked for).
@@ -144,7 +145,7 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
         lanes = traced_pixels * n_samples
         asked = n_pixels * n_samples                 # the samples it reports (not the padding)
         split = n_samples < spp                      # one pixel, over several passes
-        values, first, last, estimates = _traced_pass(
+        values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
              with_estimates, split), target.scene, inputs, target.sampler, lanes, n_samples,
             numbers, subset, with_radiance, with_shapes, with_estimates, split, target.mode)
@@ -187,7 +188,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
                 numbers: PassNumbers, subset, with_radiance: bool, with_shapes: bool,
                 with_estimates: bool, split: bool, mode: str):
     """One pass, in Dr.Jit: (values, first, last, estimates) of each run of ``n_samples``
-    lanes of ``lanes`` — the radiance summed in float64, then (unless ``split``: the pass
+    lanes of ``lanes`` — the radiance summed (:func:`compensated_block_sum`: float64 per
+    pixel), then (unless ``split``: the pass
     holds only some of one pixel's samples) divided by ``n_samples`` and rounded to
     float32, the pixels' RGB interleaved in one Float (``split``: the sums, a Color3d); the
     smallest and largest id of the first shape hit (UInt32); with ``with_estimates``, the
@@ -203,8 +205,11 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     ``key`` (the scene's key from :func:`~mimarble.mitsuba.replay.scene_facts`, with the
     mode, the widths and the switches) selects the recording. One kernel computes every lane, the same for every
     spp, then Dr.Jit's block reductions (``block_sum``, ``block_reduce``) make the values
-    per pixel, and a last kernel their means; sums in float64, whose rounding is far
-    below float32's.
+    per pixel, and a last kernel their means. The samples stay in float32 and are summed
+    with Neumaier's compensation (:func:`compensated_block_sum`), their pair (sum,
+    compensation) added and divided per pixel in float64: float64 arithmetic once per
+    pixel, never per sample (a consumer GPU runs it at 1/32–1/64 of float32's rate), with
+    a rounding far below float32's, as the float64 sums it replaced.
     """
     tracer = PixelTracer(scene, mode, sampler)
     lane = dr.arange(mi.UInt32, lanes)
@@ -215,16 +220,16 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     if with_estimates:
         colour, shapes, doubt = tracer.trace_with_doubts(pixel, sub, numbers)
         colour = colour + dr.zeros(mi.Color3f, lanes)                   # constants: full width
-        doubt = mi.Float64(doubt) + dr.zeros(mi.Float64, lanes)
-        radiance = mi.Color3d(colour)
+        doubt = mi.Float(doubt) + dr.zeros(mi.Float, lanes)
+        radiance = mi.Color3f(colour)
     elif with_radiance:
         radiance, shapes = tracer.trace(pixel, sub, numbers, with_shapes)
-        radiance = mi.Color3d(radiance) + dr.zeros(mi.Color3d, lanes)   # constants: full width
+        radiance = mi.Color3f(radiance) + dr.zeros(mi.Color3f, lanes)   # constants: full width
     else:
         radiance, shapes = None, tracer.first_shape(pixel, sub, numbers)
     dr.eval(*(x for x in (radiance, shapes, doubt, colour) if x is not None))  # one kernel
-    if radiance is not None and n_samples > 1:
-        radiance = dr.block_sum(radiance, n_samples)
+    if radiance is not None:
+        radiance = compensated_block_sum(radiance, n_samples, numbers.samples)  # Color3d
     if radiance is not None and not split:
         # A true division by an opaque count (not a product with its reciprocal), so the
         # mean is rounded as NumPy's float64 division and float32 cast round it.
@@ -237,8 +242,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     estimates = None
     if with_estimates:
         low = high = colour
+        doubt = compensated_block_sum(doubt, n_samples, numbers.samples)   # Float64
         if n_samples > 1:
-            doubt = dr.block_sum(doubt, n_samples)
             low = dr.block_reduce(dr.ReduceOp.Min, colour, n_samples)
             high = dr.block_reduce(dr.ReduceOp.Max, colour, n_samples)
         if split:        # summed and combined over the pixel's passes in NumPy
@@ -251,6 +256,47 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
 
 
 _traced_pass = Recorded(_trace_pass)
+
+
+def compensated_block_sum(values, block: int, opaque_block=None):
+    """The sum of each run of ``block`` consecutive lanes of ``values`` (a float32 Float or
+    Color3f), as float64 (Float64 or Color3d, one lane per run): Neumaier's compensated
+    summation in float32, in lane order — s ← s + x, c ← c + ((s_old − s) + x) where
+    |s_old| ≥ |x|, else c ← c + ((x − s) + s_old) — whose pair s + c holds the sum to
+    O(n·ε²)·Σ|x| (ε = 2⁻²⁴), then s + c in float64. Dr.Jit's simplifications keep the
+    compensation: its FastMath folds only products with literal zeros, and LLVM and PTX
+    are given no reassociation. One kernel, a loop of ``block`` steps over the runs;
+    ``opaque_block``: ``block`` as an opaque UInt32, which the kernel reads instead, so that
+    every ``block`` (the spp) runs the same compiled kernel."""
+    wide = mi.Color3d if dr.depth_v(values) > 1 else mi.Float64
+    kind = type(values)
+    runs = dr.width(values) // block
+    steps = block if opaque_block is None else opaque_block
+    start = dr.arange(mi.UInt32, runs) * steps
+    k = dr.zeros(mi.UInt32, runs)
+    total, compensation = dr.zeros(kind, runs), dr.zeros(kind, runs)
+
+    def add(k, total, compensation):
+        x = dr.gather(kind, values, start + k)
+        new_total = total + x
+        lost = dr.select(dr.abs(total) >= dr.abs(x), (total - new_total) + x,
+                         (x - new_total) + total)
+        return k + 1, new_total, compensation + lost
+
+    _, total, compensation = dr.while_loop((k, total, compensation),
+                                           lambda k, total, compensation: k < steps, add)
+    return wide(total) + wide(compensation)
+
+
+def _pass_function(scene):
+    """The recorded pass, or for a scene without shapes or without emitters the pass
+    traced each time. Such a scene's pass still calls into shapes and emitters (rays
+    meet nothing, the integrator asks for emitters), and Dr.Jit's recorder refuses a call
+    whose instances are not among the inputs: a scene that has none of a kind finds in
+    Dr.Jit's registry another loaded scene's ("record(): error encountered while
+    recording a frozen function" after a scene that had them). Its image is the
+    background, or its shapes unlit: nothing worth a recording."""
+    return _traced_pass if scene.shapes() and scene.emitters() else _trace_pass
 
 
 def _accumulate(so_far, traced):

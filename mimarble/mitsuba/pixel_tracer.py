@@ -4,8 +4,10 @@ A sample is named by two integers, the pixel (row-major, ``y·width + x``) and i
 index ``sub`` among the pixel's ``spp``, so that a pass of any run of pixels or of
 samples is one ``arange`` away (mimarble/mitsuba/passes.py). Whitted mode puts
 sample ``sub`` at the centre of stratum ``(sub mod n, ⌊sub / n⌋)`` of an n×n grid
-(spp = n²); path mode draws it from the scene's sampler. Every number that differs
-between renders (width, spp, the pass's seed) is opaque, so one kernel serves them all.
+(spp = n²); path mode draws it from the scene's sampler (in spectral variants its
+wavelengths next, and its spectrum becomes sRGB as Mitsuba's film makes it). Every number
+that differs between renders (width, spp, the pass's seed) is opaque, so one kernel serves
+them all.
 """
 
 from __future__ import annotations
@@ -74,15 +76,18 @@ class PixelTracer:
         """(ray with differentials, weight) of sample ``sub`` in ``pixel``."""
         y = pixel // self.columns
         x = pixel - y * self.columns
+        wavelength_sample = 0.0
         if self.whitted:
             offset = (mi.Point2f(mi.Float(sub % numbers.per_axis),
                                  mi.Float(sub // numbers.per_axis)) + 0.5) * numbers.stratum
         else:
             self.sampler.seed(numbers.seed, dr.width(pixel))
             offset = self.sampler.next_2d()
+            if mi.is_spectral:    # the wavelengths next, as Mitsuba's render_sample draws them
+                wavelength_sample = self.sampler.next_1d()
         position = (mi.Point2f(mi.Float(x), mi.Float(y)) + offset) * self.inv_film
         ray, weight = self.sensor.sample_ray_differential(
-            mi.Float(self.sensor.shutter_open()), 0.0, position, mi.Point2f(0.5))
+            mi.Float(self.sensor.shutter_open()), wavelength_sample, position, mi.Point2f(0.5))
         if ray.has_differentials:
             ray.scale_differential(numbers.differential_scale)
             ray.o_x = ray.o_y = self.eye
@@ -102,6 +107,8 @@ class PixelTracer:
             radiance = self.integrator.sample(self.scene, self.sampler, ray, None, True)[0]
             if with_shapes:
                 shape = self._shape(ray)
+        if mi.is_spectral:        # the sample's spectrum as sRGB, as Mitsuba's film takes it
+            return mi.spectrum_to_srgb(weight * radiance, ray.wavelengths), shape
         return weight * radiance, shape
 
     def trace_with_doubts(self, pixel, sub, numbers: PassNumbers):

@@ -19,6 +19,7 @@ from .. import environment, packaged_scenes
 from .. import scene as scene_language
 from ..crop import as_integers, crop_problem
 from ..progress import report
+from ..scene.python_numbers import plain_numbers
 from ..scene.model import samples_per_axis
 from ..scene.rules import adaptive_problem, seed_problem, spp_problem
 from ..scene_edits import with_image_size
@@ -77,9 +78,14 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     then every pixel whose estimated error is above ``adaptive`` (linear colour units, at
     1 spp; times n² at n² samples) is rendered again with twice the samples per
     axis, up to ``max_spp`` (a perfect square; default 64) — mimarble/mitsuba/adaptive.py.
-    It refines silhouettes itself, so it does not take ``edge_spp``.
+    It refines silhouettes itself, so it does not take ``edge_spp``. NumPy's scalars are
+    taken as the Python numbers they hold (mimarble/scene/python_numbers.py).
     """
-    environment.require_rgb_variant()
+    spp, seed, width, height, tolerance, edge_spp, adaptive, max_spp = plain_numbers(
+        spp, seed, width, height, tolerance, edge_spp, adaptive, max_spp)
+    # RGB or spectral; whitted mode (a scene's default) RGB only: one sentence, before any work.
+    environment.require_colour_variant(
+        mode if mode is not None or isinstance(scene_or_path, mi.Scene) else "whitted")
     if isinstance(scene_or_path, mi.Scene):
         if width is not None or height is not None or crop is not None:
             given = ("crop applies" if width is None and height is None
@@ -102,7 +108,7 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     elif not isinstance(scene_or_path, scene_language.Scene):
         raise TypeError(f"render: {scene_or_path!r:.80} is not a scene: give a scene file's "
                         f"path, a mimarble.scene.Scene or a loaded mi.Scene")
-    scene = _sized(scene, width, height)
+    scene = _sized(scene, width, height, spp)
     if crop is not None:
         problem = crop_problem(crop, scene.image.width, scene.image.height)
         if problem:
@@ -146,11 +152,12 @@ def _slices(crop):
     return slice(y0, y1), slice(x0, x1)
 
 
-def _sized(scene, width, height):
+def _sized(scene, width, height, spp):
     """The scene at ``width`` × ``height`` (None: its own), checked by the scene model's
-    own rules (1..16384 each, within the sample limit), as ``--width``/``--height`` are."""
+    own rules (1..16384 each, within the sample limit at ``spp`` when given, else at the
+    scene's samples), as ``--width``/``--height`` are."""
     try:
-        return with_image_size(scene, width=width, height=height)
+        return with_image_size(scene, width=width, height=height, spp=spp)
     except (TypeError, ValueError) as e:
         raise type(e)(f"render: {e}") from None
 

@@ -18,9 +18,9 @@ being stale:
   the Python facts of every mimarble plugin in the scene (``recording_key``: octaves
   evaluated, filter, function, the expression's skipping decisions…), every traversed
   value that is not a Dr.Jit variable, the sphere table's structure, the film size,
-  and the scene's identity. Each key has its own frozen function (:class:`Recorded`),
-  so a new key records again; within it, Dr.Jit adds its own checks (types, widths, AD
-  state, the registry of instances).
+  the variant and the scene's identity (:data:`scene_identity`). Each key has its own
+  frozen function (:class:`Recorded`), so a new key records again; within it, Dr.Jit adds
+  its own checks (types, widths, AD state, the registry of instances).
 
 ``MIMARBLE_FREEZE=0`` turns replay off (read at every render); the scalar variant
 never records. What Dr.Jit 1.5 cannot record, and what is left, is in
@@ -42,9 +42,50 @@ dr, mi = environment.import_drjit_and_mitsuba()
 RECORDINGS = 32
 
 
+class _SceneIdentities:
+    """A number for each scene object, never given to another: the key's scene identity.
+
+    ``id(scene)`` alone is not one: a freed scene's id is taken by the next object
+    allocated there, and a new scene of the same layout then replayed the old one's
+    recording — with the old scene's C++ state that Dr.Jit's traversal does not see (a
+    ``bitmap``'s ``wrap_mode`` and ``filter_type``: not traversed, not in its ``repr``; a
+    segmentation fault, or the old wrap mode's image). Mitsuba's objects take no weak references and
+    no attributes, so each id is held with one object of its scene (the integrator, else
+    the first sensor): while it is held no other scene can have it, and a scene whose id
+    is known but whose object is another one is a new scene, with a new number. Whatever
+    a C++ plugin fixes when it is loaded is then fixed for the whole life of a number."""
+
+    #: Identities kept, least recently used dropped first. Only speed depends on it: a
+    #: dropped scene that comes back gets a new number and records again. Few, because a
+    #: held object stays in Dr.Jit's registry, which every replay walks.
+    KEPT = 8
+
+    def __init__(self):
+        self.held = {}                # id(scene) → (an object of that scene, its number)
+        self.issued = 0
+
+    def __call__(self, scene) -> int:
+        witness = scene.integrator() or next(iter(scene.sensors()), None)
+        held, number = self.held.pop(id(scene), (None, None))
+        if witness is None or held is not witness:
+            self.issued += 1
+            number = self.issued
+            if len(self.held) >= self.KEPT:
+                self.held.pop(next(iter(self.held)))
+        if witness is not None:
+            self.held[id(scene)] = (witness, number)    # the most recently used last
+        return number
+
+
+scene_identity = _SceneIdentities()
+
+
 def enabled() -> bool:
-    """Whether passes are replayed: a JIT variant, and ``MIMARBLE_FREEZE`` is not ``0``."""
-    return dr.is_jit_v(mi.Float) and environment.replay_wanted()
+    """Whether passes are replayed: a JIT variant, not a spectral one, and
+    ``MIMARBLE_FREEZE`` is not ``0``. (Spectral variants trace every pass: Mitsuba's
+    colour-matching tables, which its wavelength sampling and ``spectrum_to_srgb`` gather
+    from, are Dr.Jit arrays of its own that no input of a recording reaches.)"""
+    return dr.is_jit_v(mi.Float) and not mi.is_spectral and environment.replay_wanted()
 
 
 class SceneFacts(NamedTuple):
@@ -57,11 +98,11 @@ class SceneFacts(NamedTuple):
 def scene_facts(scene, params=None) -> SceneFacts:
     """The key and extra inputs of a pass over ``scene`` (module docstring), from its
     ``mi.traverse`` (``params``: one already made, e.g. by the loaded scenes; else made
-    here). The key holds: the scene's id, film size, number of lights, the ``recording_key``
-    of every mimarble plugin anywhere in the scene (materials, textures inside Mitsuba's
-    BSDFs, emitters or expressions), and every traversed value that is not a Dr.Jit
-    variable (a Python number such as the sensor's ``near_clip``, which Mitsuba's C++
-    plugins read as a constant of the traced code)."""
+    here). The key holds: the variant, the scene's identity (:data:`scene_identity`), film
+    size, number of lights, the ``recording_key`` of every mimarble plugin anywhere in the
+    scene (materials, textures inside Mitsuba's BSDFs, emitters or expressions), and every
+    traversed value that is not a Dr.Jit variable (a Python number such as the sensor's
+    ``near_clip``, which Mitsuba's C++ plugins read as a constant of the traced code)."""
     params = mi.traverse(scene) if params is None else params
     integrator = scene.integrator()
     plugins = tuple(recording_key(node) for node in params.hierarchy
@@ -79,7 +120,8 @@ def scene_facts(scene, params=None) -> SceneFacts:
     own_key, own_inputs = own(scene, placements) if own is not None else \
         (recording_key(integrator), ())
     film = scene.sensors()[0].film()
-    key = (id(scene), tuple(film.crop_size()), tuple(film.crop_offset()), len(scene.emitters()),
+    key = (mi.variant(), scene_identity(scene), tuple(film.crop_size()),
+           tuple(film.crop_offset()), len(scene.emitters()),
            own_key, plugins, tuple(constants))
     return SceneFacts(key, own_inputs)
 

@@ -61,9 +61,14 @@ from ..scene import geometry, model
 from ..scene.errors import SceneError
 from ..scene.image_header import check_image_maps
 from ..scene.limits import FLT_MAX
+from ..scene.mesh_header import check_mesh_files
 from ..scene.rules import cross, shortened, spp_problem
 
 MODES = ("whitted", "path")
+#: The keys ``mi.load_dict`` reads as a dict's own — its plugin type and its id — never as
+#: a child (a texture under the key ``id`` became the scene's id: "std::bad_cast"). No
+#: top-level entry takes one: a named texture called ``id`` gets the id ``id_2``.
+LOAD_DICT_KEYS = ("type", "id")
 
 #: volpath's max_depth for a scene with a translucent material: the most scattering events
 #: of a path, each medium scattering and each non-null surface interaction (a refraction
@@ -415,7 +420,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             f"scattering volume that whitted mode (the paper's surface shading) cannot render: "
             f"render the scene with --mode path (mode=\"path\")")
     check_image_maps(scene)        # the header check of maps the parser never saw
-    for problem in float32_range_problems(scene):
+    uv_problems = check_mesh_files(scene)      # and of mesh files, as the parser checks them
+    for problem in float32_range_problems(scene) + uv_problems:
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
 
     out: dict = {"type": "scene"}
@@ -424,7 +430,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     textures: dict = {}
     bases: dict = {}        # channel value -> its texture's id (placed: id_SHAPE)
     # Top-level ids, so that a named texture's id (Scene.textures) takes none of them.
-    taken = {"type", "integrator", "sensor", "ambient"} | {i for i, _ in scene.shapes()} \
+    taken = set(LOAD_DICT_KEYS) | {"integrator", "sensor", "ambient"} \
+        | {i for i, _ in scene.shapes()} \
         | {f"light_{k}" for k in range(len(scene.lights))}
     names: dict = {}
     for name, channel in scene.textures.items():
@@ -534,12 +541,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         if light.area is not None:
             out[f"light_{k}"] = area_light_dict(light, scene.camera.lookat, mode)
             continue
-        intensity = list(light.color)
-        if mode == "path":
-            d2 = math.dist(light.position, scene.camera.lookat) ** 2
-            intensity = [c * math.pi * d2 for c in light.color]
-        out[f"light_{k}"] = {"type": "point", "position": list(light.position),
-                             "intensity": {"type": "rgb", "value": intensity}}
+        out[f"light_{k}"] = point_light_dict(light, scene.camera.lookat, mode)
 
     if mode == "path" and any(scene.ambient):
         out["ambient"] = {"type": "constant", "radiance": {"type": "rgb", "value": list(scene.ambient)}}
@@ -633,6 +635,39 @@ def shape_dict(scene: model.Scene, shape) -> dict:
             "flip_tex_coords": kind == "obj"}
 
 
+def point_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
+    """A light as Mitsuba's ``point`` emitter at its position: intensity I (whitted mode:
+    the paper's unattenuated light), or in path mode I·π·d², d its distance to ``lookat``,
+    so that a Lambertian surface there receives kd·I·cos θ, as in whitted mode."""
+    intensity = list(light.color)
+    if mode == "path":
+        d2 = math.dist(light.position, lookat) ** 2
+        intensity = [c * math.pi * d2 for c in light.color]
+    return {"type": "point", "position": list(light.position),
+            "intensity": {"type": "rgb", "value": intensity}}
+
+
+#: Path mode: a spherical area light whose radius is below this fraction of its distance
+#: d to the look-at point is Mitsuba's ``point`` emitter of the same intensity. Mitsuba's
+#: ``sphere`` samples the cone it subtends, with the pdf 1/(2π(1 − cos θ_max)) computed in
+#: float32, whose relative error is about 2⁻²⁵/sin²θ_max: measured at d ≈ 15.5, a radius
+#: of 0.01 lit 7 % too much, 0.003 2.7 times too much, 1e-3 and less nothing at all (cos
+#: θ_max rounds to 1). At 2⁻⁷ of d the error is 2⁻¹¹ at the look-at point; below it the
+#: light's penumbra is under 1 % of the distance, and a point light (what whitted mode and
+#: the reference make of it: its samples all but coincide) is the closer image.
+AREA_LIGHT_POINT_SIZE = 2.0 ** -7
+
+#: Path mode: a rectangular area light's edges are each at least this times max(d, 1)
+#: long (d as above), lengthened along themselves where shorter, its radiance set from the
+#: lengthened area (its power kept). Mitsuba's float32 ``rectangle`` lights nothing once
+#: its area is below about 1e-17 (measured: axes of 1e-8 light, 1e-9 and 1e-30 do not; 1e-18
+#: gave NaN), whatever its distance: the squared cross product of its half-edges leaves
+#: float32's normal range. At 2⁻¹⁶ (even with the least angle between the edges that the
+#: language allows, 1e-6 rad) the area is at least 2⁻³²·1e-6 ≈ 2.3e-16, and an edge so
+#: lengthened is 1.5e-5 of the distance: no image shows the difference.
+RECTANGLE_LIGHT_SHORTEST_EDGE = 2.0 ** -16
+
+
 def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
     """An area light (``light.area``) in Mitsuba's terms.
 
@@ -653,6 +688,11 @@ def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
       θ₀ the look-at point's angle (cos θ₀ = 1 when the look-at point lies in its plane). Its
       power, π·A·L, is 1/(4·cos θ₀) of the point light's: it lights one half-space, with a
       cosine.
+
+    What Mitsuba's float32 cannot render is translated to what it can, the power kept: a
+    sphere of radius below :data:`AREA_LIGHT_POINT_SIZE`·d is the path-mode point light
+    (:func:`point_light_dict`); a rectangle's edges are at least
+    :data:`RECTANGLE_LIGHT_SHORTEST_EDGE`·max(d, 1) long.
     """
     area, position = light.area, list(light.position)
     if mode == "whitted":
@@ -666,16 +706,20 @@ def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
     import mitsuba as mi   # imported here: the module itself stays importable without it
     d2 = math.dist(light.position, lookat) ** 2
     black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}}
+    if isinstance(area, model.SphereArea) and area.radius < AREA_LIGHT_POINT_SIZE * math.sqrt(d2):
+        return point_light_dict(light, lookat, mode)
     if isinstance(area, model.SphereArea):
         radiance = [c * d2 / area.radius ** 2 for c in light.color]
         return {"type": "sphere", "center": position, "radius": area.radius, "bsdf": black,
                 "emitter": {"type": "area", "radiance": {"type": "rgb", "value": radiance}}}
-    axis1, axis2 = list(area.axis1), list(area.axis2)
+    shortest = RECTANGLE_LIGHT_SHORTEST_EDGE * max(math.sqrt(d2), 1.0)
+    axis1, axis2 = ([c * max(1.0, shortest / math.hypot(*axis)) for c in axis]
+                    for axis in (area.axis1, area.axis2))
     normal = list(cross(axis1, axis2))
     if sum(a * (b - c) for a, b, c in zip(normal, lookat, position)) < 0:
         axis1, axis2 = axis2, axis1          # right-handed, the normal facing the look-at
         normal = [-c for c in normal]
-    size = math.sqrt(sum(c * c for c in normal))
+    size = math.hypot(*normal)
     facing = sum(a * (b - c) for a, b, c in zip(normal, lookat, position)) / (size * math.sqrt(d2)) \
         if d2 > 0 else 1.0
     facing = facing if facing > 0 else 1.0
@@ -761,8 +805,8 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
         raise ModeError.in_file(
             scene.source, subsurface.pos,
             f"mean_free_path {subsurface.mean_free_path:g} with a density up to {bound:g} is "
-            f"an extinction of up to {scale * bound:.3g} per scene unit, past float32's "
-            f"{FLT_MAX:.3g}, the most Mitsuba's single precision holds")
+            f"an extinction of up to {scale * bound!r} per scene unit, past float32's "
+            f"{FLT_MAX!r}, the most Mitsuba's single precision holds")
     out = {"type": "marble_medium", "albedo": ref(subsurface.albedo)}
     if density is not None:
         out["density"] = ref(density)

@@ -129,6 +129,9 @@ class Whitted:
 
     def __init__(self, props):
         mi.SamplingIntegrator.__init__(self, props)
+        problem = environment.whitted_problem(mi.variant())
+        if problem:                   # it shades colours (Color3f), not spectra
+            raise environment.EnvironmentProblem(problem)
         self.ambient = _colour(props, "ambient")
         self.background = _colour(props, "background")
         self.shadows = bool(props.get("shadows", True))

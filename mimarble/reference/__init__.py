@@ -23,6 +23,7 @@ from __future__ import annotations
 import os
 
 from mimarble.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
+from mimarble.scene.python_numbers import plain_number
 from mimarble.scene import Scene, SceneError, load
 from mimarble.scene.image_header import check_image_maps
 from mimarble.scene.rules import spp_problem
@@ -90,8 +91,10 @@ def render(scene: Scene | str | os.PathLike, spp: int | None = None, progress=Fa
     ``progress``: False or None for none; True for a tqdm bar on stderr, shown
     once the render has taken :data:`mimarble.progress.DELAY_S` and only when stderr is a
     terminal; or a callable ``progress(samples_done, samples_total)``, called
-    before the first batch of rays and after each one.
+    before the first batch of rays and after each one. A NumPy scalar ``spp`` is the
+    Python number it holds (mimarble/scene/python_numbers.py).
     """
+    spp = plain_number(spp)
     if isinstance(scene, (str, os.PathLike)):
         scene = load(scene)
     elif not isinstance(scene, Scene):

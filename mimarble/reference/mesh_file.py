@@ -152,12 +152,21 @@ def _read_ply(f, size: int) -> MeshData:
 
 
 def _ply_mesh(header: PlyHeader, vertices: dict, faces) -> MeshData:
-    positions = np.stack([vertices[c].astype(np.float64) for c in "xyz"], axis=1)
+    def column(name):
+        """A vertex property as its declared type holds it: an ascii body's decimals are
+        rounded to a half or a float as a binary one stores them (and Mitsuba reads them)."""
+        values = vertices[name]
+        if header.format == "ascii":
+            with np.errstate(over="ignore"):     # past the type's range: ∞, refused below
+                values = values.astype(_dtype("=", header.element("vertex").property(name).type))
+        return values.astype(np.float64)
+
+    positions = np.stack([column(c) for c in "xyz"], axis=1)
     if not np.all(np.isfinite(positions)):
         raise MeshFileError("a vertex coordinate is not finite")
     uv = None
     if header.uv is not None:
-        uv = np.stack([vertices[c].astype(np.float64) for c in header.uv], axis=1)
+        uv = np.stack([column(c) for c in header.uv], axis=1)
         if not np.all(np.isfinite(uv)):
             raise MeshFileError("a texture coordinate is not finite")
     indices, sizes = faces
@@ -351,6 +360,9 @@ class _AsciiBody(_Body):
 
     def element(self, element) -> dict:
         values, count = self.values, element.count
+        if count == 0:           # no records (an element of no properties has none: a width of 0)
+            return {p.name: (np.zeros(0, np.int64), np.zeros(0, np.int64)) if p.count_type
+                    else np.zeros(0) for p in element.properties}
         lists = [p for p in element.properties if p.count_type]
         width = len(element.properties)             # numbers per record, with lists' lengths
         lengths = {}

@@ -3,8 +3,10 @@
 :class:`TriangleBVH` holds up to :data:`~mimarble.scene.limits.MAX_MESH_TRIANGLES` (2²⁰)
 triangles, every mesh of a scene together: in float64, 72 bytes a triangle (a vertex and
 two edges) and 48 a node's box (fewer nodes than triangles), 0.11 GB held at 2²⁰ and
-0.24 GB at the build's peak (measured: 2²⁰ random triangles, built in 5 to 7 s on the
-2-core AMD EPYC; a ray batch's frontier adds up to 0.18 GB).
+0.24 GB at the build's peak (docs/benchmarks.md). Triangles that are byte-for-byte copies
+of another (the same corners in the same order) are held once, under the lowest index: a
+copy gives every ray the same t, b₁, b₂, and ties go to the lowest index, so no copy can be
+the hit.
 
 **Build** (object median split, level by level): the tree is complete, 2^D leaves at depth
 D, the smallest depth whose leaves hold at most :data:`LEAF_SIZE` triangles. Node i of
@@ -17,11 +19,25 @@ lose a hit on a box's face (a flat box of triangles in one plane included).
 
 **Traversal**, vectorised over a batch of rays: a frontier of (ray, node) pairs, level by
 level (slab test; pairs whose box is missed, lies beyond the ray's interval or, once hits
-are known, beyond its closest hit, are dropped; the rest expand to both children). At the
-leaves, each ray's leaves are tested nearest box first in rounds of 1, 2, 4, … leaves, and
-after each round leaves farther than the ray's closest hit are dropped (closest hit) or
-the blocked rays leave (any hit). The triangle test is Möller–Trumbore in float64: with
-e₁ = v₁ − v₀, e₂ = v₂ − v₀, p = d × e₂, det = e₁·p, s = o − v₀, q = s × e₁:
+are known, beyond its closest hit, are dropped; the rest expand to both children).
+
+**Memory**: the frontier is bounded whatever the overlap. Overlapping triangles (a fan's
+slivers all meeting at its centre, a face written many times) put every ray in many boxes
+at once, so a frontier of every (ray, node) pair met would grow as rays × triangles
+(docs/benchmarks.md, "Meshes of overlapping triangles"). It is walked depth first in
+chunks: a chunk of at most :data:`FRONTIER` pairs goes down a level at a time and, past
+FRONTIER, is halved, one half waiting on a stack; the stack holds at most one chunk a
+level, so at most (depth + 1)·FRONTIER pairs wait, 16 bytes each — with depth ≤ 18 (2²⁰
+triangles, LEAF_SIZE 4) and 2¹⁸ pairs, 80 MB — and the triangle tests take
+:data:`LEAF_PAIRS` (ray, leaf) pairs at a time (4·2¹⁶ triangle tests, about 80 MB of
+working arrays). Overlap then costs time (each ray tests every triangle whose box it
+meets), never memory. A usual mesh's frontier stays under FRONTIER (a few tens of pairs a
+ray at RAY_BATCH rays), so it goes down in one chunk, level by level, as before.
+
+**Leaves**: each ray's leaves are tested nearest box first in rounds of 1, 2, 4, …
+leaves, and after each round leaves farther than the ray's closest hit are dropped
+(closest hit) or the blocked rays leave (any hit). The triangle test is Möller–Trumbore in
+float64: with e₁ = v₁ − v₀, e₂ = v₂ − v₀, p = d × e₂, det = e₁·p, s = o − v₀, q = s × e₁:
 b₁ = s·p/det, b₂ = d·q/det, t = e₂·q/det, a hit where det ≠ 0, b₁ ≥ 0, b₂ ≥ 0,
 b₁ + b₂ ≤ 1 (edges inclusive), the point o + t·d = (1 − b₁ − b₂)·v₀ + b₁·v₁ + b₂·v₂.
 
@@ -36,12 +52,19 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["TriangleBVH", "LEAF_SIZE", "RAY_BATCH", "BOX_PAD", "intersect_triangles"]
+__all__ = ["TriangleBVH", "LEAF_SIZE", "RAY_BATCH", "FRONTIER", "LEAF_PAIRS", "BOX_PAD",
+           "intersect_triangles"]
 
 #: The most triangles a leaf holds (leaves hold between half of it and it).
 LEAF_SIZE = 4
-#: Rays traversed together: bounds the frontier (a few tens of pairs a ray at most levels).
+#: Rays traversed together (a few tens of (ray, node) pairs a ray at most levels of a
+#: usual mesh: the frontier stays below FRONTIER).
 RAY_BATCH = 8192
+#: The most (ray, node) pairs a chunk of the traversal holds; past it a level's chunk is
+#: halved (module docstring, "Memory").
+FRONTIER = 1 << 18
+#: The most (ray, leaf) pairs whose triangles are tested at once (LEAF_SIZE triangles each).
+LEAF_PAIRS = 1 << 16
 #: Boxes are widened by BOX_PAD·(1 + max |coordinate|) on every side.
 BOX_PAD = 1e-9
 
@@ -73,18 +96,44 @@ def intersect_triangles(o, d, v0, e1, e2):
     return t, b1, b2, inside
 
 
+#: Odd 64-bit multipliers of a triangle's nine coordinates' bit patterns (any fixed odd numbers).
+_MIX = np.array([0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9, 0xD6E8FEB86659FD93,
+                 0xFF51AFD7ED558CCD, 0xC4CEB9FE1A85EC53, 0x94D049BB133111EB, 0xBF58476D1CE4E5B9,
+                 0x2545F4914F6CDD1D], dtype=np.uint64)
+
+
+def _first_of_each_copy(v0, v1, v2):
+    """The lowest index of each set of byte-identical triangles (the same corners in the
+    same order), ascending, or None when no two are: copies give every ray the same t, b₁,
+    b₂, and a tie goes to the lowest index, so the others can never be the hit."""
+    rows = np.ascontiguousarray(np.concatenate([v0, v1, v2], axis=1))
+    # A 64-bit mix of each row's words first: copies mix alike, so rows whose mixes all
+    # differ have no copies (the common case, one sort of integers).
+    words = rows.view(np.uint64)
+    mixed = (words * _MIX).sum(axis=1, dtype=np.uint64)
+    mixed.sort()
+    if not np.any(mixed[1:] == mixed[:-1]):
+        return None
+    _, first = np.unique(rows.view(np.dtype((np.void, rows.shape[1] * 8))).reshape(-1),
+                         return_index=True)
+    return None if len(first) == len(rows) else np.sort(first)
+
+
 class TriangleBVH:
     """The hierarchy over triangles (v0, v1, v2), each (T, 3) float64 (module docstring)."""
 
     def __init__(self, v0, v1, v2) -> None:
         v0, v1, v2 = (np.asarray(v, dtype=np.float64).reshape(-1, 3) for v in (v0, v1, v2))
+        kept = _first_of_each_copy(v0, v1, v2)          # triangle numbers, or None: all
+        if kept is not None:
+            v0, v1, v2 = v0[kept], v1[kept], v2[kept]
         count = len(v0)
         depth = 0
         while (count + (1 << depth) - 1) >> depth > LEAF_SIZE:      # ⌈T / 2^D⌉ > LEAF_SIZE
             depth += 1
         self.count, self.depth = count, depth
         order = self._order((v0 + v1 + v2) / 3.0, depth)
-        self.index = order                                   # slot -> triangle index
+        self.index = order if kept is None else kept[order]  # slot -> triangle index
         self.v0 = v0[order]
         self.e1 = v1[order] - self.v0
         self.e2 = v2[order] - self.v0
@@ -164,30 +213,54 @@ class TriangleBVH:
 
     def _batch(self, o, d, bounds, best, tri, b1, b2, any_hit):
         """One batch, t in the open interval ``bounds`` (t_lo, t_hi); writes the hits into
-        best, tri, b1, b2 (views of the caller's; best starts at t_hi)."""
+        best, tri, b1, b2 (views of the caller's; best starts at t_hi).
+
+        Depth first over chunks of (ray, node) pairs (module docstring, "Memory"): a chunk
+        of at most :data:`FRONTIER` pairs goes down a level at a time; past FRONTIER it is
+        halved and one half waits on a stack, one per level at most, so that overlapping
+        triangles, whose boxes every ray meets, cost time but never more than
+        (depth + 1)·FRONTIER pairs."""
         t_lo = bounds[0]
         with np.errstate(divide="ignore"):
             inv = 1.0 / d                      # ±inf along an axis the ray does not move on
-        ray = np.arange(len(d))
-        node = np.zeros(len(d), dtype=np.int64)
         origin, slope = tuple(o.T.copy()), tuple(inv.T.copy())
-        for level in range(self.depth + 1):
-            near, far = self._slab(origin, slope, ray, node)
-            keep = (near <= far) & (far > t_lo[ray]) & (near < best[ray])
-            ray, node, near = ray[keep], node[keep], near[keep]
-            if level < self.depth:
+        waiting = [(0, np.arange(len(d)), np.zeros(len(d), dtype=np.int64))]
+        while waiting:
+            level, ray, node = waiting.pop()
+            while True:
+                near, far = self._slab(origin, slope, ray, node)
+                keep = (near <= far) & (far > t_lo[ray]) & (near < best[ray])
+                if any_hit:
+                    keep &= tri[ray] < 0                     # a blocked ray is done
+                ray, node, near = ray[keep], node[keep], near[keep]
+                if level == self.depth or not len(ray):
+                    break
                 ray = np.repeat(ray, 2)
                 node = (2 * node[:, None] + np.array([1, 2])).reshape(-1)
+                level += 1
+                if len(ray) > FRONTIER:
+                    half = len(ray) // 2
+                    waiting.append((level, ray[half:], node[half:]))
+                    ray, node = ray[:half], node[:half]
+            if len(ray):
+                self._leaf_rounds(o, d, bounds, best, tri, b1, b2, ray, node, near, any_hit)
+
+    def _leaf_rounds(self, o, d, bounds, best, tri, b1, b2, ray, node, near, any_hit):
+        """The leaves of (ray, leaf node) pairs, each ray's nearest box first, in rounds of
+        1, 2, 4, … leaves a ray; after each round, leaves farther than the ray's closest
+        hit are dropped (closest hit) or the blocked rays leave (any hit)."""
         leaf = node - ((1 << self.depth) - 1)
-        # Each ray's leaves, nearest box first: rank 0, 1, … within the ray.
-        order = np.lexsort((near, ray))
+        order = np.lexsort((near, ray))          # rank 0, 1, … within each ray
         ray, leaf, near = ray[order], leaf[order], near[order]
         first = np.flatnonzero(np.r_[True, ray[1:] != ray[:-1]])
         rank = np.arange(len(ray)) - np.repeat(first, np.diff(np.r_[first, len(ray)]))
         low, width = 0, 1
         while len(ray):
             now = rank < low + width
-            self._leaves(o, d, bounds, best, tri, b1, b2, ray[now], leaf[now], any_hit)
+            ray_now, leaf_now = ray[now], leaf[now]
+            for s in range(0, len(ray_now), LEAF_PAIRS):        # bounded triangle tests
+                self._leaves(o, d, bounds, best, tri, b1, b2, ray_now[s:s + LEAF_PAIRS],
+                             leaf_now[s:s + LEAF_PAIRS], any_hit)
             low += width
             width *= 2
             left = ~now & (near <= best[ray]) if not any_hit else ~now & (tri[ray] < 0)

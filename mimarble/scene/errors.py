@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import unicodedata
+
 from .limits import MAX_SCENE_BYTES
 from .reading import open_regular
 
-__all__ = ["SceneError", "TAB_SIZE", "SHOWN_WIDTH"]
+__all__ = ["SceneError", "TAB_SIZE", "SHOWN_WIDTH", "printable"]
 
 #: Tab stops used to display a source line (columns still count a tab as one).
 TAB_SIZE = 8
@@ -14,6 +16,48 @@ TAB_SIZE = 8
 #: echo 4 MB).
 SHOWN_WIDTH = 120
 _CUT = "..."
+
+#: Format characters (Unicode category Cf) shown as they are: the zero-width joiner and
+#: non-joiner, which Persian and Indic words and emoji sequences need. The other format
+#: characters act instead of showing — the bidirectional overrides and isolates reorder
+#: the text after them on the screen — and are escaped.
+_SHOWN_FORMAT_CHARACTERS = frozenset("\u200c\u200d")
+#: Categories whose characters act on a terminal rather than show: controls (C0, DEL,
+#: C1: ESC begins the terminal's escape sequences, BEL rings, CSI U+009B is ESC [),
+#: lone surrogates (Python's stand-ins for the bytes of a name that is not UTF-8) and
+#: the line and paragraph separators.
+_ACTING_CATEGORIES = frozenset(("Cc", "Cs", "Zl", "Zp"))
+_ESCAPES = {"\t": "\\t", "\n": "\\n", "\r": "\\r"}
+
+
+def printable(text, keep: str = "") -> str:
+    """``text`` — a user's string, a file name — as it may be echoed in a message on a
+    terminal: every character that would act rather than show (``_ACTING_CATEGORIES``,
+    format characters but the joiners) written as a Python string literal writes it
+    (``\\x1b``, ``\\x07``, ``\\x9b``, ``\\u202e``, ``\\n``); a byte of a file name that
+    is not UTF-8 (which Python decodes to a lone surrogate U+DC80..U+DCFF) as ``\\xNN``,
+    that byte. Letters of every script, accents and emoji are shown as they are.
+    ``keep``: characters left as they are (a quoted source line's tabs, which the caret
+    line expands alike). Every message that echoes a user's string shows it through
+    this: SceneError's parts, and the command line's messages and warnings."""
+    text = str(text)
+    if text.isprintable():     # no control, separator or format character: nothing acts
+        return text
+    return "".join(_shown_character(c) if c not in keep else c for c in text)
+
+
+def _shown_character(c: str) -> str:
+    category = unicodedata.category(c)
+    if category not in _ACTING_CATEGORIES and not (
+            category == "Cf" and c not in _SHOWN_FORMAT_CHARACTERS):
+        return c
+    code = ord(c)
+    if c in _ESCAPES:
+        return _ESCAPES[c]
+    if 0xDC80 <= code <= 0xDCFF:                 # surrogateescape: the byte itself
+        return f"\\x{code - 0xDC00:02x}"
+    return f"\\x{code:02x}" if code < 0x100 else \
+        f"\\u{code:04x}" if code < 0x10000 else f"\\U{code:08x}"
 
 
 class SceneError(Exception):
@@ -106,10 +150,12 @@ class SceneError(Exception):
 
     def __str__(self) -> str:
         shown = self._shown()
-        return shown if self.hint is None else f"{shown}\nhint: {self.hint}"
+        return shown if self.hint is None else f"{shown}\nhint: {printable(self.hint)}"
 
     def _shown(self) -> str:
-        head = f"{self.location}: {self.message}"
+        # The user's strings (the file's name, a word quoted in the message, the source
+        # line) through printable(): a scene's escape codes are shown, never sent.
+        head = f"{printable(self.location)}: {printable(self.message)}"
         if self.line is None or self.source_line is None:
             return head
         line = self.source_line
@@ -120,10 +166,12 @@ class SceneError(Exception):
             start = min(max(at - SHOWN_WIDTH // 2, 0), len(line) - SHOWN_WIDTH)
             end = start + SHOWN_WIDTH
         before = _CUT if start > 0 else ""
-        shown = (before + line[start:end] + (_CUT if end < len(line) else "")).expandtabs(TAB_SIZE)
+        shown = printable(before + line[start:end] + (_CUT if end < len(line) else ""),
+                          keep="\t").expandtabs(TAB_SIZE)
         if self.column is None:
             return f"{head}\n{shown}"
-        prefix = before + line[start:at]
+        # The caret under the column of the line as shown (escapes widen what precedes it).
+        prefix = printable(before + line[start:at], keep="\t")
         # Pad past the end of the line if the column is beyond it (end of file).
         prefix += " " * max(at - len(line), 0)
         width = len(prefix.expandtabs(TAB_SIZE))

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from ..marble_parameters import BY_NAME
 
-__all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
+__all__ = ["LIMITS", "FLT_MAX", "FLT_MIN_NORMAL", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
            "MAX_AREA_LIGHT_SIZE", "MAX_CHANNEL_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES",
            "MAX_PLANES", "MAX_BOXES", "MAX_MESHES", "MAX_MESH_TRIANGLES", "MAX_MESH_BYTES",
            "MAX_TEXTURES"]
@@ -23,6 +23,12 @@ __all__ = ["LIMITS", "FLT_MAX", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_
 #: The largest float32: the Mitsuba path is single precision, so every number of a scene
 #: must be at most this in magnitude.
 FLT_MAX = 3.4028234663852886e38
+
+#: The smallest normal float32, 2⁻¹²⁶: a smaller nonzero number is 0 to the renderer (its
+#: JIT flushes subnormals to zero), so a size or an angle that must not be zero must be
+#: at least this. Messages print it, as FLT_MAX, with every digit of its double (repr):
+#: rounded, "3.4e38" reads as if 3.4028235e38 (FLT_MAX to 8 digits, past it) were within.
+FLT_MIN_NORMAL = 2.0 ** -126
 
 #: A scene file's size, bytes (4 MiB). The file is read whole and Lark builds a tree of it,
 #: in time and memory that grow with it; the largest scene the other limits allow is a

@@ -3,10 +3,12 @@
 ``mesh_facts(path)`` returns :class:`MeshFacts` (format, vertices, triangles, has_uv,
 bounds) or raises :class:`MeshFileError` with one sentence (no file name: the caller names
 the file; an OBJ's sentence begins with its line number, ``line 12: a face needs 3 or more
-vertices``). ``mesh_bounds(path)`` is its bounds, looked up once per version of the file
-(its size and modification time), for the geometry that places shapes by their extent
-(scene/geometry.py). The scene language checks every mesh with mesh_facts while it
-parses; the reference tracer's reader (mimarble/reference/mesh_file.py) reads the PLY header with
+vertices``), read once per version of the file (its name, inode, size, modification and
+change times); ``mesh_bounds(path)`` is its bounds, for the geometry that places shapes by
+their extent (scene/geometry.py). The scene language checks every mesh with mesh_facts
+while it parses, the translator every mesh of a scene it is given
+(:func:`check_mesh_files`: scenes built in Python, files changed since the parse); the
+reference tracer's reader (mimarble/reference/mesh_file.py) reads the PLY header with
 :func:`ply_header` and the OBJ lines with :func:`obj_statements`, so both see one grammar
 and one set of limits. Standard library only.
 
@@ -31,9 +33,16 @@ What is read (and what is refused, in one sentence each):
 * **PLY** (``format ascii``, ``binary_little_endian`` or ``binary_big_endian``, version 1.0,
   the property types Mitsuba 3.9's ``ply`` plugin knows): ``element vertex`` with float or
   double ``x y z`` and optionally ``u v``, ``texture_u texture_v`` or ``s t`` (Mitsuba's
-  order of preference), other properties skipped; ``element face`` with an integer
-  ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference); other
-  elements skipped. Integer coordinates are refused: Mitsuba reads an integer property as a
+  order of preference; a lone ``u`` or ``v`` beside another pair is refused: Mitsuba
+  renames the pair onto it), other properties skipped; ``element face`` with an integer
+  ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference), the
+  file's only list (Mitsuba reads every list as a length and 3 values, so another list, on
+  any element, is refused); other elements skipped. The header's lines are ``ply``,
+  ``format``, ``comment``, ``element``, ``property`` and ``end_header`` (``obj_info`` is
+  refused, as Mitsuba refuses it), split into words where C++'s ``>>`` splits them. An
+  ascii body's every word is read as Mitsuba reads it, with ``>>`` of its property's type:
+  integers written as whole numbers within their type's range, floating-point numbers
+  finite within their type's (a ``half`` below 65520). Integer coordinates are refused: Mitsuba reads an integer property as a
   fraction of its type's range, so the two renderers would place the mesh differently.
   The faces must be **triangles**: Mitsuba's ``ply`` plugin reads a face's list as a
   length checked to be 3 and three indices, so :func:`mesh_facts` walks the body
@@ -51,7 +60,12 @@ What is read (and what is refused, in one sentence each):
   reader (:func:`obj_statements` with ``relative``). Everything after ``#`` is a comment;
   other statements (``o``, ``g``, ``s``, ``usemtl``, ``mtllib``, ``l``, …) are ignored. A
   line is at most :data:`MAX_OBJ_LINE_BYTES` bytes (Mitsuba's OBJ reader refuses longer
-  ones). ``has_uv`` when every corner of every face names a ``vt``.
+  ones). Mitsuba separates a statement's words by spaces and tabs only and ends a face's
+  corner at a space, tab or carriage return, so a statement line holding a form feed, a
+  vertical tab or a carriage return before its end, a face's last corner followed at once
+  by ``#``, and a UTF-8 byte order mark before the first line's ``v``, ``vt``, ``vn`` or
+  ``f`` (Mitsuba would drop that line) are refused. ``has_uv`` when every corner of every
+  face names a ``vt``.
 
 So the files :func:`mesh_facts` accepts, Mitsuba 3.9.1's ``ply`` and ``obj`` plugins and the
 reference tracer read alike in fans, (u, v), indices, coordinates and triangles (checked on
@@ -61,19 +75,22 @@ up to Mitsuba's float32.
 
 from __future__ import annotations
 
-import functools
+import dataclasses
+import hashlib
 import itertools
 import math
 import os
+import re
 import struct
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from .limits import FLT_MAX, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, MAX_MESHES
 from .reading import open_failure, open_regular
 from .rules import shortened
 
-__all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "mesh_bounds", "MAX_PLY_HEADER_BYTES",
+__all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "mesh_bounds", "check_mesh_files",
+           "MAX_PRECISE_UV", "MAX_PLY_HEADER_BYTES",
            "MAX_MESH_VERTICES", "MAX_OBJ_LINE_BYTES", "PLY_TYPES", "PlyProperty", "PlyElement",
            "PlyHeader", "ply_header", "obj_statements", "open_mesh"]
 
@@ -118,13 +135,17 @@ class MeshFacts:
     triangles); ``has_uv``: texture coordinates on every vertex (PLY) or
     every face corner (OBJ); ``bounds``: ((x, y, z) min, (x, y, z) max) of every vertex
     position the file lists (used by a face or not), in the file's coordinates (None
-    where not known: facts built by hand)."""
+    where not known: facts built by hand); ``uv_extent``: the largest |u| or |v| of the
+    texture coordinates as Mitsuba stores them (None: none); ``digest``: SHA-256 of the
+    file's bytes (hex), what tells two versions of one file apart."""
 
     format: str
     vertices: int
     triangles: int
     has_uv: bool
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
+    uv_extent: float | None = field(default=None, compare=False)
+    digest: str | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -184,62 +205,152 @@ def mesh_facts(path: str) -> MeshFacts:
     """What the mesh file at ``path`` holds (module docstring), or MeshFileError. PLY: its
     header, then its body walked (every face a triangle of existing vertices, every
     coordinate finite within float32: :func:`_ply_body`); OBJ: all its lines, each checked,
-    negative indices refused (Mitsuba reads none)."""
+    negative indices refused (Mitsuba reads none).
+
+    Read once per version of the file: the answer (facts or sentence) is kept by the file's
+    name, device, inode, size and modification and change times, taken from the open file
+    before it is read — a file rewritten since, even with its old modification time put
+    back (``touch -r``, ``cp -p``), has another change time and is read again. The parser,
+    the translator (:func:`check_mesh_files`), the geometry (:func:`mesh_bounds`) and the
+    reference tracer ask for the same file many times."""
     fmt = _format_of(path)
     f, size = open_mesh(path)
     with f:
-        if fmt == "ply":
-            header = ply_header(f, size)
-            bounds = _ply_body(f, header, size)
-            return MeshFacts("ply", header.element("vertex").count,
-                             header.element("face").count, header.uv is not None, bounds)
-        vertices = triangles = 0
-        has_uv = True
-        x0 = y0 = z0 = math.inf
-        x1 = y1 = z1 = -math.inf
-        for kind, value in obj_statements(f):
-            if kind == "v":
-                vertices += 1
-                x, y, z = value                  # plain comparisons: the fastest here
-                if x < x0:
-                    x0 = x
-                if x > x1:
-                    x1 = x
-                if y < y0:
-                    y0 = y
-                if y > y1:
-                    y1 = y
-                if z < z0:
-                    z0 = z
-                if z > z1:
-                    z1 = z
-            elif kind == "f":
-                triangles += len(value) - 2
-                has_uv = has_uv and all(t >= 0 for _, t in value)
-        return MeshFacts("obj", vertices, triangles, has_uv, ((x0, y0, z0), (x1, y1, z1)))
+        st = os.fstat(f.fileno())
+        version = (os.fspath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
+                   st.st_ctime_ns)
+        known = _READ.pop(version, None)
+        if known is None:
+            try:
+                known = _read_facts(f, fmt, size)
+            except MeshFileError as e:
+                known = str(e)
+            if len(_READ) >= MAX_MESHES:
+                _READ.pop(next(iter(_READ)))            # the least recently asked for
+        _READ[version] = known
+    if isinstance(known, str):
+        raise MeshFileError(known)
+    return known
+
+
+#: mesh_facts' answers by file version (its docstring), the most recently asked for last.
+_READ: dict = {}
+
+
+def _read_facts(f, fmt: str, size: int) -> MeshFacts:
+    """mesh_facts of the file open as ``f`` (binary, at its start) of ``size`` bytes, with
+    its content digest: SHA-256 of its bytes, read again after the check (from the
+    system's cache: a small part of the check's time, docs/benchmarks.md)."""
+    if fmt == "ply":
+        header = ply_header(f, size)
+        bounds, uv_extent = _ply_body(f, header, size)
+        facts = MeshFacts("ply", header.element("vertex").count, header.element("face").count,
+                          header.uv is not None, bounds, uv_extent=uv_extent)
+    else:
+        facts = _obj_facts(f)
+    f.seek(0)
+    digest = hashlib.sha256()
+    for block in iter(lambda: f.read(_CHUNK), b""):
+        digest.update(block)
+    return dataclasses.replace(facts, digest=digest.hexdigest())
+
+
+def _obj_facts(f) -> MeshFacts:
+    vertices = triangles = 0
+    has_uv = True
+    x0 = y0 = z0 = math.inf
+    x1 = y1 = z1 = -math.inf
+    uv_extent = 0.0
+    for kind, value in obj_statements(f):
+        if kind == "v":
+            vertices += 1
+            x, y, z = value                  # plain comparisons: the fastest here
+            if x < x0:
+                x0 = x
+            if x > x1:
+                x1 = x
+            if y < y0:
+                y0 = y
+            if y > y1:
+                y1 = y
+            if z < z0:
+                z0 = z
+            if z > z1:
+                z1 = z
+        elif kind == "f":
+            triangles += len(value) - 2
+            has_uv = has_uv and all(t >= 0 for _, t in value)
+        else:                                # vt: as Mitsuba stores it, v flipped (1 − v)
+            u, v = value
+            uv_extent = max(uv_extent, abs(u), abs(1.0 - v))
+    return MeshFacts("obj", vertices, triangles, has_uv, ((x0, y0, z0), (x1, y1, z1)),
+                     uv_extent=uv_extent if has_uv else None)
 
 
 def mesh_bounds(path):
     """The ``bounds`` of :func:`mesh_facts` for the file at ``path``, or None where it
-    cannot be read (the parser says why at the mesh). Looked up again only when the file's
-    size or modification time changes (:func:`_bounds_of`): the scene's geometry
-    (geometry.sphere_bounds, a plane's disk, Mitsuba's float32 checks) asks for them many
-    times over one file."""
-    try:
-        st = os.stat(path)
-    except (OSError, ValueError):
-        return None
-    return _bounds_of(os.fspath(path), st.st_size, st.st_mtime_ns)
-
-
-@functools.lru_cache(maxsize=MAX_MESHES)
-def _bounds_of(path: str, size: int, mtime_ns: int):
-    """mesh_facts(path).bounds, None for a file refused; ``size`` and ``mtime_ns`` key the
-    cache only."""
+    cannot be read (the parser says why at the mesh), for the geometry that places shapes
+    by their extent (geometry.sphere_bounds, a plane's disk, Mitsuba's float32 checks),
+    which asks for them many times over one file (mesh_facts reads each version once)."""
     try:
         return mesh_facts(path).bounds
-    except MeshFileError:
+    except (MeshFileError, OSError, ValueError):
         return None
+
+
+#: The largest |u|, |v| of a mesh's texture coordinates read without a warning: past 2¹⁰,
+#: float32's step (Mitsuba's, where it holds and interpolates them) is 2⁻¹³ or more, a
+#: texel of an image map 8192 pixels wide, so its image map lookups and the reference's
+#: (float64) may differ (docs/rendering-model.md, "A mesh's texture coordinates").
+MAX_PRECISE_UV = float(1 << 10)
+
+
+def check_mesh_files(scene) -> list[str]:
+    """Every mesh file of ``scene`` checked as the parser checks it, for a scene the parser
+    never saw or whose files changed since (built in Python, edited, a file rewritten after
+    ``scene.load``): :func:`mesh_facts` (kept per version of the file, so a file parsed
+    and unchanged is not read again), the scene's triangles within MAX_MESH_TRIANGLES, and
+    (u, v) in the file where the mesh's material reads an image map — else a SceneError at
+    the mesh's ``file`` in the parser's sentence. Returns the warnings of texture
+    coordinates past :data:`MAX_PRECISE_UV` read by an image map, one per mesh file.
+    The translator calls it for every route into Mitsuba; the reference tracer reads the
+    files with the same checks (tracer.read_meshes)."""
+    from .errors import SceneError
+    from .model import ImageChannel, walk
+    from .rules import image_map_uv_problem, mesh_triangles_problem
+    imaged = {name for name, material in scene.materials.items()
+              if any(isinstance(c, ImageChannel) for channel in material.channels().values()
+                     for c in walk(channel))}
+    total, warned, problems = 0, set(), []
+    for mesh in scene.meshes:
+        name = shortened(mesh.file, 256)
+        try:
+            facts = mesh_facts(mesh.location)
+        except MeshFileError as e:
+            raise SceneError.in_file(scene.source, mesh.pos, f"mesh file '{name}': {e}") from None
+        total += facts.triangles
+        problem = mesh_triangles_problem(total)
+        if problem:
+            raise SceneError.in_file(scene.source, mesh.pos, problem)
+        if mesh.material in imaged:
+            if not facts.has_uv:
+                raise SceneError.in_file(scene.source, mesh.pos, image_map_uv_problem(
+                    mesh.material, "this mesh's file"))
+            if facts.uv_extent > MAX_PRECISE_UV and mesh.location not in warned:
+                warned.add(mesh.location)
+                problems.append(
+                    f"{scene.source or '<scene>'}:{mesh.pos or '?'}: mesh file '{name}' has "
+                    f"texture coordinates up to {facts.uv_extent:g}, past ±{MAX_PRECISE_UV:g}: "
+                    f"Mitsuba holds them in float32, whose step there "
+                    f"({_float32_step(facts.uv_extent):.2g}) reaches a texel of a large image "
+                    f"map, so its image may differ from the reference's there "
+                    f"(docs/rendering-model.md)")
+    return problems
+
+
+def _float32_step(value: float) -> float:
+    """The spacing of float32 numbers at |value| (value within float32's range)."""
+    return 2.0 ** (math.frexp(value)[1] - 24)
 
 
 def _format_of(path) -> str:
@@ -270,8 +381,10 @@ def ply_header(f, size: int) -> PlyHeader:
     fmt = None
     elements: list[tuple[str, int, list[PlyProperty]]] = []
     for number, line in enumerate(text.split("\n")[1:], start=2):
-        words = line.split()
-        if not words or words[0] in ("comment", "obj_info"):
+        # Words as C++'s stream >> splits them (space, \t, \n, \v, \f, \r): str.split
+        # would also split at \x1c-\x1f, which Mitsuba's header reader takes as letters.
+        words = [word.decode("ascii") for word in line.encode("ascii").split()]
+        if not words or words[0] == "comment":
             continue
         keyword = words[0]
         if keyword == "end_header":
@@ -287,7 +400,8 @@ def ply_header(f, size: int) -> PlyHeader:
             elements[-1][2].append(_ply_property(words, elements[-1]))
         else:
             raise MeshFileError(f"PLY header line {number}: unknown keyword "
-                                f"'{shortened(keyword, 40)}'")
+                                f"'{shortened(keyword, 40)}' (Mitsuba 3.9's ply plugin reads "
+                                f"format, comment, element, property and end_header only)")
     if fmt is None:
         raise MeshFileError("the PLY header has no format line")
     header = _ply_checked(fmt, tuple(PlyElement(n, c, tuple(p)) for n, c, p in elements), end)
@@ -395,6 +509,19 @@ def _ply_checked(fmt, elements, end) -> PlyHeader:
     if prop is None or prop.count_type is None:
         raise MeshFileError("the PLY face element has no list property vertex_indices "
                             "(or vertex_index)")
+    for element in elements:
+        for other in element.properties:
+            if other.count_type and other is not prop:
+                raise MeshFileError(
+                    f"the PLY element '{shortened(element.name, 40)}' has the list property "
+                    f"'{shortened(other.name, 40)}': Mitsuba 3.9's ply plugin reads one list, "
+                    f"a face's vertex indices, and misreads any other")
+    if uv is not None and uv != ("u", "v") and (vertex.property("u") or vertex.property("v")):
+        lone = "u" if vertex.property("u") else "v"
+        raise MeshFileError(
+            f"the PLY vertex element has a property {lone} without its pair beside "
+            f"{uv[0]} and {uv[1]}: Mitsuba 3.9's ply plugin renames {uv[0]}, {uv[1]} to u, v "
+            f"and refuses two properties named {lone}")
     if PLY_TYPES[prop.type][0] == "f":
         raise MeshFileError(f"the PLY face list {face_list} holds floating-point numbers; "
                             f"vertex indices are integers")
@@ -426,7 +553,8 @@ def _ply_fits(header: PlyHeader, size: int) -> None:
 
 def _ply_body(f, header: PlyHeader, size: int) -> tuple:
     """Walk the PLY body (``f`` just past the header) element by element and return the
-    bounds of its vertex positions; MeshFileError on the first thing Mitsuba 3.9.1's
+    bounds of its vertex positions and the largest |u|, |v| of its texture coordinates
+    (None: it has none); MeshFileError on the first thing Mitsuba 3.9.1's
     ``ply`` plugin would not read as the reference tracer does:
 
     * a face whose list is not 3 indices long (Mitsuba reads triangles only: "incompatible
@@ -446,6 +574,7 @@ def _ply_body(f, header: PlyHeader, size: int) -> tuple:
     vertices = header.element("vertex").count
     names = ("x", "y", "z") + (header.uv or ())
     lo, hi = [math.inf] * 3, [-math.inf] * 3
+    uv_extent = 0.0
     for element in header.elements:
         if element.name == "vertex":
             for columns in walk.scalars(element, names):
@@ -454,6 +583,8 @@ def _ply_body(f, header: PlyHeader, size: int) -> tuple:
                         columns[name], "vertex coordinate" if i < 3 else "texture coordinate")
                     if i < 3:
                         lo[i], hi[i] = min(lo[i], least), max(hi[i], most)
+                    else:
+                        uv_extent = max(uv_extent, -least, most)
         elif element.name == "face":
             for indices in walk.triangles(element, header.face_list):
                 least, most = min(indices), max(indices)
@@ -464,7 +595,7 @@ def _ply_body(f, header: PlyHeader, size: int) -> tuple:
         else:
             walk.skip(element)
     walk.finish()
-    return tuple(lo), tuple(hi)
+    return (tuple(lo), tuple(hi)), (uv_extent if header.uv else None)
 
 
 def _coordinate_range(values, what: str) -> tuple[float, float]:
@@ -480,7 +611,7 @@ def _coordinate_range(values, what: str) -> tuple[float, float]:
 
 
 def _beyond_float32(value: float) -> str:
-    return (f"{value:g} is beyond float32's range (±{FLT_MAX:.7g}), the numbers Mitsuba "
+    return (f"{value!r} is beyond float32's range (±{FLT_MAX!r}), the numbers Mitsuba "
             f"holds its meshes in")
 
 
@@ -544,15 +675,7 @@ class _BinaryWalk:
             return [v for (v,) in struct.iter_unpack("=e", out)]
         return memoryview(out).cast(code)
 
-    def _value(self, raw: bytes, type_: str):
-        return struct.unpack(("<" if self.order == "little" else ">")
-                             + _CODES[PLY_TYPES[type_]], raw)[0]
-
     def skip(self, element) -> None:
-        if any(p.count_type for p in element.properties):
-            for _ in self._records(element):
-                pass
-            return
         record = sum(self._width(p.type) for p in element.properties)
         if self.f.tell() + element.count * record > self.size:
             raise _ends_inside(element)
@@ -560,9 +683,6 @@ class _BinaryWalk:
 
     def scalars(self, element, names):
         """Chunks of {name: the values of that scalar property}."""
-        if any(p.count_type for p in element.properties):
-            yield from _gathered(self._records(element), names)
-            return
         offsets, record = {}, 0
         for p in element.properties:
             offsets[p.name] = (record, p.type)
@@ -576,12 +696,9 @@ class _BinaryWalk:
         list the only list, a record of R bytes (the list's length at ``before``) while
         every length is 3: a chunk's lengths are compared byte column by byte column with
         3's bytes, and the first record where one differs (every record before it being a
-        triangle, it is where a triangle's length would be) is refused."""
-        lists = [p for p in element.properties if p.count_type]
-        if len(lists) > 1:
-            yield from _walked_triangles(self._records(element), element, list_name)
-            return
-        prop = lists[0]
+        triangle, it is where a triangle's length would be) is refused. (The face list
+        is the file's only list: the header refuses any other.)"""
+        prop = element.property(list_name)
         at = element.properties.index(prop)
         before = sum(self._width(p.type) for p in element.properties[:at])
         width, size = self._width(prop.count_type), self._width(prop.type)
@@ -609,64 +726,23 @@ class _BinaryWalk:
                                             prop.type))
             yield indices
 
-    def _records(self, element):
-        """Each record as {property: value, or a list's values as a tuple}, read one by
-        one (elements with lists of any length)."""
-        sizes = [(p, self._width(p.count_type) if p.count_type else 0, self._width(p.type))
-                 for p in element.properties]
-        for _ in range(element.count):
-            out = {}
-            for p, count_width, size in sizes:
-                if p.count_type:
-                    n = self._value(self._read(count_width, element), p.count_type)
-                    if n < 0:
-                        raise MeshFileError(f"a list of length {n} in the {element.name} "
-                                            f"element")
-                    raw = self._read(n * size, element)
-                    out[p.name] = struct.unpack(("<" if self.order == "little" else ">")
-                                                + str(n) + _CODES[PLY_TYPES[p.type]], raw)
-                else:
-                    out[p.name] = self._value(self._read(size, element), p.type)
-            yield out
-
     def finish(self) -> None:
         more = self.size - self.f.tell()
         if more > 0:
             raise _goes_on(f" ({more} more byte{'s' if more > 1 else ''})")
 
 
-def _gathered(records, names):
-    """Chunks of {name: values} of the records {property: value}."""
-    chunk = {name: [] for name in names}
-    for k, record in enumerate(records, start=1):
-        for name in names:
-            chunk[name].append(record[name])
-        if k % _CHUNK == 0:
-            yield chunk
-            chunk = {name: [] for name in names}
-    if chunk[names[0]]:
-        yield chunk
-
-
-def _walked_triangles(records, element, list_name):
-    """Chunks of the face lists' indices of the records {property: value}, each list of 3."""
-    chunk = []
-    for k, record in enumerate(records, start=1):
-        indices = record[list_name]
-        if len(indices) != 3:
-            raise _polygon(len(indices), element)
-        chunk.extend(indices)
-        if len(chunk) >= _CHUNK:
-            yield chunk
-            chunk = []
-    if chunk:
-        yield chunk
-
-
 class _AsciiWalk:
     """An ascii PLY body, element by element (:func:`_ply_body`): its words streamed line
-    by line; a line holding ``_`` is refused (Python's float and int take 1_0, the C++
-    streams Mitsuba reads with do not)."""
+    by line, every word checked as Mitsuba 3.9's ply plugin reads it — with C++'s stream
+    ``>>`` of the property's type — so that a file it would refuse is refused here:
+
+    * an integer property's word is a whole number written as one (``[+-]digits``: ``2e0``
+      or ``2.0`` leave a tail that the next ``>>`` fails on) within its type's range
+      (unsigned: 0 and up; C++ refuses a value that does not fit);
+    * a floating-point property's word is a finite number within its type's range (half:
+      below 65520, which rounds to infinity; float: within ±FLT_MAX);
+    * a line holding ``_`` is refused (Python's float and int take 1_0, C++ does not)."""
 
     def __init__(self, f) -> None:
         self.words = self._words(f)
@@ -684,73 +760,107 @@ class _AsciiWalk:
             raise _ends_inside(element)
         return words
 
+    def _columns(self, element, records: int, width: int, words: list, offset=None,
+                 names=()):
+        """Every scalar property's column of a chunk of ``records`` records of ``width``
+        words, checked by its type (class docstring): {name: values}; ``names``: the
+        vertex coordinates read, x y z then u v, named so in a refusal."""
+        out = {}
+        for k, p in enumerate(element.properties):
+            if not p.count_type:
+                at = k if offset is None else offset[p.name]
+                what = None if p.name not in names else \
+                    "vertex coordinate" if names.index(p.name) < 3 else "texture coordinate"
+                out[p.name] = _ascii_values(words[at:records * width:width], p.type, what)
+        return out
+
     def skip(self, element) -> None:
-        if any(p.count_type for p in element.properties):
-            for _ in self._records(element):
-                pass
-            return
         width = len(element.properties)
         for records in _chunks(element.count, width):
-            self._take(records * width, element)
+            self._columns(element, records, width, self._take(records * width, element))
 
     def scalars(self, element, names):
-        if any(p.count_type for p in element.properties):
-            yield from _gathered(self._records(element), names)
-            return
         width = len(element.properties)
-        at = {p.name: k for k, p in enumerate(element.properties)}
         for records in _chunks(element.count, width):
-            words = self._take(records * width, element)
-            yield {name: _floats(words[at[name]::width]) for name in names}
+            columns = self._columns(element, records, width,
+                                    self._take(records * width, element), names=names)
+            yield {name: columns[name] for name in names}
 
     def triangles(self, element, list_name: str):
         """As _BinaryWalk.triangles: while every length is 3, a record is the scalars,
         the length and 3 indices; the first record whose length is not 3 is refused."""
-        lists = [p for p in element.properties if p.count_type]
-        if len(lists) > 1:
-            yield from _walked_triangles(self._records(element), element, list_name)
-            return
-        before = element.properties.index(lists[0])
+        prop = element.property(list_name)
+        before = element.properties.index(prop)
         width = len(element.properties) + 3
+        offset = {p.name: k + (3 if k > before else 0)
+                  for k, p in enumerate(element.properties)}
         for records in _chunks(element.count, width):
             words = list(itertools.islice(self.words, records * width))
             whole = len(words) // width
             lengths = words[before:len(words):width]
             if lengths.count(b"3") < len(lengths):
-                for word in lengths:
-                    n = 3 if word == b"3" else _ascii_int(word, "a list's length")
+                for n in _ascii_values(lengths, prop.count_type):
                     if n != 3:
                         raise _polygon(n, element)
             if whole < records:
                 raise _ends_inside(element)
+            self._columns(element, records, width, words, offset)
             indices = []
             for k in range(3):
-                indices.extend(_ints(words[before + 1 + k::width]))
+                indices.extend(_ascii_values(words[before + 1 + k::width], prop.type))
             yield indices
-
-    def _records(self, element):
-        """Each record as {property: value, or a list's values as a tuple}, word by word."""
-        for _ in range(element.count):
-            out = {}
-            for p in element.properties:
-                word = next(self.words, None)
-                if word is None:
-                    raise _ends_inside(element)
-                if p.count_type:
-                    n = _ascii_int(word, "a list's length")
-                    if n < 0:
-                        raise MeshFileError(f"a list of length {n} in the {element.name} "
-                                            f"element")
-                    values = self._take(n, element)
-                    out[p.name] = tuple(_ints(values) if PLY_TYPES[p.type][0] != "f"
-                                        else _floats(values))
-                else:
-                    out[p.name] = _floats([word])[0]
-            yield out
 
     def finish(self) -> None:
         if next(self.words, None) is not None:
             raise _goes_on("")
+
+
+#: An integer as C++'s stream >> reads one whole: a sign, then digits.
+_INTEGER = re.compile(rb"[+-]?[0-9]+")
+#: The range of each PLY integer type, (least, greatest).
+_INTEGER_RANGES = {(kind, size): ((-(1 << (8 * size - 1)), (1 << (8 * size - 1)) - 1)
+                                  if kind == "i" else (0, (1 << (8 * size)) - 1))
+                   for kind, size in set(PLY_TYPES.values()) if kind != "f"}
+#: A half (IEEE binary16) rounds to infinity from this magnitude (its largest, 65504, plus
+#: half its last step).
+_HALF_OVERFLOW = 65520.0
+
+
+def _ascii_values(words, ply_type: str, what: str | None = None) -> list:
+    """The numbers of an ascii body's ``words`` of one property, checked by its type
+    (_AsciiWalk's docstring), or MeshFileError naming each as ``what`` (default: "TYPE
+    value")."""
+    kind, size = PLY_TYPES[ply_type]
+    what = what or f"{ply_type} value"
+    if kind == "f":
+        values = _floats(words)
+        if not math.isfinite(sum(values)) and not all(map(math.isfinite, values)):
+            raise MeshFileError(f"a {what} is not finite")
+        if values:
+            least, most = min(values), max(values)
+            big = most if most > -least else least
+            if size == 4 and abs(big) > FLT_MAX:
+                raise MeshFileError(f"a {what} {_beyond_float32(big)}")
+            if size == 2 and abs(big) >= _HALF_OVERFLOW:
+                raise MeshFileError(f"a {what} {big:g} is beyond a half's range (±65504; "
+                                    f"from ±{_HALF_OVERFLOW:g} it rounds to infinity)")
+        return values
+    try:
+        values = list(map(int, words))
+    except ValueError:          # not [+-]digits, or more digits than int() takes (4300)
+        word = next((w for w in words if not _INTEGER.fullmatch(w)), None)
+        if word is None:
+            raise MeshFileError(f"a {ply_type} value of thousands of digits, outside a "
+                                f"{ply_type}'s range") from None
+        raise MeshFileError(f"the {ply_type} value '{shortened(word.decode('latin-1'), 20)}' "
+                            f"is not written as a whole number, as integers are (Mitsuba's "
+                            f"reader stops at a '.' or an 'e')") from None
+    least, most = _INTEGER_RANGES[kind, size]
+    if values and (min(values) < least or max(values) > most):
+        bad = min(values) if min(values) < least else max(values)
+        raise MeshFileError(f"the {ply_type} value {bad} is outside a {ply_type}'s range "
+                            f"({least} … {most})")
+    return values
 
 
 def _not_a_number() -> MeshFileError:
@@ -762,25 +872,6 @@ def _floats(words) -> list[float]:
         return list(map(float, words))
     except ValueError:
         raise _not_a_number() from None
-
-
-def _ints(words) -> list[int]:
-    try:
-        return list(map(int, words))
-    except ValueError:
-        return [_ascii_int(word, "a face's vertex index") for word in words]
-
-
-def _ascii_int(word: bytes, what: str) -> int:
-    """A whole number written in an ascii body (as an integer, or as a float: 3.0)."""
-    try:
-        return int(word)
-    except ValueError:
-        value = _floats([word])[0]
-    if not (math.isfinite(value) and value == math.floor(value)):
-        raise MeshFileError(f"{what} is not a whole number "
-                            f"({shortened(word.decode('latin-1'), 20)})")
-    return int(value)
 
 
 # ---------------------------------------------------------------------------
@@ -798,14 +889,24 @@ def obj_statements(f, relative: bool = False):
     counts = {b"v": 0, b"vt": 0, b"vn": 0}
     triangles = 0
     number = 0
-    for number, line in enumerate(f, start=1):
-        if len(line) > MAX_OBJ_LINE_BYTES and len(line.rstrip(b"\n")) > MAX_OBJ_LINE_BYTES:
-            raise MeshFileError(f"line {number} is longer than {MAX_OBJ_LINE_BYTES} bytes, the "
-                                f"most Mitsuba's OBJ reader takes")
-        words = (line.split(b"#", 1)[0] if b"#" in line else line).split()
+    lines = _obj_lines(f)
+    first = next(lines, (b"", False))
+    if first[0].startswith(_UTF8_BOM) and first[0][3:].split(b"#", 1)[0].split()[:1] in _READ_FIRST:
+        raise MeshFileError("line 1: the file begins with a UTF-8 byte order mark, which "
+                            "Mitsuba's OBJ reader takes as part of the line's keyword, so it "
+                            "would drop the line: save the file without it")
+    for number, (line, odd) in enumerate(itertools.chain((first,), lines), start=1):
+        if b"#" in line:
+            text = line.split(b"#", 1)[0]
+            glued = not text[-1:].isspace()      # a face's last corner right before the #
+        else:
+            text, glued = line, False
+        words = text.split()
         if not words:
             continue
         keyword = words[0]
+        if odd and (keyword in counts or keyword == b"f"):
+            _obj_separators(text, number)
         if keyword in counts:
             numbers = _obj_numbers(words, number, b"_" not in line)
             counts[keyword] += 1
@@ -826,6 +927,10 @@ def obj_statements(f, relative: bool = False):
                                     f"{keyword.decode()} lines, the most a mesh file holds")
             yield keyword.decode(), numbers[:need]
         elif keyword == b"f":
+            if glued:
+                raise MeshFileError(f"line {number}: a comment (#) right after a face's last "
+                                    f"corner; Mitsuba's OBJ reader drops a corner not followed "
+                                    f"by a space (write one before the #)")
             corners = _obj_face(words, number, counts, relative, b"_" not in line)
             if len(corners) < 3:
                 raise MeshFileError(f"line {number}: a face needs 3 or more vertices")
@@ -836,6 +941,54 @@ def obj_statements(f, relative: bool = False):
             yield "f", corners
     if triangles == 0:
         raise MeshFileError("the OBJ file has no faces (f lines)")
+
+
+_UTF8_BOM = b"\xef\xbb\xbf"
+#: The first words of a first line that a byte order mark before them would make Mitsuba
+#: drop (lines of other keywords are dropped by both readers anyway).
+_READ_FIRST = ([b"v"], [b"vt"], [b"vn"], [b"f"])
+
+
+def _obj_lines(f):
+    """The lines of the OBJ file open as ``f`` (binary), without their newline, each with
+    whether its part of the file holds a form feed, vertical tab or carriage return (then
+    the line is checked for them: :func:`_obj_separators`): read a megabyte at a time, so
+    that those bytes are looked for once a block rather than once a line. A line longer
+    than :data:`MAX_OBJ_LINE_BYTES` is refused as soon as it is (never held whole)."""
+    rest, number = b"", 0
+    for block in iter(lambda: f.read(_CHUNK), b""):
+        block = rest + block
+        cut = block.rfind(b"\n") + 1
+        lines = block[:cut].split(b"\n")
+        lines.pop()                              # after the last newline: the next block's
+        rest = block[cut:]
+        for line in lines:
+            number += 1
+            if len(line) > MAX_OBJ_LINE_BYTES:
+                raise _long_line(number)
+        if len(rest) > MAX_OBJ_LINE_BYTES:
+            raise _long_line(number + 1)
+        odd = b"\r" in block or b"\x0b" in block or b"\x0c" in block
+        for line in lines:
+            yield line, odd
+    if rest:
+        yield rest, b"\r" in rest or b"\x0b" in rest or b"\x0c" in rest
+
+
+def _long_line(number: int) -> MeshFileError:
+    return MeshFileError(f"line {number} is longer than {MAX_OBJ_LINE_BYTES} bytes, the most "
+                         f"Mitsuba's OBJ reader takes")
+
+
+def _obj_separators(text: bytes, number: int) -> None:
+    """Refuse a statement line (``text``: without its comment and newline) that Mitsuba
+    3.9's OBJ reader splits otherwise than into its words: it separates them by spaces and
+    tabs only, so a form feed, vertical tab, or carriage return other than the line's last
+    character drops the line or fails it ("could not parse line")."""
+    if b"\x0b" in text or b"\x0c" in text or b"\r" in text.rstrip(b"\r"):
+        raise MeshFileError(f"line {number}: a form feed, vertical tab or carriage return "
+                            f"within the line; Mitsuba's OBJ reader separates numbers by "
+                            f"spaces and tabs only")
 
 
 def _obj_numbers(words, number, plain: bool) -> tuple[float, ...]:

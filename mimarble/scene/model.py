@@ -792,13 +792,17 @@ class Mesh:
     ``mimarble bake``. ``file`` is as written, ``path`` where the parser found it
     (relative to the scene file; built in Python without ``path``, ``file`` is taken
     from the working directory); ``pos`` is the file string's, where errors about the
-    file point."""
+    file point. ``digest``: the SHA-256 of the file's bytes as the parser read them
+    (``MeshFacts.digest``; None built in Python), so that two parses of a file rewritten
+    in between are two models, for every cache keyed by the model (the loaded scenes'
+    translations, a sweep's resume check, the bench's reference images)."""
 
     material: str
     file: str
     path: str | None = None
     transform: tuple = ()
     pos: Pos | None = _pos()
+    digest: str | None = None
 
     def __post_init__(self) -> None:
         _material_name(self)
@@ -888,6 +892,12 @@ class Scene:
             problem = rules.unknown_material(shape.material, self.materials)
             if problem:
                 raise ValueError(problem)
+        for light in lights:
+            if isinstance(light.area, SphereArea):
+                problem = rules.area_light_enclosure_problem(
+                    light.position, light.area.radius, self.camera.eye, self.camera.lookat)
+                if problem:
+                    raise ValueError(problem)
         _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, spheres=spheres,
                planes=planes, boxes=boxes, meshes=meshes)
 

@@ -246,6 +246,10 @@ def load(path: str | os.PathLike) -> Scene:
     filename = os.fspath(path)
     if isinstance(filename, bytes):
         filename = os.fsdecode(filename)
+    if filename == "" or "\0" in filename:    # "" is the current folder to the system
+        raise SceneError("cannot read scene file: " + (
+            "the name is empty" if not filename else
+            "the name holds a NUL character, which no file name can"), filename=repr(filename))
     try:
         with open_regular(path) as f:
             if os.fstat(f.fileno()).st_size > MAX_SCENE_BYTES:
@@ -426,6 +430,7 @@ class _Builder:
         once: dict[str, Tree] = {}
         image, camera, ambient = Image(), Camera(), (0.0, 0.0, 0.0)
         lights: list[Light] = []
+        light_at: list[Tree] = []       # each light's statement
         materials: dict[str, Material] = {}
         material_at: dict[str, Token] = {}
         # Every shape, in file order: (shape, its material's name token, whether it has
@@ -455,6 +460,7 @@ class _Builder:
                 ambient = self.color(st.children[0], "ambient")
             elif kind == "light":
                 lights.append(self.light(st))
+                light_at.append(st)
             elif kind == "material":
                 name_tok = st.children[0]
                 mat = self.material(st)
@@ -482,6 +488,14 @@ class _Builder:
                 kind = type(shape).__name__.lower()
                 raise self.error(name_tok, rules.image_map_uv_problem(shape.material,
                                                                       _NO_UV[kind]))
+        for light, st in zip(lights, light_at):   # against the camera, wherever it is
+            if isinstance(light.area, SphereArea):
+                problem = rules.area_light_enclosure_problem(light.position, light.area.radius,
+                                                             camera.eye, camera.lookat)
+                if problem:
+                    area = self.fields(st, "'light' block")["area"]
+                    raise self.error(self.fields(area, "'area' block")["radius"].children[0],
+                                     problem)
         of = {kind: tuple(s for s, _, _ in shapes if isinstance(s, kind))
               for kind in (Sphere, Plane, Box, Mesh)}
         return Scene(
@@ -645,8 +659,9 @@ class _Builder:
         axis1, axis2 = (self.point(f[k].children[0], k) for k in ("axis1", "axis2"))
         problem = rules.area_axes_problem(axis1, axis2)
         if problem:
-            zero = "axis1" if not any(axis1) else "axis2"
-            raise self.error(f[zero] if "zero" in problem else f["axis2"], problem)
+            at = ("axis1" if not any(axis1) else "axis2") if "zero" in problem else \
+                "axis1" if "axis1 is too small" in problem else "axis2"
+            raise self.error(f[at], problem)
         return RectangleArea(axis1, axis2, samples, pos=_pos_of(st))
 
     def material(self, st: Tree) -> Material:
@@ -978,5 +993,6 @@ class _Builder:
             raise self.error(tok, problem)
         steps = self.transform(f["transform"]) if "transform" in f else ()
         # Its position is the file string's, where every error about the file points.
-        mesh = Mesh(_name(name_tok), name, path, steps, pos=Pos(tok.line, tok.column))
+        mesh = Mesh(_name(name_tok), name, path, steps, pos=Pos(tok.line, tok.column),
+                    digest=facts.digest)
         return mesh, name_tok, facts.has_uv

@@ -14,14 +14,16 @@ from __future__ import annotations
 import math
 import numbers
 
-from .limits import (FLT_MAX, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
+from ..marble_parameters import single_precision
+from .limits import (FLT_MAX, FLT_MIN_NORMAL, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
                      MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES,
                      MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES, MAX_MESH_TRIANGLES)
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
            "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
-           "light_samples_problem", "area_axes_problem", "area_radius_problem", "cross",
+           "light_samples_problem", "area_axes_problem", "area_radius_problem",
+           "area_light_enclosure_problem", "cross",
            "depth_problem", "size_problem", "mean_free_path_problem", "ior_problem", "listed_names", "shortened", "normal_problem",
            "box_problem", "mesh_format_problem", "texture_name_problem",
            "mesh_triangles_problem", "image_map_uv_problem"]
@@ -39,7 +41,7 @@ def number_problem(value: float) -> str | None:
     if not math.isfinite(value):
         return "is not finite"
     if abs(value) > FLT_MAX:
-        return "is too large: the renderer is single precision, |x| <= 3.4e38"
+        return f"is too large: the renderer is single precision, |x| <= {FLT_MAX!r}"
     return None
 
 
@@ -58,8 +60,15 @@ def colour_problem(value: float, what: str) -> str | None:
 
 
 def fov_problem(fov: float) -> str | None:
-    """The full vertical field of view, in degrees: 0 < fov < 180."""
-    return None if 0 < fov < 180 else "fov must be in (0, 180) degrees"
+    """The full vertical field of view, in degrees: 0 < fov < 180, and > 0 in single
+    precision too (Mitsuba's perspective camera refuses a fov its float32 holds as 0; the
+    reference tracer would render it: one rule for both)."""
+    if not 0 < fov < 180:
+        return "fov must be in (0, 180) degrees"
+    if single_precision(fov) == 0:
+        return (f"fov must be > 0 in single precision (the renderer's): at least "
+                f"{FLT_MIN_NORMAL!r} degrees")
+    return None
 
 
 def _sub(a, b):
@@ -144,12 +153,35 @@ def radius_problem(radius: float) -> str | None:
     return None if radius > 0 else "radius must be > 0"
 
 
+def _too_small(what: str) -> str:
+    return (f"{what} is too small: below {FLT_MIN_NORMAL!r} (float32's smallest normal "
+            f"number) it is 0 in single precision (the renderer's)")
+
+
 def area_radius_problem(radius: float) -> str | None:
-    """A spherical area light's radius: > 0 and within :data:`MAX_AREA_LIGHT_SIZE`."""
+    """A spherical area light's radius: > 0, > 0 in single precision too, and within
+    :data:`MAX_AREA_LIGHT_SIZE`."""
     if radius > MAX_AREA_LIGHT_SIZE:
         return (f"an area light's radius must be at most {MAX_AREA_LIGHT_SIZE:g} (squared, "
                 f"it must stay finite in single precision)")
+    if radius > 0 and single_precision(radius) == 0:
+        return _too_small("an area light's radius")
     return radius_problem(radius)
+
+
+def area_light_enclosure_problem(position, radius: float, eye, lookat) -> str | None:
+    """A spherical area light that encloses the camera's eye or look-at point: whitted mode
+    and the reference light what it encloses (the light's samples face each shaded point),
+    path mode does not (Mitsuba's sphere emits outwards, and its black surface hides what
+    is inside from an eye outside): refused, one rule for every renderer."""
+    for name, point in (("eye", eye), ("lookat", lookat)):
+        distance = math.dist(position, point)
+        if radius >= distance:
+            return (f"an area light's sphere encloses the camera's {name} (radius {radius:g}, "
+                    f"the {name} {distance:.6g} from its centre): a spherical light lights "
+                    f"outwards only in path mode, so what it encloses would be dark there; "
+                    f"keep the light outside the scene")
+    return None
 
 
 def shininess_problem(shininess: float) -> str | None:
@@ -172,16 +204,21 @@ def light_samples_problem(samples: float) -> str | None:
 
 
 def area_axes_problem(axis1, axis2) -> str | None:
-    """A rectangular area light's edges: neither zero, not parallel (they span a
-    parallelogram of non-zero area, in float32 too)."""
+    """A rectangular area light's edges: neither zero, nor zero in single precision (every
+    number below float32's smallest normal one: "too small"), not parallel (they span a
+    parallelogram of non-zero area). Lengths by ``math.hypot``, which does not underflow:
+    an axis of 1e-170 is tiny, not zero."""
     spanned = cross(axis1, axis2)
-    lengths = [math.sqrt(sum(c * c for c in v)) for v in (axis1, axis2)]
+    lengths = [math.hypot(*v) for v in (axis1, axis2)]
     if min(lengths) == 0:
         return "an area light's axis1 and axis2 must not be zero"
+    for name, axis in (("axis1", axis1), ("axis2", axis2)):
+        if not any(single_precision(c) for c in axis):
+            return _too_small(f"an area light's {name}")
     if max(lengths) > MAX_AREA_LIGHT_SIZE:
         return (f"an area light's axis1 and axis2 must be at most {MAX_AREA_LIGHT_SIZE:g} "
                 f"long (squared, they must stay finite in single precision)")
-    if not math.sqrt(sum(c * c for c in spanned)) > 1e-6 * lengths[0] * lengths[1]:
+    if not math.hypot(*spanned) > 1e-6 * lengths[0] * lengths[1]:
         return "an area light's axis1 and axis2 must not be parallel (they span its rectangle)"
     return None
 
@@ -237,7 +274,11 @@ def mean_free_path_problem(value: float) -> str | None:
     if not value > 0:
         return "mean_free_path must be > 0 (scene units)"
     if 1.0 / value > FLT_MAX:
-        return "mean_free_path is too small: its extinction 1/mean_free_path passes 3.4e38"
+        return (f"mean_free_path is too small: its extinction 1/mean_free_path passes "
+                f"{FLT_MAX!r}")
+    if single_precision(1.0 / value) == 0:
+        return (f"mean_free_path is too large: its extinction 1/mean_free_path is 0 in single "
+                f"precision (the renderer's) past {1.0 / FLT_MIN_NORMAL!r}")
     return None
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import math
 
-from .limits import FLT_MAX
+from .limits import FLT_MAX, FLT_MIN_NORMAL
 
 __all__ = ["STEPS", "IDENTITY", "step_matrix", "compose", "step_problem", "matrix_problem"]
 
@@ -39,9 +39,6 @@ Matrix = tuple[tuple[float, float, float, float], ...]
 
 #: The identity: no transform.
 IDENTITY: Matrix = tuple(tuple(float(i == j) for j in range(4)) for i in range(4))
-
-#: float32's smallest normal number: a determinant below it vanishes in the renderer.
-_FLT_MIN_NORMAL = 2.0 ** -126
 
 
 def _rotation(axis: int, degrees: float) -> list[list[float]]:
@@ -107,10 +104,10 @@ def matrix_problem(matrix: Matrix) -> str | None:
     leaves float32's range."""
     entries = [abs(v) for row in matrix[:3] for v in row]
     if not all(v <= FLT_MAX for v in entries):
-        return "the transform's numbers grow past single precision's range (3.4e38)"
+        return f"the transform's numbers grow past single precision's range ({FLT_MAX!r})"
     largest = max(abs(v) for row in matrix[:3] for v in row[:3])
     det = abs(_determinant(matrix))
-    if largest == 0 or not det > (1e-6 * largest) ** 3 or not _FLT_MIN_NORMAL <= det <= FLT_MAX:
+    if largest == 0 or not det > (1e-6 * largest) ** 3 or not FLT_MIN_NORMAL <= det <= FLT_MAX:
         return (f"the transform squeezes some direction too far to invert in single precision "
                 f"(its 3×3 part: determinant {det:.3g}, largest entry {largest:.3g})")
     return None

@@ -1,0 +1,246 @@
+"""A path fit for the GPU (issue 37, item 7). The marble's update reads nothing back:
+``params.update()`` of values on the device (an optimiser's, arrays) waits for nothing;
+their rules are checked in the kernel (NaN everywhere while one is broken); what they
+render equals a texture loaded with the same values. Expressions' updates and means, the
+sphere table, likewise; the passes sum samples in float32 with compensation."""
+
+import math
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble.marble_parameters import ParameterError
+
+mi, dr = mimarble.mi, mimarble.dr
+
+RAMP = "0.95 0.92 0.85, 0.5 0.5 0.5, 0.12 0.08 0.06"
+
+
+def points(n=300, seed=3):
+    rng = np.random.default_rng(seed)
+    p = rng.uniform(-2.0, 2.0, (n, 3))
+    si = dr.zeros(mi.SurfaceInteraction3f, n)
+    si.p = mi.Point3f(*(mi.Float(p[:, k]) for k in range(3)))
+    return si
+
+
+def colours(texture, si):
+    return np.array(texture.eval(si)).T.astype(np.float64)
+
+
+def on_device(value: float):
+    """``value`` as a computed Dr.Jit value: no literal the host could read for free."""
+    return dr.opaque(mi.Float, value) + dr.zeros(mi.Float, 1)
+
+
+def test_an_optimisers_update_waits_for_nothing(llvm):
+    """Notebook 02's update — period, distortion and the ramp, differentiated, computed on
+    the device — under Dr.Jit's ForbidSynchronization: any wait raises. (Before: the
+    update read every value back, the ramp through numpy().)"""
+    texture = mi.load_dict({"type": "marble", "octaves": 5, "ramp": RAMP})
+    params = mi.traverse(texture)
+    period, distortion = on_device(1.35), on_device(2.25)
+    vein = mi.Color3f(0.5, 0.5, 0.5)
+    dr.enable_grad(period, distortion, vein)
+    known = mi.Color3f(params["ramp"])
+    free = dr.arange(mi.UInt32, 3) == 1
+    dr.eval(period, distortion, vein, known)
+    with dr.scoped_set_flag(dr.JitFlag.ForbidSynchronization, True):
+        params["period"], params["distortion"] = period, distortion
+        params["ramp"] = dr.select(free, vein, known)
+        params.update()
+        dr.eval(texture.eval(points(64)))      # the kernel runs, nothing is read
+
+
+@pytest.mark.parametrize("name, value, rule", [
+    ("scale", -1.0, "scale must be > 0"),
+    ("period", float("nan"), "period must be a finite number"),
+    ("gain", 1.5, "gain must be > 0 and < 1"),
+    ("lacunarity", 0.5, "lacunarity must be > 1"),
+])
+def test_a_device_edit_that_breaks_a_rule_is_nan_everywhere(llvm, name, value, rule):
+    texture = mi.load_dict({"type": "marble", "ramp": RAMP})
+    si = points()
+    before = colours(texture, si)
+    params = mi.traverse(texture)
+    params[name] = on_device(value)
+    params.update()                             # not checked here: nothing is read
+    assert np.isnan(colours(texture, si)).all()
+    with pytest.raises(ParameterError, match=rule):
+        texture.check_values()
+    params[name] = float(mi.load_dict({"type": "marble"}).editable[name][0])
+    params.update()                             # a literal again: checked on the host
+    np.testing.assert_array_equal(colours(texture, si), before)
+
+
+def test_a_non_finite_ramp_colour_on_the_device_is_nan_everywhere(llvm):
+    texture = mi.load_dict({"type": "marble", "ramp": RAMP})
+    params = mi.traverse(texture)
+    params["ramp"] = mi.Color3f([0.1, np.inf, 0.3], [0.2, 0.2, 0.2], [0.3, 0.3, 0.3])
+    params.update()
+    assert np.isnan(colours(texture, points())).all()
+    with pytest.raises(ParameterError, match="non-finite"):
+        texture.check_values()
+
+
+def test_a_literal_edit_is_still_refused_at_update(llvm):
+    texture = mi.load_dict({"type": "marble", "ramp": RAMP})
+    params = mi.traverse(texture)
+    params["scale"] = -1.0
+    with pytest.raises(ParameterError, match="scale must be > 0, found -1.0"):
+        params.update()
+
+
+def test_device_edits_render_as_a_texture_loaded_with_those_values(llvm):
+    """Every in-place value and to_world set as computed values: the colours of a texture
+    loaded with the same numbers (tolerance 0: the budget's octaves, which a value on the
+    device always keeps, are then the same). gain and lacunarity's constants are derived
+    on the device in single precision: within 1e-5."""
+    values = {"scale": 1.7, "period": 2.1, "distortion": 1.4, "gain": 0.55,
+              "lacunarity": 2.3}
+    ramp = [(0.9, 0.1, 0.2), (0.3, 0.6, 0.1), (0.05, 0.2, 0.8)]
+    moved = mi.ScalarTransform4f().translate([0.3, -0.2, 0.1]) @ \
+        mi.ScalarTransform4f().rotate([0, 0, 1], 30.0)
+    fresh = mi.load_dict({"type": "marble", "tolerance": 0.0, "octaves": 6, "to_world": moved,
+                          "ramp": ", ".join(" ".join(map(str, c)) for c in ramp), **values})
+    edited = mi.load_dict({"type": "marble", "tolerance": 0.0, "octaves": 6, "ramp": RAMP})
+    params = mi.traverse(edited)
+    for name, value in values.items():
+        params[name] = on_device(value)
+    params["ramp"] = mi.Color3f(*(mi.Float(list(column)) for column in zip(*ramp)))
+    matrix = mi.Matrix4f(np.array(moved.matrix, dtype=np.float64).reshape(4, 4).tolist())
+    params["to_world"] = mi.Transform4f(matrix + dr.zeros(mi.Matrix4f, 1))
+    params.update()
+    assert edited.spectrum.gain_value is None          # held on the device only
+    si = points(500, seed=11)
+    np.testing.assert_allclose(colours(edited, si), colours(fresh, si), atol=1e-5)
+    assert edited.max() == pytest.approx(0.9)           # read when asked
+
+
+def sphere_scene(centre=(1.0, 2.0, 3.0)):
+    return mi.load_dict({"type": "scene",
+                         "small": {"type": "sphere", "center": list(centre), "radius": 0.5},
+                         "floor": {"type": "sphere", "center": [0, -1e4, 0], "radius": 1e4}})
+
+
+def looked_up(table, scene):
+    shapes = mi.ShapePtr([s for s in scene.shapes()])
+    centre, radius = table.lookup(shapes)
+    return np.array(centre).T.tolist(), np.array(radius).tolist()
+
+
+def test_the_sphere_table_is_built_on_the_device(llvm):
+    """No wait while the table is made (before: every sphere's to_world read back), and
+    its columns are the spheres' centres and radii as the scene gives them."""
+    from mimarble.mitsuba.sphere_hit import SphereTable
+    scene = sphere_scene()
+    with dr.scoped_set_flag(dr.JitFlag.ForbidSynchronization, True):
+        table = SphereTable(scene)
+        dr.eval(table.columns)
+    centres, radii = looked_up(table, scene)
+    assert centres == [[1.0, 2.0, 3.0], [0.0, -1e4, 0.0]] and radii == [0.5, 1e4]
+    assert table.large                         # |c| + r = 2·10⁴ > 419
+
+
+def test_an_unfrozen_trace_reuses_the_table_until_a_sphere_moves(llvm):
+    from mimarble.mitsuba.sphere_hit import SphereTable
+    scene = sphere_scene()
+    first = SphereTable.for_trace(scene)
+    assert SphereTable.for_trace(scene) is first
+    params = mi.traverse(scene)
+    params["small.to_world"] = mi.ScalarTransform4f().translate([4.0, 5.0, 6.0]).scale(0.25)
+    params.update()
+    moved = SphereTable.for_trace(scene)
+    assert moved is not first
+    centres, radii = looked_up(moved, scene)
+    assert centres[0] == [4.0, 5.0, 6.0] and radii[0] == 0.25
+    SphereTable.forget(scene)
+
+
+def test_an_expressions_update_and_mean_read_nothing_back(llvm):
+    """An edit of a marble inside a sum: params.update() and mean() (which Mitsuba's BSDFs
+    call when their parameters change) wait for nothing, and the mean is the edited
+    marble's mean plus the colour's luminance, as a marble loaded with that ramp gives."""
+    from mimarble import scene as S
+    from mimarble.mitsuba import texture_dict
+    red = (0.8, 0.1, 0.1)
+    expression = mi.load_dict(texture_dict(S.Add((S.MarbleChannel(octaves=6),
+                                                  S.ColorChannel(red)))))
+    expression.mean()                            # at load: made once (may read)
+    params = mi.traverse(expression)
+    key = next(k for k in params.keys() if k.endswith("ramp"))
+    ramp = [(0.2, 0.3, 0.4), (0.9, 0.5, 0.1)]
+    dr.eval(new := mi.Color3f(*(mi.Float(list(column)) for column in zip(*ramp))))
+    with dr.scoped_set_flag(dr.JitFlag.ForbidSynchronization, True):
+        params[key] = new
+        params.update()
+        mean = expression.mean()
+        dr.eval(mean)
+    fresh = mi.load_dict({"type": "marble", "ramp": "0.2 0.3 0.4, 0.9 0.5 0.1"})
+    red_luminance = 0.212671 * red[0] + 0.715160 * red[1] + 0.072169 * red[2]
+    assert float(mean[0]) == pytest.approx(float(fresh.mean()[0]) + red_luminance, rel=1e-5)
+
+
+def test_compensated_sums_hold_the_exact_sum(llvm):
+    """Runs of float32 values of mixed sizes and signs: the compensated sum is the exact
+    sum (math.fsum of the same numbers) to 2⁻⁴⁰ of Σ|x|, where float32's plain running
+    sum is far off."""
+    from mimarble.mitsuba.passes import compensated_block_sum
+    rng = np.random.default_rng(5)
+    block, runs = 64, 500
+    values = (rng.standard_normal((runs, block)) * 10.0 ** rng.integers(-6, 4, (runs, block))
+              ).astype(np.float32)
+    ours = np.array(compensated_block_sum(mi.Float(values.ravel()), block,
+                                          dr.opaque(mi.UInt32, block)))
+    exact = np.array([math.fsum(map(float, run)) for run in values])
+    scale = np.abs(values.astype(np.float64)).sum(axis=1)
+    assert (np.abs(ours - exact) <= 2.0 ** -40 * scale).all()
+    plain = np.cumsum(values, axis=1, dtype=np.float32)[:, -1].astype(np.float64)
+    assert (np.abs(plain - exact) > 2.0 ** -30 * scale).mean() > 0.5
+
+
+def test_the_kernel_that_traces_the_samples_computes_in_float32(llvm):
+    """The pass's widest kernel (every sample) holds no float64 operation (before: each
+    sample's radiance was converted to float64 for the sums there)."""
+    from mimarble import scene as S
+    from mimarble.mitsuba.render import render_in_passes
+    from mimarble.scene_edits import resized
+    scene = S.load("scenes/fig11a.scene")
+    loaded = mi.load_dict(mimarble.to_mitsuba(resized(scene, 16), spp=4))
+    render_in_passes(loaded, 4)
+    with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
+        render_in_passes(loaded, 4)
+        kernels = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
+    widest = max(kernels, key=lambda k: k["size"])
+    assert widest["size"] == 16 * 16 * 4 and "double" not in widest["ir"].getvalue()
+
+
+def test_a_media_update_waits_for_nothing_and_a_broken_scale_on_the_device_is_nan(llvm):
+    """marble_medium: a scale computed on the device is not read at the update (before:
+    scale and the bound read back); a negative one makes every path through the medium
+    NaN, where a literal -1 is still refused at the update."""
+    from mimarble.mitsuba.marble_medium import MarbleMediumError
+    medium = {"type": "marble_medium", "albedo": {"type": "marble", "ramp": RAMP},
+              "density": {"type": "marble", "ramp": RAMP}}
+    scene = mi.load_dict({
+        "type": "scene", "integrator": {"type": "volpath", "max_depth": 64},
+        "sensor": {"type": "perspective", "fov": 30,
+                   "to_world": mi.ScalarTransform4f().look_at([0, 0, 5], [0, 0, 0], [0, 1, 0]),
+                   "film": {"type": "hdrfilm", "width": 16, "height": 16},
+                   "sampler": {"type": "independent", "sample_count": 4}},
+        "sky": {"type": "constant"},
+        "sphere": {"type": "sphere", "bsdf": {"type": "null"}, "interior": medium}})
+    params = mi.traverse(scene)
+    key = next(k for k in params.keys() if k.endswith("interior_medium.scale"))
+    before = np.array(mi.render(scene, spp=4))
+    centre = before[6:10, 6:10]
+    assert np.isfinite(before).all() and centre.mean() < 0.99 * before[0, 0].mean()
+    with dr.scoped_set_flag(dr.JitFlag.ForbidSynchronization, True):
+        params[key] = on_device(-1.0)
+        params.update()
+    broken = np.array(mi.render(scene, spp=4))
+    assert np.isnan(broken[6:10, 6:10]).all() and np.isfinite(broken[0, 0]).all()
+    params[key] = -1.0
+    with pytest.raises(MarbleMediumError, match="scale=-1.0 must be a finite number > 0"):
+        params.update()
