@@ -96,12 +96,27 @@ def held_maximum(texture) -> tuple:
     that Mitsuba told only another parent of (``mi.traverse`` tells a node's first
     parent). Any other texture's ``max()``, a Python float read now, and also the second
     item: what a recording's key must hold, since a kernel traced with it holds it as a
-    constant. ``max()`` itself may raise (not implemented: ``checkerboard``)."""
+    constant. ``max()`` itself may raise (not implemented: ``checkerboard``).
+
+    A recording (``dr.freeze``) may not read a value back, and ``srgb``'s and ``uniform``'s
+    ``max()`` read theirs: inside one, the value read last outside it is used — the one
+    the recording's key holds, read by that key's :func:`recording_key` just before."""
     own = getattr(texture, "held_maximum", None)
     if own is not None:
         return own()
-    value = float(texture.max())
+    value = None
+    if dr.is_jit_v(mi.Float) and dr.flag(dr.JitFlag.FreezingScope):
+        value = _maxima_read.get(id(texture))
+    if value is None:
+        value = float(texture.max())
+        if len(_maxima_read) >= 256:
+            _maxima_read.pop(next(iter(_maxima_read)))
+        _maxima_read[id(texture)] = value
     return value, (value,)
+
+
+#: Mitsuba textures' ``max()`` as :func:`held_maximum` last read them outside a recording.
+_maxima_read: dict[int, float] = {}
 
 
 # kind -> (mitsuba base class name, registration function name)

@@ -326,7 +326,8 @@ REFUSED = {
         "the PLY vertex element has a property v without its pair beside texture_u and "
         "texture_v"),
     "a header word split at \\x1c": ("m.ply", ply(XYZ + "3 0 1 2\n").replace(
-        b"element face", b"element\x1cface"), "PLY header line 7: unknown keyword 'element\x1cface'"),
+        b"element face", b"element\x1cface"),
+        "PLY header line 7: unknown keyword 'element\x1cface'"),
     # OBJ: lines Mitsuba's OBJ reader drops or refuses, which the reference read
     "a form feed after v": ("m.obj", b"v\x0c0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\n",
                             "line 1: a form feed, vertical tab or carriage return"),
@@ -439,8 +440,9 @@ def test_large_texture_coordinates_under_an_image_map_are_warned_of(llvm, tmp_pa
     step = np.spacing(np.float32(extent))         # float32's step there: a texel of 8192
     assert (step >= 2.0 ** -13 and extent > MAX_PRECISE_UV) if warned else step <= 2.0 ** -13
     if warned:
+        written = float(np.float32(extent)) if kind == "ply" else extent   # a PLY's float
         assert said == [f"{tmp_path / 's.scene'}:2:13: mesh file 'm.{kind}' has texture "
-                        f"coordinates up to {float(np.float32(extent)) if kind == 'ply' else extent:g}, "
+                        f"coordinates up to {written:g}, "
                         f"past ±1024: Mitsuba holds them in float32, whose step there "
                         f"({float(np.spacing(np.float32(extent))):.2g}) reaches a texel of a "
                         f"large image map, so its image may differ from the reference's there "

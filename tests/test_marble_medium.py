@@ -349,3 +349,24 @@ def test_an_edit_of_a_shared_density_moves_the_bound_of_a_medium_it_was_not_told
 
 def rendered_scene(scene, seed=3):
     return np.array(mi.render(scene, seed=seed))
+
+
+def test_a_mitsuba_density_texture_edited_elsewhere_records_its_new_maximum(llvm, monkeypatch):
+    # Mitsuba's srgb as a density shared with a surface: its max() is read before each pass
+    # (outside the recording, where reading is allowed) and is part of the key, so the
+    # replay after the edit is a fresh trace's image and a fresh load's, not the old bound's.
+    from mimarble.mitsuba.render import render_in_passes
+    scene_dict = shared_density_scene(((0.3, 0.3, 0.3), (0.9, 0.9, 0.9)), "marble")
+    scene_dict["veins"] = {"type": "srgb", "color": [0.3, 0.3, 0.3], "id": "veins"}
+    scene = mi.load_dict(scene_dict)
+    for _ in range(2):
+        render_in_passes(scene, 4, "path")
+    params = mi.traverse(scene)
+    (key,) = [k for k in params.keys() if k.endswith("veins.value")]
+    params[key] = mi.Color3f(0.8, 0.8, 0.8)
+    params.update()
+    replayed = render_in_passes(scene, 4, "path")
+    monkeypatch.setenv("MIMARBLE_FREEZE", "0")
+    np.testing.assert_array_equal(replayed, render_in_passes(scene, 4, "path"))
+    scene_dict["veins"]["color"] = [0.8, 0.8, 0.8]
+    np.testing.assert_array_equal(replayed, render_in_passes(mi.load_dict(scene_dict), 4, "path"))

@@ -306,7 +306,7 @@ def test_a_recording_stopped_by_a_plugin_error_raises_that_error(llvm):
 # change in a loaded scene, so only another scene could share a recording with different
 # ones — one that took a freed scene's id. Simulated here by giving every scene one id.
 
-def _bitmap_scene(filter_type, wrap_mode, variant_image):
+def _bitmap_scene(filter_type, wrap_mode, image):
     return mi.load_dict({
         "type": "scene", "integrator": {"type": "path", "max_depth": 2},
         "sensor": {"type": "perspective", "fov": 40,
@@ -315,7 +315,7 @@ def _bitmap_scene(filter_type, wrap_mode, variant_image):
                    "sampler": {"type": "independent", "sample_count": 1}},
         "sky": {"type": "constant"},
         "quad": {"type": "rectangle", "bsdf": {"type": "diffuse", "reflectance": {
-            "type": "bitmap", "data": mi.TensorXf(variant_image), "raw": True,
+            "type": "bitmap", "data": mi.TensorXf(image), "raw": True,
             "filter_type": filter_type, "wrap_mode": wrap_mode,
             "to_uv": mi.ScalarTransform4f().scale([3.0, 3.0, 1.0]).translate([-0.4, -0.4, 0])}}}})
 

@@ -28,7 +28,8 @@ Without a ``density_bound`` the kernel reads the density texture's own held maxi
 operands'), not a copy made when the medium was last told of a change: ``mi.traverse``
 tells only a texture's first parent of an edit, and a density shared with a surface is
 often first reached through the surface. Mitsuba's textures give their ``max()``, read
-when the kernel is traced and part of the recording's key (:meth:`recording_key`).
+when the kernel is traced (inside a recording: as read for its key just before) and part
+of the recording's key (:meth:`recording_key`).
 
 The medium is unbounded (``intersect_aabb``: [0, ∞) for every ray, as ``homogeneous``):
 the shape whose ``interior`` it is bounds it.

@@ -165,13 +165,17 @@ class SphereTable:
         spheres = [s for s in self.shapes if s.shape_type() == mi.ShapeType.Sphere]
         if dr.is_jit_v(mi.Float):
             # A shape's id: a literal (its registry pointer), read without waiting.
-            ids = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in spheres]
-            size = max(ids, default=0) + 1
+            # Every shape's id sizes the table (a hit's id indexes it, clamped to its
+            # end): a plane or mesh whose id is past the last sphere's must find r = 0.
+            ids = {s: int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0])
+                   for s in self.shapes}
+            size = max(ids.values(), default=0) + 1
             index = dr.arange(mi.UInt32, size)
             # cx, cy, cz, r; r = 0: not a sphere. One select per sphere and column, all
             # evaluated in one kernel by make_opaque.
             columns = [dr.zeros(mi.Float64, size) for _ in range(4)]
-            for shape_id, shape in zip(ids, spheres):
+            for shape in spheres:
+                shape_id = ids[shape]
                 centre, radius = _sphere_placement(shape)
                 columns = [dr.select(index == shape_id, value, column) for column, value
                            in zip(columns, (centre.x, centre.y, centre.z, radius))]

@@ -42,8 +42,9 @@ What is read (and what is refused, in one sentence each):
   refused, as Mitsuba refuses it), split into words where C++'s ``>>`` splits them. An
   ascii body's every word is read as Mitsuba reads it, with ``>>`` of its property's type:
   integers written as whole numbers within their type's range, floating-point numbers
-  finite within their type's (a ``half`` below 65520). Integer coordinates are refused: Mitsuba reads an integer property as a
-  fraction of its type's range, so the two renderers would place the mesh differently.
+  finite within their type's (a ``half`` below 65520). Integer coordinates are refused:
+  Mitsuba reads an integer property as a fraction of its type's range, so the two
+  renderers would place the mesh differently.
   The faces must be **triangles**: Mitsuba's ``ply`` plugin reads a face's list as a
   length checked to be 3 and three indices, so :func:`mesh_facts` walks the body
   (:func:`_ply_body`: stepped slices of a binary one, the words of an ascii one) and
