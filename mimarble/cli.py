@@ -486,14 +486,21 @@ def _gallery(args) -> int:
         if problem:
             raise UsageError(f"{path}: the gallery names each image after its scene file, "
                              f"and {problem}")
-    folder = _new_folder(args.output, "-o")
     _start(args)
+    from .environment import EnvironmentProblem, whitted_problem
+    import mitsuba as mi
+    problem = whitted_problem(mi.variant()) if args.mode == "whitted" else None
+    if problem:                     # before a folder is made
+        raise UsageError(problem)
+    folder = _new_folder(args.output, "-o")
     from .gallery import make_gallery
     written = 0
     try:
         for out, seconds in make_gallery(scenes, folder, args.size, args.mode):
             written += 1
             _say(f"{out} ({seconds:.2f} s)")
+    except EnvironmentProblem:
+        raise                       # what cannot render here (a variant), said as itself
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{folder}: could not write the gallery: {e}") from None
     _say(f"wrote {written} image{'s' * (written != 1)} to {folder}{os.sep}")

@@ -18,3 +18,12 @@ def mimarble_cli(*args, cwd=ROOT):
                             env=env, capture_output=True, text=True, timeout=300)
     sys.stderr.write(result.stderr)
     return result
+
+
+def one_sentence(result):
+    """Exit 2, no traceback, one line on stderr: the sentence."""
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("mimarble: "), result.stderr
+    return lines[0]

@@ -161,6 +161,16 @@ def test_gallery_into_a_file_is_a_clear_error(tmp_path, small_scene):
     assert result.returncode == 2 and "not a folder" in result.stderr
 
 
+def test_a_whitted_gallery_in_a_spectral_variant_is_one_sentence_and_makes_no_folder(
+        tmp_path, small_scene):
+    result = mimarble_cli("--variant", "llvm_ad_spectral", "gallery", small_scene,
+                          "-o", tmp_path / "g")
+    assert result.returncode == 2 and "Traceback" not in result.stderr
+    line, = result.stderr.strip().splitlines()
+    assert "computes in RGB" in line and "could not write" not in line
+    assert not (tmp_path / "g").exists()
+
+
 def test_too_many_samples_are_refused(small_scene):
     result = mimarble_cli("render", small_scene, "--spp", str(2 ** 40))
     assert result.returncode == 2 and "samples" in result.stderr

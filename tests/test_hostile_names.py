@@ -6,7 +6,7 @@ import os
 import unicodedata
 
 import pytest
-from commands import mimarble_cli  # noqa: E402
+from commands import mimarble_cli, one_sentence  # noqa: E402
 
 from mimarble import packaged_scenes
 from mimarble.files import output_name_problem
@@ -19,13 +19,6 @@ SCENE = ('image { width 8 height 8 } camera { eye < 0 0 6 > } light { position <
 NOT_UTF8 = os.fsdecode(b"o\xff.png")
 
 
-def one_sentence(result):
-    """Exit 2, no traceback, one line on stderr: the sentence."""
-    assert result.returncode == 2, result.stderr
-    assert "Traceback" not in result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("mimarble: "), result.stderr
-    return lines[0]
 
 
 def acting(text: str) -> list:

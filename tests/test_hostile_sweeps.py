@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from commands import mimarble_cli as cli  # noqa: E402
+from commands import mimarble_cli as cli, one_sentence  # noqa: E402
 
 from mimarble import scene as S
 from mimarble import contact_sheet, sweeps
@@ -30,13 +30,6 @@ def tiny():
 
 
 
-def one_sentence(result):
-    """Exit 2, no traceback, one line on stderr: the sentence."""
-    assert result.returncode == 2, result.stderr
-    assert "Traceback" not in result.stderr
-    lines = result.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("mimarble: "), result.stderr
-    return lines[0]
 
 
 @pytest.fixture

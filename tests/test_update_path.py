@@ -130,14 +130,12 @@ def looked_up(table, scene):
     return np.array(centre).T.tolist(), np.array(radius).tolist()
 
 
-def test_the_sphere_table_is_built_on_the_device(llvm):
-    """No wait while the table is made (before: every sphere's to_world read back), and
-    its columns are the spheres' centres and radii as the scene gives them."""
+def test_the_sphere_table_holds_each_spheres_centre_and_radius(llvm):
+    """Its columns are the spheres' centres and radii as the scene gives them, looked up
+    by the hit shape's id."""
     from mimarble.mitsuba.sphere_hit import SphereTable
     scene = sphere_scene()
-    with dr.scoped_set_flag(dr.JitFlag.ForbidSynchronization, True):
-        table = SphereTable(scene)
-        dr.eval(table.columns)
+    table = SphereTable(scene)
     centres, radii = looked_up(table, scene)
     assert centres == [[1.0, 2.0, 3.0], [0.0, -1e4, 0.0]] and radii == [0.5, 1e4]
     assert table.large                         # |c| + r = 2·10⁴ > 419
@@ -198,6 +196,30 @@ def test_compensated_sums_hold_the_exact_sum(llvm):
     assert (np.abs(ours - exact) <= 2.0 ** -40 * scale).all()
     plain = np.cumsum(values, axis=1, dtype=np.float32)[:, -1].astype(np.float64)
     assert (np.abs(plain - exact) > 2.0 ** -30 * scale).mean() > 0.5
+
+
+@pytest.mark.parametrize("block", [1, 3, 4, 16])
+def test_compensated_sums_of_huge_and_non_finite_samples_are_the_float64_sums(llvm, block):
+    """Samples up to float32's largest, ±∞ and NaN: the sum is float64's (math.fsum of the
+    same numbers; ∞ and NaN where float64 gives them), never a NaN made by the
+    compensation (∞ − ∞) nor an overflow of the float32 running total."""
+    from mimarble.mitsuba.passes import compensated_block_sum
+    rng = np.random.default_rng(11)
+    big = np.float32(3.4e38)
+    runs = [np.full(block, big), np.full(block, -big), rng.uniform(-1, 1, block) * big,
+            np.r_[np.full(block - 1, 1.0), np.inf], np.r_[np.full(block - 1, big), -np.inf],
+            np.r_[np.full(block - 1, 2.0), np.nan], rng.standard_normal(block)]
+    values = np.array(runs, dtype=np.float32)
+    for opaque in (None, dr.opaque(mi.UInt32, block)):
+        ours = np.array(compensated_block_sum(mi.Float(values.ravel()), block, opaque))
+        for run, got in zip(values, ours):
+            as_double = run.astype(np.float64)
+            expected = math.fsum(as_double) if np.isfinite(as_double).all() \
+                else float(np.sum(as_double))
+            if np.isnan(expected):
+                assert np.isnan(got)
+            else:
+                assert got == pytest.approx(expected, rel=1e-12, abs=0.0), (run, got)
 
 
 def test_the_kernel_that_traces_the_samples_computes_in_float32(llvm):

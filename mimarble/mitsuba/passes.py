@@ -263,21 +263,35 @@ def compensated_block_sum(values, block: int, opaque_block=None):
     Color3f), as float64 (Float64 or Color3d, one lane per run): Neumaier's compensated
     summation in float32, in lane order — s ← s + x, c ← c + ((s_old − s) + x) where
     |s_old| ≥ |x|, else c ← c + ((x − s) + s_old) — whose pair s + c holds the sum to
-    O(n·ε²)·Σ|x| (ε = 2⁻²⁴), then s + c in float64. Dr.Jit's simplifications keep the
-    compensation: its FastMath folds only products with literal zeros, and LLVM and PTX
-    are given no reassociation. One kernel, a loop of ``block`` steps over the runs;
-    ``opaque_block``: ``block`` as an opaque UInt32, which the kernel reads instead, so that
-    every ``block`` (the spp) runs the same compiled kernel."""
+    O(n·ε²)·Σ|x| (ε = 2⁻²⁴), then s + c in float64.
+
+    The samples are summed scaled by 2⁻ᵉ, 2ᵉ ≥ ``block``, and the float64 pair scaled back
+    by 2ᵉ: powers of two scale exactly, so the sum is the unscaled one's bits wherever
+    neither underflows (|x| ≥ 2⁻¹²⁶⁺ᵉ), and the float32 total, at most max|x|, cannot
+    overflow where float64 would not (the sum of finite samples up to float32's largest
+    stays finite, as a float64 sum does). Where a sample is ±∞ or NaN the total is, and
+    the compensation (∞ − ∞) is left out: the sum is what float64 gives.
+
+    Dr.Jit's simplifications keep the compensation: its FastMath folds only products with
+    literal zeros, and LLVM and PTX are given no reassociation. One kernel, a loop of
+    ``block`` steps over the runs; ``opaque_block``: ``block`` as an opaque UInt32, which
+    the kernel reads instead (and the scales as opaque values), so that every ``block``
+    (the spp) runs the same compiled kernel."""
     wide = mi.Color3d if dr.depth_v(values) > 1 else mi.Float64
     kind = type(values)
     runs = dr.width(values) // block
-    steps = block if opaque_block is None else opaque_block
+    exponent = max(block - 1, 0).bit_length()            # 2^exponent ≥ block
+    down, up = 2.0 ** -exponent, 2.0 ** exponent
+    steps = block
+    if opaque_block is not None:
+        steps = opaque_block
+        down, up = dr.opaque(mi.Float, down), dr.opaque(mi.Float64, up)
     start = dr.arange(mi.UInt32, runs) * steps
     k = dr.zeros(mi.UInt32, runs)
     total, compensation = dr.zeros(kind, runs), dr.zeros(kind, runs)
 
     def add(k, total, compensation):
-        x = dr.gather(kind, values, start + k)
+        x = dr.gather(kind, values, start + k) * down
         new_total = total + x
         lost = dr.select(dr.abs(total) >= dr.abs(x), (total - new_total) + x,
                          (x - new_total) + total)
@@ -285,7 +299,8 @@ def compensated_block_sum(values, block: int, opaque_block=None):
 
     _, total, compensation = dr.while_loop((k, total, compensation),
                                            lambda k, total, compensation: k < steps, add)
-    return wide(total) + wide(compensation)
+    pair = dr.select(dr.isfinite(total), wide(total) + wide(compensation), wide(total))
+    return pair * up
 
 
 def _pass_function(scene):

@@ -62,32 +62,13 @@ def spheres_only(scene) -> bool:
 
 
 def _sphere_geometry(shape):
-    """(centre, radius) of a Mitsuba sphere as float64 Python numbers, else None (the
-    scalar variant, whose values are on the host)."""
+    """(centre, radius) of a Mitsuba sphere as float64 Python numbers, else None."""
     if shape.shape_type() != mi.ShapeType.Sphere:
         return None
     m = transform_matrix(mi.traverse(shape)["to_world"])
     centre = (float(m[0, 3]), float(m[1, 3]), float(m[2, 3]))
     radius = float((m[0, 0] ** 2 + m[1, 0] ** 2 + m[2, 0] ** 2) ** 0.5)   # as Mitsuba's sphere
     return centre, radius
-
-
-def _sphere_placement(shape):
-    """(centre: Point3d, radius: Float64) of a Mitsuba sphere from its ``to_world`` as
-    Dr.Jit values, computed on the device (nothing read back): the centre is the
-    translation, the radius the length of the first column, in float64, as
-    :func:`_sphere_geometry` and Mitsuba's sphere."""
-    m = mi.traverse(shape)["to_world"].matrix
-    column = [mi.Float64(m[k][0]) for k in range(3)]
-    radius = dr.sqrt(column[0] * column[0] + column[1] * column[1] + column[2] * column[2])
-    return mi.Point3d(*(mi.Float64(m[k][3]) for k in range(3))), radius
-
-
-def _sphere_scale(shape) -> float:
-    """max|c_k| + r of a Mitsuba sphere, from the bounding box Mitsuba keeps on the host
-    (c ± r rounded to float32): what decides :attr:`SphereTable.large`."""
-    box = shape.bbox()
-    return max(max(abs(float(box.min[k])), abs(float(box.max[k]))) for k in range(3))
 
 
 def _placements(scene) -> list:
@@ -100,18 +81,18 @@ def _placements(scene) -> list:
 class SphereTable:
     """Centres and radii of a scene's spheres, looked up per lane by the hit shape.
 
-    A table is built from the shapes' ``to_world`` (a ``mi.traverse`` per sphere), in JIT
-    variants on the device: its columns are computed there from the transforms'
-    variables, nothing is read back (on a GPU a read waits for every queued kernel); the
-    shapes' ids are literals and the structure comes from the bounding boxes Mitsuba
-    keeps on the host. Its columns are opaque Dr.Jit arrays that the table holds
-    (``DRJIT_STRUCT``), so that a recording of the kernels (mimarble/mitsuba/replay.py)
-    takes them as inputs; what decides the traced code, :attr:`structure`, is part of the
-    recording's key. Where it comes from (:meth:`for_trace`): the table :meth:`of` keeps
-    for the scene, made again only when a shape's ``to_world`` is another Dr.Jit variable
-    (an edit; the table holds copies of them, so none can be freed and its index reused)
-    — a recorded pass uses the one its caller refreshed; the scalar variant, which
-    traces every sample, keeps one while the shapes' bounding boxes stay.
+    A table is built from the shapes' ``to_world`` (a ``mi.traverse`` per sphere), read to
+    the host once per build: the values are evaluated, so after the first read no read
+    waits for a kernel (docs/design-decisions.md, "Replaying recorded kernels", says why
+    it is not built on the device). Its columns are opaque Dr.Jit arrays that the table
+    holds (``DRJIT_STRUCT``), so that a recording of the kernels
+    (mimarble/mitsuba/replay.py) takes them as inputs; what decides the traced code,
+    :attr:`structure`, is part of the recording's key. Where it comes from
+    (:meth:`for_trace`): the table :meth:`of` keeps for the scene, made again only when a
+    shape's ``to_world`` is another Dr.Jit variable (an edit; the table holds copies of
+    them, so none can be freed and its index reused) — a recorded pass uses the one its
+    caller refreshed; the scalar variant, which traces every sample, keeps one while the
+    shapes' bounding boxes stay.
     """
 
     DRJIT_STRUCT = {"columns": list}
@@ -162,30 +143,22 @@ class SphereTable:
 
     def __init__(self, scene):
         self.shapes = list(scene.shapes())
-        spheres = [s for s in self.shapes if s.shape_type() == mi.ShapeType.Sphere]
+        self.geometry = [_sphere_geometry(s) for s in self.shapes]
         if dr.is_jit_v(mi.Float):
-            # A shape's id: a literal (its registry pointer), read without waiting.
-            # Every shape's id sizes the table (a hit's id indexes it, clamped to its
-            # end): a plane or mesh whose id is past the last sphere's must find r = 0.
-            ids = {s: int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0])
-                   for s in self.shapes}
-            size = max(ids.values(), default=0) + 1
-            index = dr.arange(mi.UInt32, size)
-            # cx, cy, cz, r; r = 0: not a sphere. One select per sphere and column, all
-            # evaluated in one kernel by make_opaque.
-            columns = [dr.zeros(mi.Float64, size) for _ in range(4)]
-            for shape in spheres:
-                shape_id = ids[shape]
-                centre, radius = _sphere_placement(shape)
-                columns = [dr.select(index == shape_id, value, column) for column, value
-                           in zip(columns, (centre.x, centre.y, centre.z, radius))]
+            # Every shape's id sizes the table (a hit's id indexes it, clamped to its end):
+            # a plane or mesh whose id is past the last sphere's finds r = 0.
+            ids = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in self.shapes]
+            size = max(ids, default=0) + 1
+            columns = [[0.0] * size for _ in range(4)]   # cx, cy, cz, r; r = 0: not a sphere
+            for shape_id, geometry in zip(ids, self.geometry):
+                if geometry is not None:
+                    (cx, cy, cz), r = geometry
+                    for column, value in zip(columns, (cx, cy, cz, r)):
+                        column[shape_id] = value
             self.size = size
-            self.columns = columns
+            self.columns = [mi.Float64(c) for c in columns]
             dr.make_opaque(*self.columns)     # evaluated, never a literal: recorded as inputs
-            scales = [_sphere_scale(s) for s in spheres]
-        else:
-            self.geometry = [_sphere_geometry(s) for s in self.shapes]
-            scales = [max(map(abs, g[0])) + g[1] for g in self.geometry if g is not None]
+        scales = [max(map(abs, g[0])) + g[1] for g in self.geometry if g is not None]
         # Whether Mitsuba's float32 error on some sphere can reach the shadow-ray offset
         # ε ≥ EPS_REL (max|c_k| + r > 419): then refine() works in float64 and occluded()
         # looks for false hits on the own sphere; below it both would change nothing.
