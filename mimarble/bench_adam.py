@@ -61,14 +61,21 @@ def adam_step(scene, marble, opt, target, seed):
     return loss
 
 
-def run(step, target, steps: int = STEPS):
-    """`steps` steps from START: per-step wall ms, kernel ms, launches; losses; final values."""
-    scene = marble_scene(**START)
+def optimiser_at_start(scene):
+    """(marble, opt): the ramp the step splices the vein colour into, and Adam holding
+    START's period, distortion and vein colour (the notebook's)."""
     marble = {"known_ramp": mi.Color3f(mi.traverse(scene)[KEY + "ramp"]),
               "free": dr.arange(mi.UInt32, 3) == 1}
     opt = mi.ad.Adam(lr=0.02)
     opt["period"], opt["distortion"] = mi.Float(START["period"]), mi.Float(START["distortion"])
     opt["vein"] = mi.Color3f(START["vein"])
+    return marble, opt
+
+
+def run(step, target, steps: int = STEPS):
+    """`steps` steps from START: per-step wall ms, kernel ms, launches; losses; final values."""
+    scene = marble_scene(**START)
+    marble, opt = optimiser_at_start(scene)
     wall, kernels, launches, losses = [], [], [], []
     with dr.scoped_set_flag(dr.JitFlag.KernelHistory, True):
         for it in range(steps):

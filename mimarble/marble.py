@@ -24,7 +24,7 @@ from .finite_arithmetic import finite_product
 from .marble_parameters import (AXES, BY_NAME, COLOURS, INTEGER, MAX_LACUNARITY, PARAMETERS,
                                 POSITIONS,
                                 MarbleParameters, ParameterError, checked, parameter_table,
-                                ramp_count_problem)
+                                parse_positions, parse_ramp, ramp_count_problem)
 from .noise import Spectrum, fractal_sum, lattice_tables
 from .plugins import Kept, RGBTexture, describe, first_number, plugin, transform_matrix
 from .ramp import Ramp, positions_storage, ramp_storage
@@ -78,6 +78,9 @@ class Marble(RGBTexture):
         self._held = Kept({name: getattr(params, name) for name in self.editable
                            if name in BY_NAME})
         self._held.value["to_world"] = _matrix(self.mapping.to_world)
+        # The host's values told of (hold), and those the host read or was given, by the
+        # Dr.Jit variable they are the value of (see _host_value).
+        self._told, self._pending = Kept({}), Kept({})
         self._changed(set())
 
     # -- Mitsuba object protocol -------------------------------------------
@@ -87,6 +90,36 @@ class Marble(RGBTexture):
             differentiable = name in BY_NAME and BY_NAME[name].in_place
             cb.put(name, value, mi.ParamFlags.Differentiable if differentiable
                    else mi.ParamFlags.NonDifferentiable)
+
+    def hold(self, name: str, value) -> None:
+        """Tell the texture the value of traversed ``name`` that was just written through
+        ``mi.traverse`` (call it after writing, before ``params.update()``), as the host
+        holds it: a number, the ramp's colours (RGB triples or its string), the positions,
+        to_world (a transform or a 4×4 matrix). A value written as a Dr.Jit array (a ramp's
+        ``Color3f``, positions) is never a literal, so without this it counts as on the
+        device and decisions that need it take the value-independent choice (every octave);
+        told, it is taken as the host's, as a fresh load takes it: the same bits as a
+        texture loaded with that value. Remembered with the Dr.Jit variable now in place,
+        so a later edit of the same key (a new variable) is not taken for it. Only a value
+        the host truly holds; it is checked at the update as a literal edit is. (The
+        loaded-scene cache tells each value it writes, mimarble/mitsuba/loaded_scenes.py.)"""
+        if name not in self.editable:
+            raise ParameterError(f"marble: {name!r} is not a traversed parameter "
+                                 f"({', '.join(self.editable)})")
+        if not dr.is_jit_v(mi.Float):    # the scalar variant reads every value anyway
+            return
+        if name == "to_world":
+            matrix = transform_matrix(value) if hasattr(value, "matrix") else value
+            host = np.array(matrix, dtype=np.float64).reshape(4, 4)
+        elif BY_NAME[name].kind == COLOURS:
+            host = parse_ramp(value, name)
+        elif BY_NAME[name].kind == POSITIONS:
+            host = parse_positions(value, name)
+        else:
+            host = value if isinstance(value, (bool, int, float)) else float(value)
+        # Until the update: should it refuse the value, the last valid one put back is
+        # still the one told of before.
+        self._pending.value[name] = _told(self.editable[name], host)
 
     def parameters_changed(self, keys=[]):
         """Check the values as ``mi.traverse`` left them, and decide what the kernel
@@ -122,12 +155,25 @@ class Marble(RGBTexture):
             if held["to_world"] is not None:
                 self.mapping.check(held["to_world"])
         except ParameterError:
+            self._pending = Kept({})
             for name, value in getattr(self, "_last_valid", Kept({})).value.items():
                 # In place: mi.traverse holds these very objects.
                 mi.set_property(self.editable[name], value)
             raise
         self._last_valid = Kept({name: type(value)(value) for name, value in self.editable.items()})
         self._held = Kept(held)
+        if jit:
+            # What the host holds, by the variable now in place (make_opaque gave a literal
+            # edit a new one): read again at a later update that names the key (a full
+            # update names every key) while that variable stays; none for a value on the
+            # device. A key not named keeps its entry: its variable is as it was.
+            told = dict(self._told.value)
+            for name in (keys or set(self.editable)) & set(self.editable):
+                if held.get(name) is not None:
+                    told[name] = _told(self.editable[name], held[name])
+                else:
+                    told.pop(name, None)
+            self._told, self._pending = Kept(told), Kept({})
         values = held
         on_device = {name for name, value in values.items() if value is None}
         self.ramp.changed()
@@ -179,11 +225,16 @@ class Marble(RGBTexture):
         self.valid = self._kernel_check(on_device) if jit else None
 
     def _host_value(self, name):
-        """The value of traversed ``name`` as the table holds it, if the host holds it (a
-        literal) or it is structural (read: it decides the kernel); else None."""
+        """The value of traversed ``name`` as the table holds it, if the host holds it —
+        told (:meth:`hold`, or held since it was read or loaded) for the very variable in
+        place, or a literal — or it is structural (read: it decides the kernel); else None."""
         value = self.editable[name]
-        if dr.is_jit_v(mi.Float) and name != "octaves" and not _literal(value):
-            return None
+        if dr.is_jit_v(mi.Float):
+            for told in (self._pending.value.get(name), self._told.value.get(name)):
+                if told is not None and told[0] == _indices(value):
+                    return told[2]
+            if name != "octaves" and not _literal(value):
+                return None
         if name == "to_world":
             return _matrix(value)
         parameter = BY_NAME[name]
@@ -306,8 +357,12 @@ class Marble(RGBTexture):
 
     def mean(self):
         """The mean luminance where the phase is spread uniformly (mimarble/ramp.py);
-        differentiable with respect to the ramp. Spectral variants: the spectral mean of
-        that mean colour's spectrum (as ``srgb``'s and ``bitmap``'s mean there)."""
+        differentiable with respect to the ramp. Spectral variants: ``srgb_model_mean`` (the
+        sRGB model's spectrum averaged over 16 wavelengths evenly spaced over 360–830 nm) of
+        the one spectrum of that mean colour — what ``srgb`` answers for that colour, but not
+        what ``bitmap`` answers (the mean of its texels' spectral means): the model is not
+        linear, so a red–blue ramp gives 0.661 where its two colours' spectral means average
+        0.544."""
         if mi.is_spectral:
             return srgb_model.mean(self.srgb_table, self.ramp.mean(self.stripe))
         return mi.luminance(self.ramp.mean(self.stripe))
@@ -446,6 +501,17 @@ def _literal(value) -> bool:
     if dr.depth_v(value) > 1:
         return all(_literal(value[k]) for k in range(len(value)))
     return value.state == dr.VarState.Literal
+
+
+def _indices(value) -> tuple:
+    """The Dr.Jit variables (JIT and AD indices) a traversed value is made of."""
+    return tuple(dr.detail.collect_indices(value))
+
+
+def _told(value, host) -> tuple:
+    """(the variables of ``value``, a copy of it holding them — so none is freed and its
+    index reused by another value while this is kept —, the ``host`` value)."""
+    return _indices(value), type(value)(value), host
 
 
 def _matrix(transform, read: bool = False) -> np.ndarray | None:

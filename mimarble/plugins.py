@@ -191,7 +191,7 @@ class RGBTexture:
     def sample_spectrum(self, si, sample, active=True):
         """RGB variants sample no wavelengths: (no wavelengths, the colour). Spectral ones:
         wavelengths uniform over Mitsuba's CIE range, weighted by the spectrum over their
-        density, as ``srgb`` and ``bitmap`` sample."""
+        density (:meth:`pdf_spectrum`), as ``srgb`` and ``bitmap`` sample in Mitsuba 3.9.1."""
         if not mi.is_spectral:
             return dr.zeros(type(si.wavelengths)), self.eval(si, active)
         moved = mi.SurfaceInteraction3f(si)
@@ -199,7 +199,15 @@ class RGBTexture:
         return moved.wavelengths, self.eval(moved, active) * (mi.MI_CIE_MAX - mi.MI_CIE_MIN)
 
     def pdf_spectrum(self, si, active=True):
-        return dr.zeros(type(si.wavelengths))
+        """The density :meth:`sample_spectrum` draws ``si.wavelengths`` with: in spectral
+        variants 1/(MAX − MIN) per nm inside Mitsuba's CIE range, 0 outside (so weight × pdf
+        = ``eval``); 0 in RGB variants, which sample no wavelengths. (Mitsuba 3.9.1's ``srgb``
+        and ``bitmap`` sample the same way and leave ``pdf_spectrum`` unimplemented.)"""
+        wavelengths = si.wavelengths
+        if not mi.is_spectral:
+            return dr.zeros(type(wavelengths))
+        inside = (wavelengths >= mi.MI_CIE_MIN) & (wavelengths <= mi.MI_CIE_MAX) & active
+        return type(wavelengths)(dr.select(inside, 1.0 / (mi.MI_CIE_MAX - mi.MI_CIE_MIN), 0.0))
 
     def spectral_resolution(self):
         return 0.0

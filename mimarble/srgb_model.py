@@ -165,6 +165,8 @@ def spectrum(table: ModelTable | None, colour, wavelengths):
 
 
 def mean(table: ModelTable | None, colour):
-    """The spectral mean of ``colour``'s spectrum over the visible range
-    (``mi.srgb_model_mean``, as Mitsuba's ``srgb`` and ``bitmap`` give for ``mean()``)."""
+    """The spectral mean of ``colour``'s spectrum: ``mi.srgb_model_mean``, its average over
+    16 wavelengths evenly spaced over 360–830 nm (Mitsuba's ``srgb`` gives this for its one
+    colour; ``bitmap`` the average of it over its texels, which is not this of their mean
+    colour: the model is not linear)."""
     return mi.srgb_model_mean(coefficients(table, colour))

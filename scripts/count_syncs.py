@@ -41,8 +41,8 @@ import mimarble
 
 mimarble.start()
 
-from mimarble.bench_adam import (KEY, START, TRUE, adam_step,  # noqa: E402
-                                 marble_scene)
+from mimarble.bench_adam import (START, TRUE, adam_step,  # noqa: E402
+                                 marble_scene, optimiser_at_start)
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -138,11 +138,7 @@ def main() -> int:
     args = parser.parse_args()
     target = mi.render(marble_scene(**TRUE), spp=32, seed=1)
     scene = marble_scene(**START)
-    marble = {"known_ramp": mi.Color3f(mi.traverse(scene)[KEY + "ramp"]),
-              "free": dr.arange(mi.UInt32, 3) == 1}
-    opt = mi.ad.Adam(lr=0.02)
-    opt["period"], opt["distortion"] = mi.Float(START["period"]), mi.Float(START["distortion"])
-    opt["vein"] = mi.Color3f(START["vein"])
+    marble, opt = optimiser_at_start(scene)
     reads = HostReads()
     reads.install()
     launches = collections.Counter()

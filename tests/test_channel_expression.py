@@ -191,3 +191,28 @@ def test_max_is_the_bound_of_the_channel_model(variant, channel):
     assert texture(channel).max() == pytest.approx(expected, rel=1e-6)
     if dr.is_jit_v(mi.Float):
         assert colour(texture(channel), points()).max() <= expected * (1 + 1e-6)
+
+
+def test_a_shortcut_is_kept_after_an_unrelated_edit(llvm):
+    """A product by a constant 0 and a mix at a weight texture 0 skip their unused operands
+    after an update that left the constants' variables as they were (an edit of the other
+    operand, here computed on the device); an edit of the constant itself, on the device,
+    turns the skipping off (before: any update turned it off for good)."""
+    product = texture(S.Multiply((S.ColorChannel((0.0, 0.0, 0.0)), MARBLE)))
+    mix = texture(S.Mix(MARBLE, OTHER_MARBLE, S.ColorChannel((0.0, 0.0, 0.0))))
+    assert product.zero_product and mix.mix_side == "a"
+    for tex in (product, mix):
+        params = mi.traverse(tex)
+        params["operand_1.period"] = dr.opaque(mi.Float, 2.5) + dr.zeros(mi.Float, 1)
+        params.update()
+    assert product.zero_product and product._shortcuts()
+    assert mix.mix_side == "a" and mix._shortcuts()
+    si = points(100)
+    assert np.all(colour(product, si) == 0)
+    np.testing.assert_array_equal(colour(mix, si), colour(texture(MARBLE), si))
+    params = mi.traverse(product)
+    params["operand_0.value"] = mi.Color3f(dr.opaque(mi.Float, 0.5) + dr.zeros(mi.Float, 1))
+    params.update()
+    assert not product.zero_product
+    edited = texture(dataclasses.replace(MARBLE, period=2.5))   # its period edited above
+    np.testing.assert_allclose(colour(product, si), 0.5 * colour(edited, si), atol=1e-6)

@@ -32,12 +32,12 @@ def counting_loads(monkeypatch):
     return loads
 
 
-def fresh(text, monkeypatch):
+def fresh(text, monkeypatch, **options):
     """The image of ``text`` rendered from nothing kept: a new load, traced afresh."""
     LOADED.clear()
     with monkeypatch.context() as m:
         m.setenv("MIMARBLE_FREEZE", "0")
-        image = mimarble.render(scene_language.parse(text))
+        image = mimarble.render(scene_language.parse(text), **options)
     LOADED.clear()
     return image
 
@@ -154,3 +154,23 @@ def test_a_mesh_file_rewritten_with_the_same_counts_and_bounds_is_seen(llvm, tmp
     LOADED.clear()
     np.testing.assert_array_equal(after, mimarble.render(scene_language.parse(
         path.read_text(), filename=str(path))))
+
+
+def test_scenes_that_differ_in_place_render_as_from_nothing_in_path_mode(llvm, monkeypatch):
+    """Path mode, a roughplastic over a product of two marbles (future-work's two-pass
+    marble, 16²): scenes that differ in a marble's in-place values (period, scale), rendered
+    in turn through the loaded-scene cache, each give the bits of that scene rendered from
+    nothing. roughplastic weighs its sampling by the expression's mean() (computed when it
+    is loaded; an edit of a top-level texture tells the scene, not the BSDF); before, that
+    mean was the 2^14-point sampled one at load, which depends on the period: the first
+    scene's weight stayed, and the second scene's image differed from its own (≤ 1e-5)."""
+    text = open("scenes/future-work/two-pass-marble.scene").read().replace(
+        "width 500 height 500", "width 16 height 16")
+    texts = [text, text.replace("period 1.5", "period 2.5").replace("scale 2.0", "scale 2.7")]
+    LOADED.clear()
+    loads = counting_loads(monkeypatch)
+    images = [mimarble.render(scene_language.parse(t), mode="path", spp=4)
+              for t in texts + texts[:1]]
+    assert loads == [1]
+    for t, image in zip(texts + texts[:1], images):
+        np.testing.assert_array_equal(image, fresh(t, monkeypatch, mode="path", spp=4))

@@ -177,6 +177,54 @@ def test_a_marbles_gradient_reaches_its_ramp_through_the_spectrum(restore_varian
     assert abs(gradient[channel, colour] - central) <= 2e-2 * abs(central) + 1e-3
 
 
+def test_sample_spectrum_draws_its_wavelengths_with_the_density_pdf_spectrum_gives(
+        restore_variant):
+    """A histogram of the wavelengths ``sample_spectrum`` draws against ``pdf_spectrum``
+    integrated over each bin (chi-square, seeded); weight × pdf = eval at every sample; and
+    Mitsuba's ``area`` emitter (C++) samples its marble radiance's wavelengths the same way."""
+    use(SPECTRAL)
+    low, high = float(mi.MI_CIE_MIN), float(mi.MI_CIE_MAX)
+    rng = np.random.default_rng(11)
+    xyz, _ = points(50_000, seed=12)
+    u = rng.random((len(xyz), 4), dtype=np.float32)
+    marble, si = mi.load_dict(MARBLE), interaction(xyz)
+    wavelengths, weight = marble.sample_spectrum(si, mi.Spectrum(*(mi.Float(u[:, k])
+                                                                   for k in range(4))))
+    drawn = as_numpy(wavelengths).ravel()
+    assert drawn.min() >= low and drawn.max() <= high
+
+    bins, per_bin = 47, 64                                   # 10 nm bins
+    edges = np.linspace(low, high, bins + 1)
+    fine = (edges[:-1, None] + (np.arange(per_bin) + 0.5)[None] / per_bin
+            * np.diff(edges)[:, None]).ravel()
+    probe = interaction(np.zeros((len(fine) // 4, 3), np.float32), fine.reshape(-1, 4))
+    density = as_numpy(marble.pdf_spectrum(probe)).ravel().reshape(bins, per_bin)
+    expected = density.mean(axis=1) * np.diff(edges) * len(drawn)
+    assert expected.sum() == pytest.approx(len(drawn), rel=1e-5)   # the pdf integrates to 1
+    observed, _ = np.histogram(drawn, edges)
+    chi2, dof = float(np.sum((observed - expected) ** 2 / expected)), bins - 1
+    z = 4.0                                                  # Wilson–Hilferty, p ≈ 3e-5
+    assert chi2 < dof * (1 - 2 / (9 * dof) + z * np.sqrt(2 / (9 * dof))) ** 3
+
+    outside = interaction(np.zeros((1, 3), np.float32), np.array([[300.0, low, high, 900.0]]))
+    uniform = float(np.float32(1 / (high - low)))
+    assert as_numpy(marble.pdf_spectrum(outside)).tolist() == [[0.0, uniform, uniform, 0.0]]
+
+    moved = interaction(xyz, as_numpy(wavelengths))
+    pdf, value = as_numpy(marble.pdf_spectrum(moved)), as_numpy(marble.eval(moved))
+    np.testing.assert_allclose(as_numpy(weight) * pdf, value, rtol=1e-6, atol=1e-7)
+
+    emitter = mi.load_dict({"type": "rectangle",
+                            "emitter": {"type": "area", "radiance": MARBLE}}).emitter()
+    sample = mi.Float(u[:, 0])
+    got = emitter.sample_wavelengths(si, sample)
+    shifted = u[:, :1] + np.float32([0.0, 0.25, 0.5, 0.75])  # Mitsuba's math::sample_shifted
+    shifted -= np.floor(shifted)
+    want = marble.sample_spectrum(si, mi.Spectrum(*(mi.Float(shifted[:, k]) for k in range(4))))
+    for g, w in zip(got, want):
+        np.testing.assert_allclose(as_numpy(g), as_numpy(w), rtol=1e-6)
+
+
 # ---------------------------------------------------------------------------
 # channel_expression
 

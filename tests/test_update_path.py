@@ -272,3 +272,85 @@ def test_a_media_update_waits_for_nothing_and_a_broken_scale_on_the_device_is_na
     params[key] = -1.0
     with pytest.raises(MarbleMediumError, match="scale=-1.0 must be a finite number > 0"):
         params.update()
+
+
+RAMP_A = ((0.95, 0.92, 0.85), (0.5, 0.5, 0.5), (0.12, 0.08, 0.06))
+RAMP_B = ((0.9, 0.1, 0.2), (0.3, 0.6, 0.1), (0.05, 0.2, 0.8))
+
+
+def colour3(ramp):
+    """A ramp as the Color3f mi.traverse holds: not a literal, so "on the device"."""
+    return mi.Color3f(*(mi.Float(list(column)) for column in zip(*ramp)))
+
+
+def whitted_dict(ramp=RAMP_A):
+    from mimarble import scene as S
+    scene = S.Scene(image=S.Image(16, 16), camera=S.Camera(eye=(0, 0, 5)),
+                    lights=(S.Light((4, 4, 4)),),
+                    materials={"m": S.Material("m", diffuse=S.MarbleChannel(
+                        octaves=20, distortion=2.0, ramp=ramp))},
+                    spheres=(S.Sphere("m"),))
+    return mimarble.to_mitsuba(scene, spp=1)
+
+
+def test_a_ramp_the_host_holds_edited_and_put_back_renders_as_a_fresh_load(llvm):
+    """Whitted mode: a ramp written through mi.traverse is never a literal, so it counts as
+    on the device (every octave evaluated) unless the writer tells the marble the values it
+    wrote (``Marble.hold``): edited and put back so, it renders the bits it had when loaded
+    (the error budget's octaves). A value computed after it is not taken for the told one."""
+    scene = mi.load_dict(whitted_dict())
+    fresh = mimarble.render(scene)
+    params = mi.traverse(scene)
+    key = next(k for k in params.keys() if k.endswith(".ramp"))
+    marble = next(n for n in params.hierarchy if type(n).__name__ == "Marble")
+    budget = marble.octaves_evaluated
+    assert budget < 20
+    for ramp in (RAMP_B, RAMP_A):
+        params[key] = colour3(ramp)
+        marble.hold("ramp", ramp)
+        params.update()
+        assert marble.octaves_evaluated < 20
+    assert marble.octaves_evaluated == budget
+    np.testing.assert_array_equal(mimarble.render(scene), fresh)
+    params[key] = colour3(RAMP_A)                # the same numbers, not told: on the device
+    params.update()
+    assert marble.octaves_evaluated == 20
+    marble.parameters_changed()                  # every key: still not the told one
+    assert marble.octaves_evaluated == 20
+
+
+def path_dict():
+    marble = {"type": "marble", "octaves": 6, "ramp": ", ".join(
+        " ".join(map(str, c)) for c in RAMP_A)}
+    return {"type": "scene", "integrator": {"type": "path"},
+            "sensor": {"type": "perspective", "fov": 30,
+                       "to_world": mi.ScalarTransform4f().look_at([0, 0, 6], [0, 0, 0],
+                                                                   [0, 1, 0]),
+                       "film": {"type": "hdrfilm", "width": 16, "height": 16},
+                       "sampler": {"type": "independent", "sample_count": 4}},
+            "light": {"type": "point", "position": [4, 4, 6],
+                      "intensity": {"type": "rgb", "value": 60.0}},
+            # Light from everywhere: paths sampled by the BSDF (its lobe chosen by the
+            # diffuse mean) reach it.
+            "sky": {"type": "constant", "radiance": {"type": "rgb", "value": 0.5}},
+            "sphere": {"type": "sphere", "bsdf": {
+                "type": "roughplastic", "diffuse_reflectance": {
+                    "type": "channel_expression", "op": "multiply", "operand_0": marble,
+                    "operand_1": {**marble, "period": 3.0, "axis": "y"}}}}}
+
+
+def test_an_expression_edited_and_put_back_renders_as_a_fresh_load_in_path_mode(llvm):
+    """roughplastic weighs its sampling by its diffuse texture's mean(), asked again at
+    every update of a texture below it: an expression's mean is one definition whatever
+    the edits before (the operands' means combined, evaluated), so a period edited on the
+    device and put back renders the bits the scene had when loaded (before: sampled at
+    load, combined after an edit). (The same scene: another loaded beside it has other
+    instance ids in the traced code, and mi.render's bits may differ by an ulp.)"""
+    scene = mi.load_dict(path_dict())
+    fresh = np.array(mi.render(scene, spp=4, seed=0))
+    params = mi.traverse(scene)
+    key = next(k for k in params.keys() if k.endswith("operand_1.period"))
+    for value in (on_device(1.7), 3.0):
+        params[key] = value
+        params.update()
+    np.testing.assert_array_equal(np.array(mi.render(scene, spp=4, seed=0)), fresh)

@@ -31,11 +31,14 @@ Operands are read when the expression is evaluated, as Mitsuba's own textures re
 theirs, so an edit of an operand shared with another parent (``mi.traverse`` tells only
 a node's first parent) is seen. Constant operands (``rgb``, a one-colour ramp, a
 constant sub-expression) are combined first, in one constant. What is not needed is not
-computed, decided from the operands' values when the texture is loaded and after every
-parameter change (a new decision compiles a new kernel): a product with a constant 0
-evaluates nothing; a ``mix`` whose weight is the constant 0 or 1 evaluates only ``a`` or
-only ``b``. Those decisions are used only while no operand has changed since: an edit
-that reached only another parent falls back to evaluating everything. Equal operands inside one ``channel_material`` are evaluated once
+computed (a new decision compiles a new kernel): a product with a constant 0 evaluates
+nothing; a ``mix`` whose weight is the constant 0 or 1 evaluates only ``a`` or only ``b``.
+Decided from the values when the texture is loaded; at an update (nothing is read back
+there) the decision stays while the constants it was made from are the same Dr.Jit
+variables, a number ``weight`` set as a Python number (a literal) is decided again from
+it, and any other edit of a constant turns the shortcut off. Those decisions are used
+only while no operand has changed since the expression was last told: an edit that
+reached only another parent falls back to evaluating everything. Equal operands inside one ``channel_material`` are evaluated once
 (:func:`shared_evaluations`); elsewhere Dr.Jit's common-subexpression elimination
 merges identical unrolled code.
 """
@@ -58,10 +61,6 @@ from ..properties import numbered_properties
 dr, mi = environment.import_drjit_and_mitsuba()
 
 OPERATIONS = ("add", "multiply", "mix")
-#: Points at which mean() averages an expression that is not linear in its
-#: operands (a product or a varying weight): deterministic, over [−16, 16]³ and the
-#: whole (u, v) square.
-MEAN_POINTS = 1 << 14
 #: Step of the central differences of eval_1_grad for products and mixes, relative
 #: to |∂p/∂u| (sums add their operands' own gradients).
 GRADIENT_STEP = 1e-3
@@ -208,9 +207,11 @@ class ChannelExpression(RGBTexture):
         """Decide again what can be skipped, from the operands' values as they are now. At
         an update (Mitsuba names ``keys``) nothing is read back — on a GPU a read waits
         for every queued kernel, at every step of an optimisation: the folded constant
-        is kept (on the device), the shortcuts that need its value (a product by 0, a mix
-        at weight 0 or 1) are taken only where the host holds it — a number ``weight`` set
-        as a Python number, a literal (docs/design-decisions.md, "The update path")."""
+        is kept (on the device); the shortcuts that need its value (a product by 0, a mix
+        at weight 0 or 1) keep the decision made from values while the constants it was
+        made from are the same variables (:meth:`_decided_from`), are decided again where
+        the host holds the value — a number ``weight`` set as a Python number, a literal —
+        and are off otherwise (docs/design-decisions.md, "The update path")."""
         reading = not keys or not dr.is_jit_v(mi.Float)   # at load, or values on the host
         weight_held = None          # the number weight, where the host holds it
         if self.weight_value is not None:
@@ -227,21 +228,50 @@ class ChannelExpression(RGBTexture):
         # carries its derivative, 0 by structure there (a factor 0, a weight 0 or 1), and
         # left out it would leave the parameter unattached (prb raises).
         differentiated = self._operands_differentiated()
-        self.zero_product = self.op == "multiply" and self.constant is not None \
-            and not differentiated and reading \
-            and not dr.grad_enabled(self.constant) and not np.any(numbers(self.constant))
-        self.mix_side = None          # "a" or "b" when the weight is the constant 0 or 1
-        if self.op == "mix" and not differentiated and (reading or weight_held is not None):
-            weight = self.weight_value if self.weight is None else _constant(self.weight)
-            if weight is not None and not dr.grad_enabled(weight):
-                w = np.array([weight_held]) if self.weight is None else numbers(weight)
-                self.mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
+        decided_from = self._decided_from()
+        previous = getattr(self, "_decision", None)
+        if not reading and previous is not None \
+                and previous[0].fingerprint == decided_from.fingerprint:
+            # The constants are the very variables the last decision was made from: their
+            # values too (a copy of each is held, so no index was reused).
+            zero_product, mix_side = previous[1], previous[2]
+        else:
+            zero_product = self.op == "multiply" and self.constant is not None and reading \
+                and not dr.grad_enabled(self.constant) and not np.any(numbers(self.constant))
+            mix_side = None          # "a" or "b" when the weight is the constant 0 or 1
+            if self.op == "mix" and (reading or weight_held is not None):
+                weight = self.weight_value if self.weight is None else _constant(self.weight)
+                if weight is not None and not dr.grad_enabled(weight):
+                    w = np.array([weight_held]) if self.weight is None else numbers(weight)
+                    mix_side = "a" if np.all(w == 0.0) else "b" if np.all(w == 1.0) else None
+        self._decision = (decided_from, zero_product, mix_side)
+        self.zero_product = zero_product and not differentiated
+        self.mix_side = None if differentiated else mix_side
         self._mean, self._mean_state = None, None
 
     def _operands_differentiated(self) -> bool:
         """Some value inside the operands (or a weight texture) has its gradient enabled."""
         return any(dr.grad_enabled(params[key]) for params in self._operand_parameters
                    for key in params.keys())
+
+    def _decided_from(self) -> OperandState:
+        """A fingerprint of what the skipping decisions are made from: which operands are
+        constant, the variables of the constant operands and of the weight (a texture's,
+        or the number), copies of them held (see :meth:`_operand_state`)."""
+        maps = [params for params, constant in zip(self._operand_parameters, self.constants)
+                if constant is not None] + (self._operand_parameters[len(self.operands):])
+        items = [tuple(c is None for c in self.constants)]
+        values = [params[key] for params in maps for key in params.keys()]
+        if self.weight_value is not None:
+            values.append(self.weight_value)
+        held = []
+        for value in values:
+            if dr.is_jit_v(mi.Float):
+                held.append(type(value)(value))
+                items.append(tuple(dr.detail.collect_indices(value)))
+            else:
+                items.append(repr(value))
+        return OperandState(hash(tuple(items)), Kept(held))
 
     def _operand_state(self):
         """A fingerprint of every value inside the operands (and a weight texture): their
@@ -332,20 +362,24 @@ class ChannelExpression(RGBTexture):
                          maxima[0] * (1.0 + w_max) + maxima[1] * w_max), host + read
 
     def mean(self):
-        """The mean luminance: exact for sums, grey constant weights and grey constant
-        factors (linear in the operands' means); otherwise the average over
-        :data:`MEAN_POINTS` deterministic points (world points in [−16, 16]³, (u, v) over
-        the unit square) — in the scalar variant, the operands' means combined as if
-        independent. Made so once, when first asked (at load); again after an edit
-        (Mitsuba asks from a BSDF's parameters_changed: every step of an optimisation)
-        in JIT variants the operands' means combined as if independent, on the device:
-        no point evaluated, nothing read back (exact for sums, grey constant factors and
-        grey weights)."""
+        """The mean luminance, one definition whatever the edits before: the operands'
+        means combined as if independent (:func:`_means_combined`) — a sum's exactly, a
+        product's constants folded first (exact with at most one varying operand and a
+        grey constant), a mix at the weight's mean (exact for a constant grey weight). In
+        JIT variants a Dr.Jit value made on the device: no point evaluated, nothing read
+        back, at load or after an edit (Mitsuba asks from a BSDF's parameters_changed:
+        every step of an optimisation). A marble's mean depends on its ramp only, so a
+        BSDF's sampling weight made from it follows no in-place edit of scale, period,
+        distortion, gain or lacunarity: an image is the same bits whichever values came
+        before. Kept while the operands' variables are the same."""
         state = self._operand_state()
         if self._mean is None or self._mean_state.fingerprint != state.fingerprint:
-            edited = getattr(self, "_mean_made", False) and dr.is_jit_v(mi.Float)
-            self._mean = _means_combined_on_device(self) if edited else self._compute_mean()
-            self._mean_state, self._mean_made = state, True
+            self._mean, self._mean_state = _means_combined(self), state
+            if dr.is_jit_v(mi.Float):
+                # Evaluated (a kernel queued, nothing read): a BSDF's weight made from it
+                # then has the same bits whether the BSDF was loaded or updated (a lazy
+                # mean would be folded into whichever kernel reads it first).
+                dr.make_opaque(self._mean)
         return mi.Float(self._mean)
 
     # -- Evaluation ------------------------------------------------------------
@@ -444,29 +478,6 @@ class ChannelExpression(RGBTexture):
             total = combine(total, value)
         return total
 
-    def _compute_mean(self) -> float:
-        if mi.is_spectral:     # nothing folded there: the operands' spectral means combined
-            return _means_combined(self)
-        # Luminance, as marble's and Mitsuba's bitmap's mean() (its rgb averages the three
-        # components instead: constants are taken by their luminance here).
-        constants = [_constant(t) for t in self.operands]
-        means = [float(numbers(t.mean())[0]) if c is None else luminance(c)
-                 for t, c in zip(self.operands, constants)]
-        if self.op == "add":
-            return float(sum(means))
-        if self.op == "mix" and (self.weight is None or not self.weight.is_spatially_varying()):
-            w = numbers(self.weight_value if self.weight is None else _constant(self.weight))
-            if np.ptp(w) == 0.0:                       # a grey weight: linear in the means
-                return (1.0 - w[0]) * means[0] + w[0] * means[1]
-        if self.op == "multiply" and len(self.varying) <= 1:   # then there is a constant
-            constant = self._combined(constants)
-            if not self.varying:
-                return luminance(constant)
-            c = numbers(constant)
-            if np.ptp(c) == 0.0:                       # a grey factor: linear in the mean
-                return float(c[0]) * float(numbers(self.varying[0].mean())[0])
-        return _sampled_mean(self)
-
 
 def _opaque(value):
     """A folded constant as an opaque Color3f: a new value reuses the kernel."""
@@ -476,48 +487,32 @@ def _opaque(value):
     return value
 
 
-def _sampled_mean(texture) -> float:
-    if not dr.is_jit_v(mi.Float):
-        # The scalar variant evaluates one point at a time: the operands' means combined
-        # as if independent (a product of means; a mix at the weight's mean) instead.
-        return _means_combined(texture)
-    rng = np.random.default_rng(0)
-    points = rng.uniform(-16.0, 16.0, (MEAN_POINTS, 3)).astype(np.float32)
-    uv = rng.uniform(0.0, 1.0, (MEAN_POINTS, 2)).astype(np.float32)
-    si = dr.zeros(mi.SurfaceInteraction3f, MEAN_POINTS)
-    si.p = mi.Point3f(*(mi.Float(points[:, k]) for k in range(3)))
-    si.uv = mi.Point2f(mi.Float(uv[:, 0]), mi.Float(uv[:, 1]))
-    with dr.suspend_grad():
-        return float(np.mean(np.array(texture.eval_1(si))))
+def _means_combined(texture):
+    """The operands' means combined as if independent: a sum of means; a product of the
+    folded constant's luminance and the varying operands' means; a mix at the weight's
+    mean (a constant weight's luminance; a number as it is). A constant operand is taken
+    by its luminance, as marble's and Mitsuba's ``bitmap``'s means are (Mitsuba's ``rgb``
+    averages its components instead). JIT variants: in Dr.Jit arithmetic, detached,
+    nothing read back; the scalar variant: the same on Python floats."""
+    def detached(value):
+        return dr.detach(value) if dr.is_jit_v(mi.Float) else value
 
+    def mean_of(operand, constant):
+        return detached(mi.Float(operand.mean() if constant is None
+                                 else mi.luminance(mi.Color3f(constant))))
 
-def _means_combined(texture) -> float:
-    """The operands' means combined as if independent: a sum or product of means, a mix at
-    the weight's mean (exact for sums and constant weights)."""
-    means = [float(numbers(t.mean())[0]) for t in texture.operands]
-    if texture.op == "add":
-        return float(sum(means))
-    if texture.op == "multiply":
-        return float(np.prod(means))
-    w = float(numbers(texture.weight.mean())[0]) if texture.weight is not None else \
-        float(numbers(texture.weight_value)[0])
-    return (1.0 - w) * means[0] + w * means[1]
-
-
-def _means_combined_on_device(texture):
-    """:func:`_means_combined` as a Dr.Jit value (JIT variants): the operands' ``mean()``
-    combined in Dr.Jit arithmetic, a mix's weight at its mean luminance, without a read;
-    a constant operand by its luminance, as :meth:`ChannelExpression._compute_mean` takes
-    it (Mitsuba's ``rgb`` mean averages the components)."""
-    means = [dr.detach(mi.Float(t.mean() if c is None else mi.luminance(mi.Color3f(c))))
-             for t, c in zip(texture.operands, map(_constant, texture.operands))]
-    if texture.op == "add":
-        return functools.reduce(operator.add, means)
-    if texture.op == "multiply":
-        return functools.reduce(operator.mul, means)
-    w = dr.detach(mi.Float(texture.weight.mean() if texture.weight is not None
-                           else texture.weight_value))
-    return (1.0 - w) * means[0] + w * means[1]
+    constants = [_constant(t) for t in texture.operands]
+    if texture.op == "mix":
+        means = [mean_of(t, c) for t, c in zip(texture.operands, constants)]
+        w = detached(mi.Float(texture.weight_value)) if texture.weight is None \
+            else mean_of(texture.weight, _constant(texture.weight))
+        return (1.0 - w) * means[0] + w * means[1]
+    combine = operator.add if texture.op == "add" else operator.mul
+    parts = [mean_of(t, None) for t, c in zip(texture.operands, constants) if c is None]
+    folded = texture._combined(constants)
+    if folded is not None:
+        parts.append(mean_of(None, folded))
+    return functools.reduce(combine, parts)
 
 
 def _constant(texture):

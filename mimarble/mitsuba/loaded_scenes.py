@@ -7,7 +7,8 @@ in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, time
 inode of every image map and mesh file it reads, and the content digest of every mesh
 file the parser read (``Mesh.digest``) — matches a loaded one gets that loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
-``mi.traverse``; anything else is loaded anew (``mi.load_dict``). So repeated renders
+``mi.traverse`` and told to their marble as values the host holds (``Marble.hold``: the
+same decisions, and bits, as a fresh load); anything else is loaded anew (``mi.load_dict``). So repeated renders
 of one scene, and frames that differ only in a marble's scale, period or distortion,
 re-use the loaded scene, its compiled kernels and its recorded passes
 (mimarble/mitsuba/replay.py); an edited scene file, image map or mesh file is seen,
@@ -90,6 +91,7 @@ class LoadedScenes:
                 try:
                     for name, value in changed.items():
                         params[name] = value
+                        _tell(params, name, value)
                     params.update()
                 except BaseException:
                     forget(mitsuba_scene)
@@ -111,6 +113,18 @@ class LoadedScenes:
             forget(mitsuba_scene)
         self.scenes.clear()
         self.translated.clear()
+
+
+def _tell(params, name: str, value) -> None:
+    """Tell the marble whose in-place value ``name`` was just written the value the host
+    holds (``Marble.hold``): its decisions (the error budget's octaves, the noise, gain's
+    constants) are then made from the scene dict's own number, as a fresh load makes
+    them, not from the float32 the written variable holds nor, for a value that is not a
+    literal, the value-independent choice of one on the device."""
+    node = params.properties[name][2]
+    hold = getattr(node, "hold", None)
+    if hold is not None:
+        hold(name.rsplit(".", 1)[1], value)
 
 
 def forget(mitsuba_scene) -> None:

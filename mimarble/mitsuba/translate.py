@@ -650,21 +650,19 @@ def point_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
 #: Path mode: a spherical area light whose radius is below this fraction of its distance
 #: d to the look-at point is Mitsuba's ``point`` emitter of the same intensity. Mitsuba's
 #: ``sphere`` samples the cone it subtends, with the pdf 1/(2π(1 − cos θ_max)) computed in
-#: float32, whose relative error is about 2⁻²⁵/sin²θ_max: measured at d ≈ 15.5, a radius
-#: of 0.01 lit 7 % too much, 0.003 2.7 times too much, 1e-3 and less nothing at all (cos
-#: θ_max rounds to 1). At 2⁻⁷ of d the error is 2⁻¹¹ at the look-at point; below it the
-#: light's penumbra is under 1 % of the distance, and a point light (what whitted mode and
-#: the reference make of it: its samples all but coincide) is the closer image.
+#: float32, whose relative error is about 2⁻²⁵/sin²θ_max: at 2⁻⁷ of d it is 2⁻¹¹ at the
+#: look-at point; below it the light's penumbra is under 1 % of the distance, and a point
+#: light (what whitted mode and the reference make of it) is the closer image. Measurements:
+#: docs/rendering-model.md, "Tiny area lights in path mode".
 AREA_LIGHT_POINT_SIZE = 2.0 ** -7
 
 #: Path mode: a rectangular area light's edges are each at least this times max(d, 1)
 #: long (d as above), lengthened along themselves where shorter, its radiance set from the
-#: lengthened area (its power kept). Mitsuba's float32 ``rectangle`` lights nothing once
-#: its area is below about 1e-17 (measured: axes of 1e-8 light, 1e-9 and 1e-30 do not; 1e-18
-#: gave NaN), whatever its distance: the squared cross product of its half-edges leaves
-#: float32's normal range. At 2⁻¹⁶ (even with the least angle between the edges that the
-#: language allows, 1e-6 rad) the area is at least 2⁻³²·1e-6 ≈ 2.3e-16, and an edge so
-#: lengthened is 1.5e-5 of the distance: no image shows the difference.
+#: lengthened area (its power kept). Mitsuba's float32 ``rectangle`` lights nothing once the
+#: squared cross product of its half-edges leaves float32's normal range, whatever its
+#: distance. At 2⁻¹⁶ (even with the least angle between the edges that the language allows,
+#: 1e-6 rad) the area is at least 2⁻³²·1e-6 ≈ 2.3e-16, and an edge so lengthened is 1.5e-5
+#: of the distance. Measurements: docs/rendering-model.md, "Tiny area lights in path mode".
 RECTANGLE_LIGHT_SHORTEST_EDGE = 2.0 ** -16
 
 
