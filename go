@@ -14,9 +14,9 @@ venv="$here/.venv"
 python="${PYTHON:-python3}"
 
 # 1. A libLLVM Dr.Jit 1.5 can use (>= 16; Debian's 15 aborts the process, 14 is refused).
-#    mimarble.environment finds it; it imports nothing beyond the standard library.
+#    mimarble.runtime.environment finds it; it imports nothing beyond the standard library.
 have_llvm() {
-    "$python" - "$here/mimarble/environment.py" <<'PY'
+    "$python" - "$here/mimarble/runtime/environment.py" <<'PY'
 import runpy, sys
 sys.exit(0 if runpy.run_path(sys.argv[1])["search_libllvm"]() else 1)
 PY

@@ -25,8 +25,10 @@ import importlib
 import os
 import sys
 
-from . import environment
-from .environment import EnvironmentProblem, use_variant
+from mimarble.runtime import environment, moved
+from mimarble.runtime.environment import EnvironmentProblem, use_variant
+
+moved.install()                          # the old import paths of moved modules, one release
 
 __all__ = ["EnvironmentProblem", "marble", "noise", "render", "scene", "start", "sweep",
            "to_mitsuba", "use_variant", "write_image"]
@@ -35,6 +37,9 @@ __version__ = "0.1.0"
 # Names that exist once start() has run.
 _STARTED_NAMES = frozenset(("dr", "mi", "noise", "marble", "plugins", "render", "to_mitsuba",
                             "write_image", "startup_problem"))
+# The modules behind the public names above: name -> path under mimarble.
+_STARTED_MODULES = {"noise": "texture.noise", "marble": "mitsuba.plugins.marble",
+                    "plugins": "mitsuba.plugins.registration", "scene": "scene"}
 _state = {"started": False, "starting": False}
 
 
@@ -56,13 +61,12 @@ def start() -> None:
                 use_variant()
             except EnvironmentProblem as e:
                 startup_problem = e
-        modules = {name: importlib.import_module(f"{__name__}.{name}")
-                   for name in ("noise", "marble", "plugins", "mitsuba", "scene")}
-        mitsuba_side = modules["mitsuba"]   # declares the material and the integrator
+        modules = {name: importlib.import_module(f"{__name__}.{path}")
+                   for name, path in _STARTED_MODULES.items()}
+        mitsuba_side = importlib.import_module(f"{__name__}.mitsuba")
         globals().update(dr=dr, mi=mi, startup_problem=startup_problem,
                          render=mitsuba_side.render, to_mitsuba=mitsuba_side.to_mitsuba,
-                         write_image=mitsuba_side.write_image,
-                         **{k: v for k, v in modules.items() if k != "mitsuba"})
+                         write_image=mitsuba_side.write_image, **modules)
         modules["plugins"].install()
         _state["started"] = True
     finally:
@@ -74,10 +78,12 @@ def __getattr__(name):
         start()
         if name in globals():
             return globals()[name]
-    elif name in ("scene", "packaged_scenes"):   # neither imports Dr.Jit nor Mitsuba
-        return importlib.import_module(f"{__name__}.{name}")
-    elif name == "sweep":                # mimarble.sweeps.sweep: its frames start the package
-        return importlib.import_module(f"{__name__}.sweeps").sweep
+    elif name == "scene":                # neither imports Dr.Jit nor Mitsuba
+        return importlib.import_module(f"{__name__}.scene")
+    elif name == "packaged_scenes":
+        return importlib.import_module(f"{__name__}.runtime.packaged_scenes")
+    elif name == "sweep":                # mimarble.sweeps.run.sweep: its frames start the package
+        return importlib.import_module(f"{__name__}.sweeps.run").sweep
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 

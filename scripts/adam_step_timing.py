@@ -35,8 +35,7 @@ import mimarble
 
 mimarble.start()
 
-from mimarble.bench_adam import (RES, SPP, STEPS, TRUE, WARM, adam_step,  # noqa: E402
-                                 marble_scene, run)
+from mimarble.bench.adam import RES, SPP, STEPS, TRUE, WARM, adam_step, marble_scene, run
 
 dr, mi = mimarble.dr, mimarble.mi
 CHECK = 20

@@ -19,8 +19,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mimarble.bench_page import machine_label, plot_relative_to, write_section  # noqa: E402
-from mimarble.bench_report import paper_runs  # noqa: E402
+from mimarble.bench.page import machine_label, plot_relative_to, write_section  # noqa: E402
+from mimarble.bench.report import paper_runs  # noqa: E402
 
 PAGE = ROOT / "docs" / "benchmarks.md"
 

@@ -19,8 +19,8 @@ CHILD = r'''
 import statistics, sys, time
 import mimarble
 from mimarble import scene as S
-from mimarble.machine import machine_facts
-from mimarble.mitsuba.render import render_in_passes
+from mimarble.runtime.machine import machine_facts
+from mimarble.mitsuba.rendering.render import render_in_passes
 mi, dr = mimarble.mi, mimarble.dr
 what = sys.argv[1]
 if what.isdigit():

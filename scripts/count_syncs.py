@@ -2,7 +2,7 @@
 
     ./go python scripts/count_syncs.py [--steps N] [--timing N]
 
-The step is notebook 02's (part 3), as ``mimarble/bench_adam.py`` writes it: the
+The step is notebook 02's (part 3), as ``mimarble/bench/adam.py`` writes it: the
 optimiser's period, distortion and vein colour into the scene through ``mi.traverse``,
 ``params.update()``, ``mi.render`` (``prb``, 64×64, 16 spp), the L2 loss,
 ``dr.backward``, ``opt.step()``, the colour clipped to [0, 1] — traced every step (not
@@ -41,8 +41,7 @@ import mimarble
 
 mimarble.start()
 
-from mimarble.bench_adam import (START, TRUE, adam_step,  # noqa: E402
-                                 marble_scene, optimiser_at_start)
+from mimarble.bench.adam import START, TRUE, adam_step, marble_scene, optimiser_at_start
 
 dr, mi = mimarble.dr, mimarble.mi
 

@@ -4,7 +4,7 @@
 
 Each LLVM target setting runs in its own process (the target is fixed before the
 first kernel): MIMARBLE_LLVM_TARGET=default (Dr.Jit's detection) and unset
-(mimarble's choice, mimarble/llvm_target.py). Medians of warm renders after a sync;
+(mimarble's choice, mimarble/runtime/llvm_target.py). Medians of warm renders after a sync;
 the machine is named on the first line. Prints a Markdown table.
 """
 
@@ -21,7 +21,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 _CHILD = r"""
 import json, sys, time, numpy as np, mimarble
-from mimarble.machine import machine_facts, machine_line
+from mimarble.runtime.machine import machine_facts, machine_line
 dr, mi = mimarble.dr, mimarble.mi
 repeats = int(sys.argv[1])
 def median(f):
@@ -39,7 +39,7 @@ for name in ("fig10a", "fig10d", "fig11a", "fig11b"):
         out[f"{name} {spp} spp"] = 1000 * median(lambda: dr.eval(mi.render(ms)))
 pts = np.random.default_rng(1).uniform(-50, 50, (2_000_000, 3)).astype(np.float32)
 p = mi.Point3f(*(mi.Float(pts[:, a]) for a in range(3)))
-seconds = median(lambda: dr.eval(mimarble.noise.fractal3(p, 8)))
+seconds = median(lambda: dr.eval(mimarble.texture.noise.fractal3(p, 8)))
 out["noise M octave-evals/s/core"] = 2e6 * 8 / seconds / (__import__("os").cpu_count() or 1) / 1e6
 print(json.dumps(out))
 """

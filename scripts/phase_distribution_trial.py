@@ -3,7 +3,7 @@
 For fig11a and fig09d at 256², 1 spp, renders each marble with
 
     none            the colour at the point
-    prefilter       the box of mimarble/prefilter.py (filter prefilter)
+    prefilter       the box of mimarble/texture/prefilter.py (filter prefilter)
     gaussian        GaussianPrefilter() (scripts/phase_gaussian.py): one Gaussian of
                     variance (a² + b²)/12 + σ², by its Fourier series, 8 harmonics; one
                     box of the same variance where it is too narrow for them
@@ -12,7 +12,7 @@ For fig11a and fig09d at 256², 1 spp, renders each marble with
 
 and variants of the last two (:data:`CONFIGURATIONS`: harmonics, the narrow fallback,
 the prefilter margin, a scaled linear variance), and measures against the float64
-reference at 256 spp (``mimarble.bench.converged``, cached) the RMSE inside the
+reference at 256 spp (``mimarble.bench.run.converged``, cached) the RMSE inside the
 silhouettes (pixels whose 3×3 neighbourhood sees one shape, ``edge_mask`` at 16 spp)
 and over the whole image, and the render time: the median of 5 warm
 ``render_in_passes`` after a ``dr.sync_thread()``, taken in ``--rounds`` rounds that
@@ -24,7 +24,7 @@ filters' differences stand out of the scheduling noise; and fig11a with 2 and 4 
 unlit, where the phase is near linear across a pixel (:func:`few_octaves`); and the
 averages' own kernels, without the noise (:func:`phase_kernels`).
 
-The experimental filter is installed by this script alone: ``mimarble.pixel_filter.choose``
+The experimental filter is installed by this script alone: ``mimarble.texture.filters.choose``
 is wrapped so that a marble loaded with ``filter prefilter`` gets a GaussianPrefilter
 (marble.py calls ``pixel_filter.choose`` when its parameters change). Replay of recorded
 passes is left on (each loaded scene records its own); MIMARBLE_FREEZE=0 in the
@@ -45,15 +45,16 @@ from pathlib import Path
 import numpy as np
 
 import mimarble
-from mimarble import files, pixel_filter
+from mimarble.runtime import files
+from mimarble.texture import filters as pixel_filter
 from mimarble import scene as scene_language
-from mimarble.bench import converged
-from mimarble.machine import machine_facts
-from mimarble.mitsuba import replay
-from mimarble.mitsuba.render import render_in_passes
-from mimarble.mitsuba.silhouettes import edge_mask
-from mimarble.mitsuba.translate import to_mitsuba
-from mimarble.scene_edits import resized
+from mimarble.bench.run import converged
+from mimarble.runtime.machine import machine_facts
+from mimarble.mitsuba.rendering import replay
+from mimarble.mitsuba.rendering.render import render_in_passes
+from mimarble.mitsuba.rendering.silhouettes import edge_mask
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+from mimarble.scene.edits import resized
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import phase_gaussian  # noqa: E402  (this folder's: the experiment, not part of the package)
@@ -147,7 +148,7 @@ def kernel_times(mitsuba_scene, repeats: int) -> list:
 
 def marbles(mitsuba_scene):
     """The scene's marble textures (through ``mi.traverse``'s object hierarchy)."""
-    from mimarble.marble import Marble
+    from mimarble.mitsuba.plugins.marble import Marble
     seen = {}
     for node in mi.traverse(mitsuba_scene).hierarchy:
         if isinstance(node, Marble):
@@ -180,7 +181,7 @@ def few_octaves(configurations, octaves_list=FEW_OCTAVES) -> list:
     RMSE against this renderer's own 256 spp with filter none: where the phase is close
     to linear across a pixel, the regime the box with two Gauss points is exact in."""
     import dataclasses
-    from mimarble.scene_edits import with_marbles
+    from mimarble.scene.edits import with_marbles
     out = []
     base = resized(scene_language.load(str(ROOT / "scenes" / "fig11a.scene")), SIZE)
     for octaves in octaves_list:
@@ -202,10 +203,10 @@ def phase_kernels(lanes: int = 1 << 21, repeats: int = 15) -> dict:
     each over ``lanes`` random phases and deviations (abs_sine, the Fig. 5 ramp): the
     colour at the point, one box (PhaseAverage), the prefilter's two, the Gaussian series
     at 8/16/32 harmonics, and the series with one box blended in (GaussianPrefilter's)."""
-    from mimarble.prefilter import PhaseAverage
-    from mimarble.ramp import Ramp, ramp_storage
+    from mimarble.texture.prefilter import PhaseAverage
+    from mimarble.texture.ramp import Ramp, ramp_storage
     from mimarble.scene.model import FIG5_RAMP
-    from mimarble.stripes import STRIPES
+    from mimarble.texture.stripes import STRIPES
     stripe, ramp = STRIPES["abs_sine"], Ramp(ramp_storage(FIG5_RAMP))
     rng = np.random.default_rng(0)
     phase = mi.Float(rng.uniform(-20, 20, lanes))

@@ -4,10 +4,10 @@ Heitz, Nowrouzezahrai, Poulin & Neyret, "Filtering Non-Linear Transfer Functions
 Surfaces" (IEEE TVCG 2014), model what a pixel sees of a scalar field as a
 distribution — mean and variance — and filter the transfer function (here the colour
 map f = ramp∘t) against it. This module does that for the marble's phase, beside the
-box of mimarble/prefilter.py, for issue 24 (scripts/phase_distribution_trial.py
+box of mimarble/texture/prefilter.py, for issue 24 (scripts/phase_distribution_trial.py
 measures it; docs/bench/phase-distribution.json holds the numbers).
 
-The series. In the stripe's normalised phase y = φ/P + y₀ (mimarble/stripes.py) the
+The series. In the stripe's normalised phase y = φ/P + y₀ (mimarble/texture/stripes.py) the
 colour is f(y) = ramp(T(y − ⌊y⌋)), periodic with period 1, so
 
     f(y) = a₀ + 2 Σ_{k≥1} (a_k cos 2πky + b_k sin 2πky),
@@ -25,7 +25,7 @@ exactly. The distributions used here are products of independent parts:
 
 A Gaussian alone is Heitz et al.'s model; a Gaussian times the two boxes of the pixel's
 linear phase φ + a·x + b·y (x, y uniform on [−½, ½]) is the exact first-order
-parallelogram of mimarble/pixel_filter.py convolved with the left-out octaves'
+parallelogram of mimarble/texture/filters.py convolved with the left-out octaves'
 Gaussian (``widths`` of :meth:`PhaseGaussian.series`).
 
 The coefficients a_k, b_k are linear in the ramp colours: a_k = Σ_j V_kj c_j, V built
@@ -48,11 +48,11 @@ import math
 
 import numpy as np
 
-from mimarble import environment
-from mimarble.noise import band_limit, fractal_sum, left_out
-from mimarble.pixel_filter import (GAUSS_NODE, PHASE_SPREAD_WIDENING, PREFILTER_MARGIN, Prefilter,
-                           at_point)
-from mimarble.prefilter import PhaseAverage, piece_table
+from mimarble.runtime import environment
+from mimarble.texture.noise import band_limit, fractal_sum, left_out
+from mimarble.texture.filters import (GAUSS_NODE, PHASE_SPREAD_WIDENING, PREFILTER_MARGIN,
+    Prefilter, at_point)
+from mimarble.texture.prefilter import PhaseAverage, piece_table
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -99,7 +99,7 @@ def harmonic_weights(shape, size: int, harmonics: int, keys=None) -> tuple[np.nd
 
 
 def _stripe64(shape, x: np.ndarray) -> np.ndarray:
-    """T(x) in float64 (mimarble/stripes.py's StripeShape.stripe, for the table)."""
+    """T(x) in float64 (mimarble/texture/stripes.py's StripeShape.stripe, for the table)."""
     if shape.form == "triangle":
         return 1.0 - np.abs(1.0 - 2.0 * x)
     if shape.form == "ramp":
@@ -231,7 +231,7 @@ class GaussianPrefilter(Prefilter):
     installs it): the prefilter with the Gaussian series where the pixel's distribution
     of phase is wide.
 
-    The phase is as :class:`~mimarble.pixel_filter.Prefilter` computes it (octaves past
+    The phase is as :class:`~mimarble.texture.filters.Prefilter` computes it (octaves past
     ``margin`` left out, their variance σ² = distortion²·(V·Σ + F.spread)); across the
     pixel it is φ + a·x + b·y to first order, x, y uniform on [−½, ½], a = |∇φ·∂v/∂x|,
     b = |∇φ·∂v/∂y|. ``model``:
@@ -282,7 +282,7 @@ class GaussianPrefilter(Prefilter):
 
     def _colour(self, m, point, with_point: bool):
         """(colour, the colour at the point or None): the phase as the prefilter's
-        (mimarble/pixel_filter.py, ``_prefiltered``), with this filter's margin."""
+        (mimarble/texture/filters.py, ``_prefiltered``), with this filter's margin."""
         v = point.v
         noise_at_point = None
         if m.needs_noise:

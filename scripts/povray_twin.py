@@ -89,7 +89,7 @@ def render_twin() -> tuple[np.ndarray, np.ndarray]:
     """The twin's image (H, W, 3 uint8, as `mimarble render` writes its PNG) and sphere mask."""
     import mimarble
     from mimarble import scene as scene_language
-    from mimarble.mitsuba.image_output import srgb8
+    from mimarble.mitsuba.rendering.image_output import srgb8
     model = scene_language.parse(TWIN_FILE.read_text())
     image = mimarble.render(model)
     other = dataclasses.replace(model, image=dataclasses.replace(model.image,

@@ -21,8 +21,8 @@ import numpy as np
 
 import mimarble
 from mimarble import scene as scene_language
-from mimarble.mitsuba.translate import to_mitsuba
-from mimarble.scene_edits import with_image_size
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+from mimarble.scene.edits import with_image_size
 
 mi = mimarble.mi
 ROOT = Path(__file__).resolve().parent.parent

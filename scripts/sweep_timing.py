@@ -32,12 +32,12 @@ os.environ["DRJIT_CACHE_DIR"] = tempfile.mkdtemp(prefix="drjit-sweep-")
 import numpy as np  # noqa: E402
 
 import mimarble  # noqa: E402
-from mimarble import sweeps  # noqa: E402
+from mimarble.sweeps import run as sweeps  # noqa: E402
 from mimarble import scene as S  # noqa: E402
-from mimarble.machine import machine_facts  # noqa: E402
-from mimarble.mitsuba.render import render_in_passes  # noqa: E402
-from mimarble.mitsuba.loaded_scenes import LOADED  # noqa: E402
-from mimarble.scene_edits import resized  # noqa: E402
+from mimarble.runtime.machine import machine_facts  # noqa: E402
+from mimarble.mitsuba.rendering.render import render_in_passes  # noqa: E402
+from mimarble.mitsuba.rendering.loaded_scenes import LOADED  # noqa: E402
+from mimarble.scene.edits import resized  # noqa: E402
 
 dr, mi = mimarble.dr, mimarble.mi
 ROOT = Path(__file__).resolve().parent.parent
@@ -77,7 +77,7 @@ def main(out_json=None):
     one_process_s = statistics.median([one_process_runs[0]]
                                       + [t + compile_s for t in one_process_runs[1:]])
     # A render as `mimarble render -o x.png` does it: the image written too.
-    from mimarble.mitsuba.image_output import write_image
+    from mimarble.mitsuba.rendering.image_output import write_image
     runs = []
     for k in range(9):
         dr.sync_thread()

@@ -57,9 +57,9 @@ def startup_run(way: str, out: str) -> None:
     ``now``, the sweep's phases timed from outside (its own functions wrapped)."""
     import mimarble
     mimarble.start()
-    from mimarble import sweeps
+    from mimarble.sweeps import run as sweeps
     from mimarble import scene as S
-    from mimarble.scene_edits import resized
+    from mimarble.scene.edits import resized
     scene = resized(S.load(ROOT / "scenes" / "fig11a.scene"), 128)
     setting = {"marble.period": [0.5, 1.5, 2.5, 4.0], "marble.distortion": [1.0, 2.5, 4.0, 6.0]}
     at = {}
@@ -141,9 +141,9 @@ def steady(repeats: int, frames: int = 64) -> dict:
     import mimarble
     mimarble.start()
     from dask.distributed import Client
-    from mimarble import sweeps
+    from mimarble.sweeps import run as sweeps
     from mimarble import scene as S
-    from mimarble.scene_edits import resized
+    from mimarble.scene.edits import resized
     out = {}
     cluster = sweeps.local_cluster(2, mimarble.mi.variant())
     client = Client(cluster)
@@ -235,7 +235,7 @@ def main(argv) -> int:
     out_json = argv[0] if argv else None
     import mimarble
     mimarble.start()
-    from mimarble.machine import machine_facts
+    from mimarble.runtime.machine import machine_facts
     results = {}
     if part != "all" and out_json and Path(out_json).exists():    # the other part kept
         results = json.loads(Path(out_json).read_text())

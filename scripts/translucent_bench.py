@@ -6,7 +6,7 @@ per path (the float64 reference random walk, which tracks with the same majorant
 
 For each scene of scenes/translucent/ at size² pixels: the median of 3 path-mode renders after
 a warm-up (``dr.sync_thread`` before each clock reading), with ``marble_medium`` and with the
-grid (baked by ``mimarble.bake.bake_volume`` at grid³ voxels, before timing); then the
+grid (baked by ``mimarble.tools.bake.bake_volume`` at grid³ voxels, before timing); then the
 reference's counts over size² · 4 paths: real and null collisions per path, and the majorant's
 efficiency real / (real + null). Writes the results as JSON when asked (docs/bench/).
 """
@@ -22,10 +22,12 @@ import time
 from pathlib import Path
 
 import mimarble
-from mimarble import bake, machine, reference
+from mimarble.tools import bake
+from mimarble.runtime import machine
+from mimarble import reference
 from mimarble import scene as S
-from mimarble.mitsuba.translate import to_mitsuba
-from mimarble.scene_edits import resized
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+from mimarble.scene.edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
 ROOT = Path(__file__).resolve().parent.parent

@@ -4,13 +4,13 @@
 
 * warm ``mimarble.render`` at 500², 1 spp of fig11a with 8-octave marbles, with
   constant colours, and of the file itself (12 octaves), replay on and off
-  (mimarble/bench_calls.py: whole call, its kernels, launches);
+  (mimarble/bench/calls.py: whole call, its kernels, launches);
 * a 64-frame period sweep at 256², 4 spp in this process, against its frames' kernels
   plus its first frame's compile;
-* POV-Ray 3.7's own "Trace Time" for the same 8-octave sphere (mimarble/povray.py;
+* POV-Ray 3.7's own "Trace Time" for the same 8-octave sphere (mimarble/tools/povray.py;
   skipped when ``povray`` is not installed) over the warm ``mimarble.render`` call;
-* one Adam step of notebook 02, traced and frozen (mimarble/bench_adam.py);
-* the noise alone against the peers, one thread each (mimarble/bench_peers.py; a peer
+* one Adam step of notebook 02, traced and frozen (mimarble/bench/adam.py);
+* the noise alone against the peers, one thread each (mimarble/bench/peers.py; a peer
   not installed is skipped: ``pip install mimarble[peers]``).
 
 Every table names the machine. Medians; the machine is shared, so run it on a quiet one.
@@ -24,10 +24,10 @@ import mimarble
 
 mimarble.start()
 
-from mimarble import bench_calls  # noqa: E402
-from mimarble.bench_peers import peers_table  # noqa: E402
-from mimarble.bench_report import calls_lines  # noqa: E402
-from mimarble.machine import machine_facts, machine_line  # noqa: E402
+from mimarble.bench import calls as bench_calls  # noqa: E402
+from mimarble.bench.peers import peers_table  # noqa: E402
+from mimarble.bench.report import calls_lines  # noqa: E402
+from mimarble.runtime.machine import machine_facts, machine_line  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "scenes" / "fig11a.scene"

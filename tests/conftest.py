@@ -4,7 +4,7 @@ import sys
 import pytest
 
 import mimarble
-from mimarble import environment
+from mimarble.runtime import environment
 
 sys.path.insert(0, os.path.dirname(__file__))   # perlin64, the tests' own reference
 

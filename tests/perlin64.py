@@ -1,7 +1,7 @@
 """An independent float64 Perlin noise for the tests: Shirley's sum-of-ω form.
 
 Written from the paper's §2.2 (with its typo fixed: ω(t) = −6|t|⁵ + 15|t|⁴ −
-10|t|³ + 1) and Perlin's 2002 gradient set, not from mimarble.noise:
+10|t|³ + 1) and Perlin's 2002 gradient set, not from mimarble.texture.noise:
 
     n(x, y, z) = Σ_{corners (i,j,k) of the cell} ω(x−i) ω(y−j) ω(z−k) g_ijk·(x−i, y−j, z−k)
 

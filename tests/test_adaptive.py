@@ -1,4 +1,4 @@
-"""Adaptive sampling (mimarble/mitsuba/adaptive.py): rounds of more samples where the
+"""Adaptive sampling (mimarble/mitsuba/rendering/adaptive.py): rounds of more samples where the
 estimated error is, each pixel a plain render's at the spp it ends with."""
 
 
@@ -10,11 +10,11 @@ import pytest
 import mimarble
 from mimarble import reference
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba import adaptive
-from mimarble.mitsuba.passes import _traced_pass, padded_count
-from mimarble.mitsuba.render import render_in_passes
+from mimarble.mitsuba.rendering import adaptive
+from mimarble.mitsuba.rendering.passes import _traced_pass, padded_count
+from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.scene.rules import adaptive_problem
-from mimarble.scene_edits import resized, with_marbles
+from mimarble.scene.edits import resized, with_marbles
 
 from commands import mimarble_cli
 
@@ -92,7 +92,7 @@ def test_a_prefiltered_marble_of_linear_phase_is_left_alone_inside(llvm):
     base = small(size=40)
     stripes = with_marbles(base, distortion=0.0, period=9.0)
     prefiltered = with_marbles(stripes, filter="prefilter")
-    edge = mimarble.mitsuba.silhouettes.edge_mask(loaded(stripes), 1)
+    edge = mimarble.mitsuba.rendering.silhouettes.edge_mask(loaded(stripes), 1)
     kept = adaptive.render_adaptive(loaded(prefiltered), 1, 0.001, 16)
     assert np.all(kept.samples[~edge] == 1)
     point = adaptive.render_adaptive(loaded(stripes), 1, 0.001, 16)

@@ -12,7 +12,7 @@ from traced import operations_traced  # noqa: E402
 import mimarble
 from mimarble import reference
 from mimarble import scene as sl
-from mimarble.compare import image_metrics
+from mimarble.tools.compare import image_metrics
 from mimarble.mitsuba import to_mitsuba
 from mimarble.reference import tracer
 
@@ -214,9 +214,9 @@ def test_the_stratified_area_plugin_from_a_dict(llvm):
 
 
 def test_an_edited_area_light_replays_what_a_fresh_trace_renders(llvm, monkeypatch):
-    from mimarble.mitsuba import passes
-    from mimarble.mitsuba.render import render_in_passes
-    from mimarble.mitsuba.replay import scene_key
+    from mimarble.mitsuba.rendering import passes
+    from mimarble.mitsuba.rendering.render import render_in_passes
+    from mimarble.mitsuba.rendering.replay import scene_key
     scene = mi.load_dict(to_mitsuba(floor_scene(SPHERE, samples=9, size=16)))
     render_in_passes(scene, 1)
     before = render_in_passes(scene, 1)

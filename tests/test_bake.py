@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import bake, scene as scene_language
-from mimarble.mitsuba.image_output import write_image
-from mimarble.mitsuba.translate import to_mitsuba
+from mimarble.tools import bake
+from mimarble import scene as scene_language
+from mimarble.mitsuba.rendering.image_output import write_image
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
 from mimarble.reference.channels import channel_color
 
 from commands import mimarble_cli

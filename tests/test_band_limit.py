@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import noise
+from mimarble.texture import noise
 from mimarble.mitsuba import to_mitsuba
-from mimarble.scene_edits import resized, with_marbles
+from mimarble.scene.edits import resized, with_marbles
 
 dr, mi = mimarble.dr, mimarble.mi
 

@@ -1,13 +1,14 @@
 """The benchmark's adaptive modes and each mode's time to plain 16 and 64 spp's RMSE
-(mimarble/bench.py, reported by bench_report.py and bench_page.py, drawn by bench_plot.py).
+(mimarble/bench/run.py, reported by bench_report.py and bench_page.py, drawn by bench_plot.py).
 No timing is asserted: machines are shared."""
 
 import math
 
 import pytest
 
-from mimarble import bench, bench_page, bench_plot, bench_report
-from mimarble.bench import time_to_rmse, times_to_plain_rmse
+from mimarble.bench import (run as bench, page as bench_page, plot as bench_plot,
+    report as bench_report)
+from mimarble.bench.run import time_to_rmse, times_to_plain_rmse
 
 MACHINE = {"processor": "AMD EPYC", "cores": 2, "variant": "llvm_ad_rgb"}
 
@@ -170,7 +171,7 @@ def test_the_default_modes_add_adaptive_sampling_of_plain_and_prefiltered_marble
 # One small benchmark, end to end
 
 def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
-    pytest.importorskip("mimarble.mitsuba.adaptive")
+    pytest.importorskip("mimarble.mitsuba.rendering.adaptive")
     modes = (bench.Mode("plain"), bench.Mode("adaptive", adaptive=True))
     results = bench.run_bench(["scenes/fine-veins/veins-p4-d4-s2.scene"], size=32,
                               spps=(1, 4, 16, 64), converged_spp=16, repeats=1, paper=False,
@@ -196,6 +197,6 @@ def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
     (["--adaptive", "nan"], "finite number > 0"),
 ])
 def test_bench_refuses_bad_adaptive_settings_before_measuring(args, message, capsys):
-    from mimarble.cli import main
+    from mimarble.cli.main import main
     assert main(["bench", *args]) == 2
     assert message in capsys.readouterr().err

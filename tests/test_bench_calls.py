@@ -6,9 +6,9 @@ from mimarble import scene as scene_language
 
 mi, dr = mimarble.mi, mimarble.dr
 
-from mimarble import bench_adam, bench_calls  # noqa: E402
-from mimarble.bench_report import calls_lines  # noqa: E402
-from mimarble.scene_edits import resized  # noqa: E402
+from mimarble.bench import adam as bench_adam, calls as bench_calls  # noqa: E402
+from mimarble.bench.report import calls_lines  # noqa: E402
+from mimarble.scene.edits import resized  # noqa: E402
 
 SCENE = "scenes/fig11a.scene"
 
@@ -23,8 +23,8 @@ def test_a_call_is_timed_with_its_kernels(llvm):
 def test_replay_is_switched_for_the_block_only(llvm, monkeypatch):
     monkeypatch.setenv("MIMARBLE_FREEZE", "1")
     with bench_calls.replay(False):
-        assert not mimarble.mitsuba.replay.enabled()
-    assert mimarble.mitsuba.replay.enabled()
+        assert not mimarble.mitsuba.rendering.replay.enabled()
+    assert mimarble.mitsuba.rendering.replay.enabled()
 
 
 def test_the_sweep_row_counts_every_frames_kernels(llvm):

@@ -1,4 +1,4 @@
-"""The benchmarks page keeps one section per machine kind (mimarble/bench_page.py)."""
+"""The benchmarks page keeps one section per machine kind (mimarble/bench/page.py)."""
 
 import copy
 import json
@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from mimarble import bench_page
+from mimarble.bench import page as bench_page
 
 ROOT = Path(__file__).resolve().parent.parent
 XEON = json.loads((ROOT / "docs" / "bench" / "bench.json").read_text())
@@ -70,7 +70,7 @@ def test_the_section_names_its_command_date_and_plot(tmp_path):
 
 
 def test_bench_refuses_a_page_that_is_not_markdown(tmp_path, capsys):
-    from mimarble.cli import main
+    from mimarble.cli.main import main
     assert main(["bench", "--page", str(tmp_path / "page.txt")]) == 2
     assert "page" in capsys.readouterr().err
 

@@ -1,4 +1,4 @@
-"""mimarble.bench_peers: the table, our row, and peers that are missing. No timing limits:
+"""mimarble.bench.peers: the table, our row, and peers that are missing. No timing limits:
 machines are noisy, so only the shape and the bookkeeping of the rows are checked."""
 
 import sys
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import bench_peers
+from mimarble.bench import peers as bench_peers
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -65,7 +65,7 @@ def test_peer_rates_gives_our_row_on_one_thread_and_restores_the_thread_count(ll
 
 
 def test_our_noise_runs_with_one_thread_in_the_llvm_variant(llvm, monkeypatch):
-    from mimarble import noise
+    from mimarble.texture import noise
     seen = []
     real = noise.fractal3
 

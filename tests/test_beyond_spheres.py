@@ -9,8 +9,8 @@ import pytest
 import mimarble
 from mimarble import reference
 from mimarble import scene as S
-from mimarble.compare import image_metrics
-from mimarble.scene_edits import with_image_size
+from mimarble.tools.compare import image_metrics
+from mimarble.scene.edits import with_image_size
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted((ROOT / "scenes" / "beyond-spheres").glob("*.scene"))

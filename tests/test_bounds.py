@@ -73,7 +73,7 @@ def test_noise_lattice_index_stays_in_bounds_for_any_coordinate(jit_variant, oct
     points = np.array([(c, 0.5, -0.25) for c in coordinates] + [(0.5, c, c) for c in coordinates],
                       dtype=np.float32)
     with dr.scoped_set_flag(dr.JitFlag.Debug, True), stderr_reports(dr, echo=False) as captured:
-        values = mimarble.noise.fractal(points, octaves)
+        values = mimarble.texture.noise.fractal(points, octaves)
     assert captured.reports() == []
     finite = np.isfinite(points).all(axis=1)
     assert np.isnan(values[~finite]).all()

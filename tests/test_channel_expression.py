@@ -8,7 +8,7 @@ import pytest
 import mimarble
 from mimarble import scene as S
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import render_in_passes
+from mimarble.mitsuba.rendering.render import render_in_passes
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -184,7 +184,7 @@ def test_max_is_the_bound_of_the_channel_model(variant, channel):
     # max() (made from the operands' held maxima, issue 37 item 2) against the same rules
     # applied to the scene model in float64 (error_budget.channel_bound), and against the
     # colours; a mix whose weight texture stays ≤ 1: the larger side.
-    from mimarble import error_budget
+    from mimarble.texture import error_budget
     expected = error_budget.channel_bound(channel)
     if isinstance(channel, S.Mix) and not isinstance(channel.weight, float):
         expected = max(error_budget.channel_bound(channel.a), error_budget.channel_bound(channel.b))

@@ -10,8 +10,8 @@ import pytest
 
 import mimarble
 from mimarble import reference
-from mimarble.compare import LEGEND_HEIGHT, image_metrics
-from mimarble.scene_edits import resized
+from mimarble.tools.compare import LEGEND_HEIGHT, image_metrics
+from mimarble.scene.edits import resized
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = sorted(glob.glob(os.path.join(ROOT, "scenes", "*.scene")))

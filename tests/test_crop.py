@@ -8,12 +8,12 @@ import pytest
 from commands import mimarble_cli  # noqa: E402
 
 import mimarble
-from mimarble import cli
-from mimarble.mitsuba import image_output
-from mimarble.scene_edits import with_image_size
+from mimarble.cli import main as cli
+from mimarble.mitsuba.rendering import image_output
+from mimarble.scene.edits import with_image_size
 
 dr, mi = mimarble.dr, mimarble.mi
-render_module = importlib.import_module("mimarble.mitsuba.render")   # the module, not the function
+render_module = importlib.import_module("mimarble.mitsuba.rendering.render")   # the module, not the function
 
 # Two spheres, one partly in front of the other: silhouettes against the background and
 # between the spheres. 4:3, small.

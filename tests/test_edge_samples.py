@@ -6,12 +6,13 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.mitsuba import silhouettes, to_mitsuba
-from mimarble.mitsuba.pixel_tracer import PassNumbers, PixelTracer
-from mimarble.scene_edits import resized
+from mimarble.mitsuba.rendering import silhouettes
+from mimarble.mitsuba import to_mitsuba
+from mimarble.mitsuba.rendering.pixel_tracer import PassNumbers, PixelTracer
+from mimarble.scene.edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
-render_module = importlib.import_module("mimarble.mitsuba.render")
+render_module = importlib.import_module("mimarble.mitsuba.rendering.render")
 
 
 def test_a_pixel_is_an_edge_when_its_neighbourhood_sees_two_shapes():

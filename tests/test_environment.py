@@ -8,7 +8,7 @@ import sys
 import pytest
 
 import mimarble
-from mimarble import environment
+from mimarble.runtime import environment
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CLEAR = "needs libLLVM 16 or newer"
@@ -152,9 +152,9 @@ def test_doctor_reports_library_variant_and_versions():
 
 
 def test_drjit_core_is_opened_only_once_drjit_is_imported(monkeypatch):
-    """mimarble/drjit_core.py opens the imported Dr.Jit's libdrjit-core, and never imports
+    """mimarble/runtime/drjit_core.py opens the imported Dr.Jit's libdrjit-core, and never imports
     Dr.Jit itself (that is environment's job, which chooses the libLLVM first)."""
-    from mimarble import drjit_core, kernel_cache
+    from mimarble.runtime import drjit_core, kernel_cache
     lib = drjit_core.library()                  # `import mimarble` imported Dr.Jit
     assert hasattr(lib, kernel_cache._CACHE_DIR)
     assert kernel_cache.folder() is not None or not os.environ.get("HOME")

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import error_budget, stress
-from mimarble.stripes import STRIPES
-from mimarble.noise import MAX_OCTAVES_EVALUATED
+from mimarble.texture import error_budget
+from mimarble.tools import stress
+from mimarble.texture.stripes import STRIPES
+from mimarble.texture.noise import MAX_OCTAVES_EVALUATED
 from mimarble.reference import marble as reference_marble
 from mimarble.scene import MarbleChannel
 
@@ -195,7 +196,7 @@ def test_expression_gain_is_what_an_expression_can_multiply_a_marble_error_by():
 
 def test_a_marble_in_an_expression_gets_the_scene_budget_over_the_gain():
     from mimarble import scene as S
-    from mimarble.mitsuba.translate import to_mitsuba
+    from mimarble.mitsuba.translate.scene_dict import to_mitsuba
     marble = S.MarbleChannel()
     scene = S.Scene(lights=(S.Light((5, 5, 5)),), spheres=(S.Sphere("m"),),
                     materials={"m": S.Material("m", diffuse=S.Add((marble, marble)))})

@@ -17,9 +17,10 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import export, scene as scene_language
-from mimarble.mitsuba.translate import to_mitsuba
-from mimarble.scene_edits import resized, with_image_size
+from mimarble.tools import export
+from mimarble import scene as scene_language
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+from mimarble.scene.edits import resized, with_image_size
 
 from commands import ROOT, mimarble_cli
 
@@ -222,7 +223,7 @@ def test_what_neither_file_can_hold_is_refused_in_one_sentence():
 def test_a_failed_export_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
     out = tmp_path / "scene.xml"
     out.write_text("old")
-    from mimarble.mitsuba import translate
+    from mimarble.mitsuba.translate import scene_dict as translate
     monkeypatch.setattr(translate, "to_mitsuba", lambda *a, **k: {
         "type": "scene", "t": {"type": "bitmap", "filename": "bad\x02"}})
     with pytest.raises(export.ExportError):

@@ -2,7 +2,7 @@
 
 Each was silently wrong once: Mitsuba's default clip planes dropped a huge far sphere
 and a tiny near one; a large "ground sphere" got shadow acne and false shadows from
-float32 hit points (mimarble/mitsuba/sphere_hit.py); shadow rays stopped short of a light
+float32 hit points (mimarble/mitsuba/plugins/sphere_hit.py); shadow rays stopped short of a light
 enclosed by a tiny sphere. Targets: ≥ 50 dB PSNR and
 ≤ 0.2 % of pixels off by more than 1/255, as for the paper's scenes.
 """
@@ -14,8 +14,8 @@ import pytest
 
 import mimarble
 from mimarble import reference
-from mimarble.compare import image_metrics
-from mimarble.mitsuba.translate import Float32RangeWarning, clip_planes
+from mimarble.tools.compare import image_metrics
+from mimarble.mitsuba.translate.scene_dict import Float32RangeWarning, clip_planes
 
 MIN_PSNR_DB, MAX_PIXELS_OFF = 50.0, 0.002
 MARBLE = 'material "m" { diffuse { marble { scale SCALE octaves 4 } } specular { color < 0.3 0.3 0.3 > } }\n'
@@ -72,7 +72,7 @@ def test_a_ground_sphere_casts_no_acne_and_no_false_shadow(variant, radius):
 
 
 def _small(model):
-    from mimarble.scene_edits import resized
+    from mimarble.scene.edits import resized
     return resized(model, 24)
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import pixel_filter
-from mimarble.texture_mapping import NoFootprintWarning, differentials_from_the_eye
+from mimarble.texture import filters as pixel_filter
+from mimarble.texture.mapping import NoFootprintWarning, differentials_from_the_eye
 
 dr, mi = mimarble.dr, mimarble.mi
 

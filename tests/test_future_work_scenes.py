@@ -12,8 +12,8 @@ import pytest
 import mimarble
 from mimarble import reference
 from mimarble import scene as S
-from mimarble.compare import image_metrics
-from mimarble.scene_edits import resized
+from mimarble.tools.compare import image_metrics
+from mimarble.scene.edits import resized
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted((ROOT / "scenes" / "future-work").glob("*.scene"))

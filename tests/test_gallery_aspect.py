@@ -5,7 +5,7 @@ from commands import mimarble_cli  # noqa: E402
 from PIL import Image
 
 import mimarble
-from mimarble.gallery import fitted
+from mimarble.tools.gallery import fitted
 
 SCENE = """image { width 320 height 240 samples 1 }
 camera { eye < 0 0 6 > lookat < 0 0 0 > up < 0 1 0 > fov 30 }

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.marble_parameters import MarbleParameters, ParameterError, hex_colour, parse_ramp
-from mimarble.mitsuba.translate import texture_dict
+from mimarble.parameters import MarbleParameters, ParameterError, hex_colour, parse_ramp
+from mimarble.mitsuba.translate.scene_dict import texture_dict
 from mimarble.reference.channels import channel_color
 from mimarble.scene import ColorChannel, MarbleChannel, SceneError, parse
 

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import files
+from mimarble.runtime import files
 from mimarble import scene as S
-from mimarble.compare import image_metrics
-from mimarble.mitsuba.render import render_in_passes
+from mimarble.tools.compare import image_metrics
+from mimarble.mitsuba.rendering.render import render_in_passes
 
 dr, mi = mimarble.dr, mimarble.mi
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -181,7 +181,8 @@ def test_numpy_numbers_a_python_number_would_not_pass_are_refused_alike(llvm, ar
     ("a\0b", "'a\\x00b': cannot read scene file: the name holds a NUL character"),
 ])
 def test_an_empty_or_nul_scene_name_is_one_clear_sentence(llvm, tmp_path, name, words):
-    from mimarble import reference, sweeps
+    from mimarble import reference
+    from mimarble.sweeps import run as sweeps
     for call in (mimarble.render, reference.render, S.load,
                  lambda n: sweeps.sweep(n, {"marble.period": [1]}, tmp_path / "out")):
         with pytest.raises(S.SceneError) as caught:

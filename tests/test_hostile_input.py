@@ -26,7 +26,7 @@ import pytest
 from PIL import Image as PILImage
 
 import mimarble
-from mimarble import marble_parameters
+from mimarble import parameters as marble_parameters
 from mimarble import scene as S
 from mimarble.reference import image_map
 from mimarble.scene import SceneError, parse
@@ -229,7 +229,7 @@ def test_a_channel_nested_to_the_limit_renders_as_its_reference(llvm, expression
     """At the depth limit the replay's inputs are nested deeper than Dr.Jit's traversal
     goes (a RecursionError inside dr.freeze): the pass is traced instead, same image."""
     import mimarble
-    from mimarble.compare import image_metrics
+    from mimarble.tools.compare import image_metrics
     text = ("image { width 8 height 8 samples 1 } camera { eye < 0 0 9 > } "
             "light { position < 5 5 5 > } " + nested(MAX_CHANNEL_DEPTH, expression)
             + ' sphere { material "m" radius 2 }')
@@ -371,7 +371,7 @@ def test_the_reference_refuses_a_truncated_map_in_the_parser_s_words(tmp_path):
 
 
 def test_the_mitsuba_path_refuses_a_truncated_map_in_the_parser_s_words(llvm, tmp_path):
-    from mimarble.mitsuba.render import check_images
+    from mimarble.mitsuba.rendering.render import check_images
     whole = real_image(tmp_path / "whole.jpg").read_bytes()
     cut = tmp_path / "cut.jpg"
     cut.write_bytes(whole[:len(whole) // 2])
@@ -395,7 +395,7 @@ def test_a_scale_that_is_zero_in_single_precision_is_refused_by_the_parser():
 
 
 def test_the_parameter_table_rounds_to_single_precision_for_every_caller():
-    from mimarble.scene_edits import KeyPathError, with_value
+    from mimarble.scene.edits import KeyPathError, with_value
     scale = marble_parameters.BY_NAME["scale"]
     with pytest.raises(marble_parameters.ParameterError, match="single precision"):
         scale.check(1e-40)

@@ -17,7 +17,8 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import reference, scene_edits
+from mimarble import reference
+from mimarble.scene import edits as scene_edits
 from mimarble import scene as S
 from mimarble.scene import SceneError, parse
 from mimarble.scene.limits import FLT_MAX, FLT_MIN_NORMAL
@@ -80,8 +81,8 @@ def test_a_small_area_light_is_mitsuba_s_point_light_of_the_same_intensity(llvm)
     """Below the stated size a sphere light is the path-mode point light (I·π·d²); a
     rectangle keeps its one-sided rectangle, its edges lengthened and its radiance scaled
     so that its intensity A·L towards the look-at point is kept."""
-    from mimarble.mitsuba.translate import (AREA_LIGHT_POINT_SIZE, RECTANGLE_LIGHT_SHORTEST_EDGE,
-                                            area_light_dict)
+    from mimarble.mitsuba.translate.scene_dict import (AREA_LIGHT_POINT_SIZE,
+        RECTANGLE_LIGHT_SHORTEST_EDGE, area_light_dict)
     lookat = (0.0, 0.0, 0.0)
     d = math.dist((3.0, 4.0, 12.0), lookat)
     small = S.Light((3, 4, 12), (1, 0.5, 0.25), area=S.SphereArea(d * AREA_LIGHT_POINT_SIZE / 2))

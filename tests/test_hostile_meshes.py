@@ -132,7 +132,7 @@ def rewrite_keeping_times(path, text):
 def render_from_nothing_kept(path):
     """The image of the scene file as a first render: nothing loaded or parsed kept."""
     import mimarble
-    from mimarble.mitsuba.loaded_scenes import LOADED
+    from mimarble.mitsuba.rendering.loaded_scenes import LOADED
     from mimarble.scene import parser
     LOADED.clear()
     parser._PARSED.clear()
@@ -387,7 +387,7 @@ def test_what_the_check_accepts_both_readers_read_alike(llvm, tmp_path, case):
     reader give the same triangles, Mitsuba's float32 positions being the reference's
     rounded."""
     import mitsuba as mi
-    from mimarble.reference.mesh_file import read_mesh
+    from mimarble.meshes.arrays import read_mesh
     from mimarble.scene.mesh_header import mesh_facts
     name, data, _ = READ_ALIKE[case]
     path = tmp_path / name
@@ -417,7 +417,7 @@ def test_large_texture_coordinates_under_an_image_map_are_warned_of(llvm, tmp_pa
     import warnings
     from PIL import Image
     from mimarble import scene as S
-    from mimarble.mitsuba.translate import Float32RangeWarning, to_mitsuba
+    from mimarble.mitsuba.translate.scene_dict import Float32RangeWarning, to_mitsuba
     from mimarble.scene.mesh_header import MAX_PRECISE_UV
     Image.new("RGB", (4, 4), (200, 10, 10)).save(tmp_path / "map.png")
     if kind == "obj":          # Mitsuba stores (u, 1 − v): the extent is u's

@@ -8,8 +8,8 @@ import unicodedata
 import pytest
 from commands import mimarble_cli, one_sentence  # noqa: E402
 
-from mimarble import packaged_scenes
-from mimarble.files import output_name_problem
+from mimarble.runtime import packaged_scenes
+from mimarble.runtime.files import output_name_problem
 from mimarble.scene import SceneError
 from mimarble.scene.errors import printable
 
@@ -262,7 +262,7 @@ def test_the_image_writer_refuses_an_empty_or_nul_name(llvm, tmp_path, monkeypat
 @pytest.mark.parametrize("name", ["", os.fsdecode(b"d\xff")])
 def test_the_python_writers_refuse_the_names_the_command_line_refuses(llvm, tmp_path,
                                                                       monkeypatch, name):
-    from mimarble import export
+    from mimarble.tools import export
     from mimarble import scene as S
     monkeypatch.chdir(tmp_path)
     with pytest.raises(packaged_scenes.CopyRefused, match="empty name|not UTF-8"):

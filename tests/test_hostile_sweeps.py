@@ -16,8 +16,8 @@ import pytest
 from commands import mimarble_cli as cli, one_sentence  # noqa: E402
 
 from mimarble import scene as S
-from mimarble import contact_sheet, sweeps
-from mimarble.scene_edits import resized
+from mimarble.sweeps import contact_sheet, run as sweeps
+from mimarble.scene.edits import resized
 
 ROOT = Path(__file__).resolve().parent.parent
 SETTING = {"marble.period": [1.0, 2.0]}
@@ -462,7 +462,7 @@ def test_a_lock_file_that_is_a_link_or_a_pipe_is_refused(llvm, tmp_path, plant):
 
 
 def test_sweep_resolves_a_packaged_scene_name_as_render_does(llvm, tmp_path, monkeypatch):
-    from mimarble import packaged_scenes
+    from mimarble.runtime import packaged_scenes
     monkeypatch.chdir(tmp_path)                     # no file called fig11a here
     index = sweeps.sweep("fig11a", {"camera.fov": [30.0]}, "out", spp=1, stop_after=0)
     assert index["scene"] == str(packaged_scenes.find("fig11a"))

@@ -202,7 +202,7 @@ def test_no_module_imports_one_that_imports_it_back():
     package_dir = ROOT / PACKAGE
     graph = import_graph(package_dir)
     modules = module_files(package_dir)
-    assert f"{PACKAGE}.environment" in graph[PACKAGE]          # the reading sees imports at all
+    assert f"{PACKAGE}.runtime.environment" in graph[PACKAGE]          # the reading sees imports at all
     found = strongly_connected(graph)
     assert not found, "modules of mimarble that import one another in a circle:\n  " + (
         "\n  ".join(describe(c, graph, modules) for c in found))
@@ -253,13 +253,13 @@ def _imported_names(path: Path) -> set[str]:
 
 
 def test_the_marble_parameter_table_needs_neither_lark_nor_drjit():
-    """mimarble/marble_parameters.py and the modules it reaches inside mimarble import only
+    """mimarble/parameters.py and the modules it reaches inside mimarble import only
     the standard library: the command line reads the table before Dr.Jit loads, and the
     scene package (Lark) and the plugin (Dr.Jit) both read it."""
     import sys
     modules = module_files(ROOT / PACKAGE)
     graph = import_graph(ROOT / PACKAGE)
-    reached, todo = set(), ["mimarble.marble_parameters"]
+    reached, todo = set(), ["mimarble.parameters"]
     while todo:
         name = todo.pop()
         if name not in reached:

@@ -6,7 +6,7 @@ from commands import mimarble_cli  # noqa: E402
 from PIL import Image
 
 import mimarble
-from mimarble.mitsuba.image_output import write_image
+from mimarble.mitsuba.rendering.image_output import write_image
 
 SCENE = """image { width 48 height 36 samples 4 }
 camera { eye < 0 0 6 > lookat < 0 0 0 > up < 0 1 0 > fov 30 }

@@ -1,4 +1,4 @@
-"""The LLVM target (mimarble/llvm_target.py): parsed, applied, shown — and images unchanged."""
+"""The LLVM target (mimarble/runtime/llvm_target.py): parsed, applied, shown — and images unchanged."""
 
 import os
 import subprocess
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import environment, llvm_target
-from mimarble.llvm_target import Target, automatic, parse
+from mimarble.runtime import environment, llvm_target
+from mimarble.runtime.llvm_target import Target, automatic, parse
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ZEN = Target("znver3", "+avx,+avx2,-avx512f", 8)
@@ -59,12 +59,12 @@ def test_doctor_names_the_target():
 
 _RENDER = """
 import sys, numpy as np, mimarble
-from mimarble import llvm_target
-from mimarble.scene_edits import resized
+from mimarble.runtime import llvm_target
+from mimarble.scene.edits import resized
 scene = resized(mimarble.scene.load(sys.argv[2]), 48)
 points = np.random.default_rng(5).uniform(-300, 300, (4096, 3))
 np.savez(sys.argv[1], image=mimarble.render(scene, spp=4),
-         noise=mimarble.noise.fractal(points, 12), target=llvm_target.configure().target.summary())
+         noise=mimarble.texture.noise.fractal(points, 12), target=llvm_target.configure().target.summary())
 """
 
 
@@ -93,7 +93,7 @@ def test_images_are_bit_identical_whatever_the_target(tmp_path):
 
 
 def test_benchmark_figures_name_the_machine_and_target(llvm):
-    from mimarble.machine import machine_facts, machine_line
+    from mimarble.runtime.machine import machine_facts, machine_line
     facts = machine_facts()
     line = machine_line(facts)
     assert facts["processor"] in line and f"{facts['cores']} cores" in line

@@ -1,5 +1,5 @@
 """Scenes are loaded once and kept by structure, and what changed on disk is seen
-(mimarble/mitsuba/loaded_scenes.py, scene/parser.py's parsed files)."""
+(mimarble/mitsuba/rendering/loaded_scenes.py, scene/parser.py's parsed files)."""
 
 import shutil
 
@@ -12,8 +12,8 @@ from mimarble import scene as scene_language
 
 mi, dr = mimarble.mi, mimarble.dr
 
-from mimarble.mitsuba import loaded_scenes  # noqa: E402
-from mimarble.mitsuba.loaded_scenes import LOADED  # noqa: E402
+from mimarble.mitsuba.rendering import loaded_scenes  # noqa: E402
+from mimarble.mitsuba.rendering.loaded_scenes import LOADED  # noqa: E402
 
 SCENE = """
 image    { width 16 height 12 samples 1 }
@@ -101,7 +101,7 @@ def test_an_image_map_rewritten_on_disk_is_seen(llvm, tmp_path):
 
 
 def test_few_scenes_are_kept_and_their_sphere_tables_go_with_them(llvm):
-    from mimarble.mitsuba.sphere_hit import SphereTable
+    from mimarble.mitsuba.plugins.sphere_hit import SphereTable
     LOADED.clear()
     SphereTable._tables.clear()
     for period in ("0.5", "0.7", "0.9"):

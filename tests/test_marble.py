@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.marble_parameters import ParameterError
+from mimarble.parameters import ParameterError
 import marble64
 
 dr, mi = mimarble.dr, mimarble.mi

@@ -67,7 +67,7 @@ def test_eval_1_grad_is_the_derivative_of_the_reference_marble(llvm, function, t
 def finite_difference_marble():
     """The marble with ``eval_1_grad`` by central differences (the former implementation):
     an independent check of what ``bumpmap`` makes of the exact gradient."""
-    class FiniteDifferenceMarble(mimarble.plugins.bound_class("marble")):
+    class FiniteDifferenceMarble(mimarble.mitsuba.plugins.registration.bound_class("marble")):
         def eval_1_grad(self, si, active=True):
             step = 1e-3 / self.scale
             out = []

@@ -3,7 +3,7 @@ density, under Mitsuba's ``volpath`` and ``prbvolpath``.
 
 Checked against what does not come from it: Mitsuba's own ``homogeneous`` and
 ``heterogeneous`` media (the latter with the marble baked on a grid by the float64
-reference, mimarble/bake.py), the float64 reference channels
+reference, mimarble/tools/bake.py), the float64 reference channels
 (mimarble/reference/channels.py) for the coefficients, and finite differences for the
 gradients.
 
@@ -20,9 +20,11 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import bake, error_budget, scene as S
-from mimarble.mitsuba.marble_medium import MarbleMedium, MarbleMediumError
-from mimarble.mitsuba.translate import texture_dict
+from mimarble.tools import bake
+from mimarble.texture import error_budget
+from mimarble import scene as S
+from mimarble.mitsuba.plugins.marble_medium import MarbleMedium, MarbleMediumError
+from mimarble.mitsuba.translate.scene_dict import texture_dict
 from mimarble.reference.channels import channel_color
 
 dr, mi = mimarble.dr, mimarble.mi
@@ -125,7 +127,7 @@ def grid_medium(path, sigma_t):
 
 def test_a_marble_albedo_renders_as_its_baked_grid_converging_as_trilinear_interpolation(
         llvm, tmp_path):
-    """The reference marble baked on N³ grids (mimarble/bake.py) under ``heterogeneous``, the
+    """The reference marble baked on N³ grids (mimarble/tools/bake.py) under ``heterogeneous``, the
     same seed and majorant (σ_t = 4): per path |ΔL| ≤ Σ_k |Δα(p_k)| over its collisions,
     so the images differ by the grid's interpolation error, O(h²) for this smooth marble.
     Measured (mean |Δ| over the 32² image): 1.5e-4 at 32³, 3.7e-5 at 64³ (ratio 4.0; the
@@ -318,7 +320,7 @@ def shared_density_scene(ramp, density):
 @pytest.mark.parametrize("density", list(DENSITIES))
 def test_an_edit_of_a_shared_density_moves_the_bound_of_a_medium_it_was_not_told_of(
         llvm, monkeypatch, density):
-    from mimarble.mitsuba.render import render_in_passes
+    from mimarble.mitsuba.rendering.render import render_in_passes
     low = ((0.3, 0.3, 0.3), (0.9, 0.9, 0.9))
     high = ((0.3, 0.3, 0.3), (2.7, 2.7, 2.7))
     scene = mi.load_dict(shared_density_scene(low, density))
@@ -355,7 +357,7 @@ def test_a_mitsuba_density_texture_edited_elsewhere_records_its_new_maximum(llvm
     # Mitsuba's srgb as a density shared with a surface: its max() is read before each pass
     # (outside the recording, where reading is allowed) and is part of the key, so the
     # replay after the edit is a fresh trace's image and a fresh load's, not the old bound's.
-    from mimarble.mitsuba.render import render_in_passes
+    from mimarble.mitsuba.rendering.render import render_in_passes
     scene_dict = shared_density_scene(((0.3, 0.3, 0.3), (0.9, 0.9, 0.9)), "marble")
     scene_dict["veins"] = {"type": "srgb", "color": [0.3, 0.3, 0.3], "id": "veins"}
     scene = mi.load_dict(scene_dict)

@@ -11,7 +11,7 @@ import pytest
 import mimarble
 from mimarble import reference
 from mimarble import scene as S
-from mimarble.compare import image_metrics
+from mimarble.tools.compare import image_metrics
 from mimarble.reference.marble import marble_color, pattern_matrix, stripe
 from mimarble.scene import transforms
 
@@ -171,8 +171,8 @@ def test_mitsuba_turns_x_stripes_into_y_stripes(llvm):
 
 
 def test_scenes_differing_past_six_digits_of_a_transform_are_two_structures():
-    from mimarble.mitsuba.loaded_scenes import _structure
-    from mimarble.mitsuba.translate import to_mitsuba
+    from mimarble.mitsuba.rendering.loaded_scenes import _structure
+    from mimarble.mitsuba.translate.scene_dict import to_mitsuba
     a, b = (_structure(to_mitsuba(scene_with(S.MarbleChannel(
         transform=[("translate", (x, 0, 0))]))))[0] for x in (0.1, 0.1000004))
     assert a != b

@@ -1,5 +1,5 @@
 """Mesh files: mimarble.scene.mesh_header (what a file holds, its limits) and the reference
-tracer's reader (mimarble.reference.mesh_file), on small files written here.
+tracer's reader (mimarble.meshes.arrays), on small files written here.
 
 The same mesh is written in every encoding by hand (struct for the binary PLYs, text for the
 others), so each reader is checked against the triangles it was given, not against another
@@ -13,8 +13,8 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from mimarble.reference import mesh_file
-from mimarble.reference.mesh_file import read_mesh
+from mimarble.meshes import arrays as mesh_file
+from mimarble.meshes.arrays import read_mesh
 from mimarble.scene import mesh_header
 from mimarble.scene.limits import MAX_MESH_TRIANGLES
 from mimarble.scene.mesh_header import MeshFileError, mesh_facts

@@ -7,11 +7,11 @@ import pytest
 
 import mimarble
 from mimarble import scene as S
-from mimarble.marble import Marble
-from mimarble.mitsuba import sphere_hit
-from mimarble.mitsuba.channel_expression import ChannelExpression
-from mimarble.mitsuba.material import ChannelMaterial
-from mimarble.plugins import first_number
+from mimarble.mitsuba.plugins.marble import Marble
+from mimarble.mitsuba.plugins import sphere_hit
+from mimarble.mitsuba.plugins.channel_expression import ChannelExpression
+from mimarble.mitsuba.plugins.material import ChannelMaterial
+from mimarble.mitsuba.plugins.registration import first_number
 
 dr, mi = mimarble.dr, mimarble.mi
 

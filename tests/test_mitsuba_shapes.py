@@ -10,12 +10,13 @@ import pytest
 
 import mimarble
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import render_in_passes
-from mimarble.mitsuba import adaptive, silhouettes
-from mimarble.mitsuba.translate import Float32RangeWarning, clip_planes, float32_range_problems
+from mimarble.mitsuba.rendering.render import render_in_passes
+from mimarble.mitsuba.rendering import adaptive, silhouettes
+from mimarble.mitsuba.translate.scene_dict import (Float32RangeWarning, clip_planes,
+    float32_range_problems)
 from mimarble.scene import geometry
 from mimarble.scene import model as m
-from mimarble.texture_mapping import compute_uv_partials_scaled, differentials_from_the_eye
+from mimarble.texture.mapping import compute_uv_partials_scaled, differentials_from_the_eye
 
 dr, mi = mimarble.dr, mimarble.mi
 

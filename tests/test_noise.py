@@ -1,10 +1,10 @@
-"""mimarble.noise against Perlin's published algorithm and an independent float64 form."""
+"""mimarble.texture.noise against Perlin's published algorithm and an independent float64 form."""
 
 import numpy as np
 import pytest
 
 import mimarble
-from mimarble import noise
+from mimarble.texture import noise
 import perlin64
 
 dr, mi = mimarble.dr, mimarble.mi

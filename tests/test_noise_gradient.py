@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import noise
+from mimarble.texture import noise
 from mimarble.reference import noise as reference_noise
 from mimarble.reference import noise_gradient as reference_gradient
 

@@ -1,12 +1,13 @@
 """The paper's scenes shipped with the package: found by name, listed, copied, the gallery's
-default (mimarble/packaged_scenes.py; the built wheel itself: tests/test_packaging.py)."""
+default (mimarble/runtime/packaged_scenes.py; the built wheel itself: tests/test_packaging.py)."""
 
 import os
 from pathlib import Path
 
 from commands import mimarble_cli  # noqa: E402
 
-from mimarble import cli, packaged_scenes
+from mimarble.cli import main as cli
+from mimarble.runtime import packaged_scenes
 
 ROOT = Path(__file__).resolve().parent.parent
 SMALL = """image { width 8 height 6 samples 1 }
@@ -126,10 +127,10 @@ def test_gallery_into_a_missing_parent_is_refused_as_render_refuses_it(tmp_path)
 
 def test_python_finds_a_packaged_scene_by_name_and_renders_it(llvm):
     import mimarble
-    path = mimarble.packaged_scenes.find("fig11a")
+    path = mimarble.runtime.packaged_scenes.find("fig11a")
     assert path == packaged_scenes.FOLDER / "fig11a.scene"
     assert mimarble.render(path, width=8, height=8, spp=1).shape == (8, 8, 3)
-    assert mimarble.packaged_scenes.find("nowhere") is None
+    assert mimarble.runtime.packaged_scenes.find("nowhere") is None
 
 
 def test_python_renders_a_packaged_scene_by_name_from_any_folder(llvm, tmp_path, monkeypatch):

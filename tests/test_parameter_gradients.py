@@ -1,6 +1,6 @@
 """Every differentiable marble parameter has the derivative of the float64 reference.
 
-For each parameter the table marks differentiable (mimarble/marble_parameters.py), the
+For each parameter the table marks differentiable (mimarble/parameters.py), the
 texture's forward-mode derivative of the colour, at random points, against central
 differences of the reference marble (mimarble/reference/marble.py, float64) — in general,
 at distortion 0 (no noise, yet ∂/∂distortion = F) and with a flat ramp (no colour changes,
@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.marble import Marble
-from mimarble.marble_parameters import PARAMETERS
-from mimarble.mitsuba.translate import texture_dict
+from mimarble.mitsuba.plugins.marble import Marble
+from mimarble.parameters import PARAMETERS
+from mimarble.mitsuba.translate.scene_dict import texture_dict
 from mimarble.reference import marble as reference_marble
 from mimarble.reference.channels import channel_color
 from mimarble.scene import ColorChannel, MarbleChannel, Mix, Multiply

@@ -13,17 +13,17 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import pixel_filter, prefilter
+from mimarble.texture import filters as pixel_filter, prefilter
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import render_in_passes
-from mimarble.mitsuba.silhouettes import edge_mask
-from mimarble.ramp import Ramp, positions_storage, ramp_storage
+from mimarble.mitsuba.rendering.render import render_in_passes
+from mimarble.mitsuba.rendering.silhouettes import edge_mask
+from mimarble.texture.ramp import Ramp, positions_storage, ramp_storage
 from mimarble.reference.marble import ramp as reference_ramp
 from mimarble.reference.marble import stripe_of_phase
 from mimarble.reference.prefilter import phase_average
 from mimarble.scene.model import FIG5_RAMP, MARBLE_FUNCTIONS
-from mimarble.scene_edits import resized, with_marbles
-from mimarble.stripes import STRIPES
+from mimarble.scene.edits import resized, with_marbles
+from mimarble.texture.stripes import STRIPES
 
 # The experiment lives beside its measurement (scripts/phase_distribution_trial.py): it was
 # tried against the box prefilter and not adopted (docs/design-decisions.md).
@@ -34,7 +34,7 @@ _spec.loader.exec_module(phase_gaussian)
 
 dr, mi = mimarble.dr, mimarble.mi
 
-#: Each function's period of phase (mimarble/stripes.py's formulas, written out again).
+#: Each function's period of phase (mimarble/texture/stripes.py's formulas, written out again).
 PERIOD = {"abs_sine": 1.0, "sine": 2 * math.pi, "cosine": 2 * math.pi, "triangle": 1.0,
           "sawtooth": 1.0}
 RAMPS = {

@@ -1,12 +1,12 @@
-"""The POV-Ray peer (mimarble/povray.py): a comparable scene, timed when POV-Ray is installed."""
+"""The POV-Ray peer (mimarble/tools/povray.py): a comparable scene, timed when POV-Ray is installed."""
 
 import shutil
 
 import pytest
 
 import mimarble
-from mimarble import povray
-from mimarble.scene_edits import resized
+from mimarble.tools import povray
+from mimarble.scene.edits import resized
 
 
 def test_scene_text_carries_the_scene():

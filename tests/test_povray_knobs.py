@@ -11,18 +11,18 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import error_budget, noise, reference
+from mimarble.texture import error_budget, noise
+from mimarble import reference
 from mimarble import scene as S
-from mimarble.compare import image_metrics
-from mimarble.marble_parameters import (MAX_LACUNARITY, ParameterError, parse_positioned_ramp,
-                                        ramp_text)
+from mimarble.tools.compare import image_metrics
+from mimarble.parameters import MAX_LACUNARITY, ParameterError, parse_positioned_ramp, ramp_text
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import render_in_passes
-from mimarble.mitsuba.silhouettes import edge_mask
+from mimarble.mitsuba.rendering.render import render_in_passes
+from mimarble.mitsuba.rendering.silhouettes import edge_mask
 from mimarble.reference import marble as reference_marble
 from mimarble.reference.prefilter import phase_average
-from mimarble.scene_edits import resized, with_marbles
-from mimarble.stripes import STRIPES
+from mimarble.scene.edits import resized, with_marbles
+from mimarble.texture.stripes import STRIPES
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -47,7 +47,7 @@ def marble_of(marble_keys: str) -> S.MarbleChannel:
 
 
 def texture(channel: S.MarbleChannel, tolerance: float = 0.0):
-    from mimarble.mitsuba.translate import texture_dict
+    from mimarble.mitsuba.translate.scene_dict import texture_dict
     return mi.load_dict(texture_dict(channel, tolerance))
 
 
@@ -437,7 +437,7 @@ def test_bad_knobs_are_a_parameter_error_in_the_plugin(variant, props, words):
         mi.load_dict({"type": "marble", **props})
     assert words in str(info.value)
     with pytest.raises(ParameterError):      # the same from the parameter table itself
-        from mimarble.marble_parameters import MarbleParameters
+        from mimarble.parameters import MarbleParameters
         MarbleParameters.from_properties(props)
 
 

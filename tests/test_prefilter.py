@@ -7,16 +7,16 @@ import pytest
 
 import mimarble
 from jit_reports import stderr_reports
-from mimarble import noise, prefilter
+from mimarble.texture import noise, prefilter
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import render_in_passes
-from mimarble.mitsuba.silhouettes import edge_mask
+from mimarble.mitsuba.rendering.render import render_in_passes
+from mimarble.mitsuba.rendering.silhouettes import edge_mask
 from mimarble.reference.noise import noise3 as reference_noise
 from mimarble.reference.prefilter import phase_average
 from mimarble.scene.model import FIG5_RAMP, MARBLE_FUNCTIONS
-from mimarble.stripes import STRIPES
-from mimarble.texture_mapping import NoFootprintWarning
-from mimarble.scene_edits import resized, with_marbles
+from mimarble.texture.stripes import STRIPES
+from mimarble.texture.mapping import NoFootprintWarning
+from mimarble.scene.edits import resized, with_marbles
 
 dr, mi = mimarble.dr, mimarble.mi
 

@@ -1,11 +1,11 @@
-"""Image metrics and error maps (mimarble.compare) on synthetic images."""
+"""Image metrics and error maps (mimarble.tools.compare) on synthetic images."""
 
 import math
 
 import numpy as np
 import pytest
 
-from mimarble.compare import error_map, image_metrics
+from mimarble.tools.compare import error_map, image_metrics
 
 
 def test_identical_images():
@@ -64,7 +64,7 @@ def test_error_map_is_monotone_in_luminance():
 # The legend under the error map (compare --diff)
 
 def test_legend_bar_shows_the_maps_own_colours_along_the_log_scale():
-    from mimarble.compare import LEGEND_BAR_ROWS, error_map_legend, legend_bar_columns
+    from mimarble.tools.compare import LEGEND_BAR_ROWS, error_map_legend, legend_bar_columns
     strip = error_map_legend(400)
     x0, x1 = legend_bar_columns(400)
     fractions = (np.arange(x0, x1) - x0 + 0.5) / (x1 - x0)
@@ -76,7 +76,7 @@ def test_legend_bar_shows_the_maps_own_colours_along_the_log_scale():
 
 
 def test_legend_labels_every_decade_under_its_tick():
-    from mimarble.compare import LEGEND_BAR_ROWS, error_map_legend, legend_bar_columns
+    from mimarble.tools.compare import LEGEND_BAR_ROWS, error_map_legend, legend_bar_columns
     strip = error_map_legend(400).astype(int)
     x0, x1 = legend_bar_columns(400)
     bottom = LEGEND_BAR_ROWS[1]
@@ -90,7 +90,7 @@ def test_legend_labels_every_decade_under_its_tick():
 
 
 def test_map_with_legend_keeps_the_map_and_pads_a_narrow_one():
-    from mimarble.compare import LEGEND_HEIGHT, LEGEND_MIN_WIDTH, error_map_with_legend
+    from mimarble.tools.compare import LEGEND_HEIGHT, LEGEND_MIN_WIDTH, error_map_with_legend
     rng = np.random.default_rng(1)
     ref = rng.uniform(0, 1, (10, 16, 3))
     test = ref + rng.uniform(0, 1e-2, ref.shape)
@@ -104,6 +104,6 @@ def test_map_with_legend_keeps_the_map_and_pads_a_narrow_one():
 
 
 def test_error_map_scale_names_both_ends():
-    from mimarble.compare import error_map_scale
+    from mimarble.tools.compare import error_map_scale
     assert "black <= 1e-6" in error_map_scale() and "white >= 1e-1" in error_map_scale()
     assert "log scale" in error_map_scale(1e-4, 1.0) and "white >= 1e0" in error_map_scale(1e-4, 1.0)

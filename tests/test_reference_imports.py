@@ -8,10 +8,11 @@ import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
 REFERENCE = sorted((ROOT / "mimarble" / "reference").glob("*.py"))
-FORBIDDEN = ("mitsuba", "drjit", "mimarble.noise", "mimarble.marble", "mimarble.mitsuba",
-             "mimarble.environment", "mimarble.cli")
+FORBIDDEN = ("mitsuba", "drjit", "mimarble.texture", "mimarble.mitsuba",
+             "mimarble.runtime.environment", "mimarble.cli")
 ALLOWED_THIRD_PARTY = ("numpy", "PIL")   # PIL: image maps decoded by Pillow
-ALLOWED_PROJECT = ("mimarble.scene", "mimarble.reference", "mimarble.progress")
+ALLOWED_PROJECT = ("mimarble.scene", "mimarble.reference", "mimarble.meshes",
+                   "mimarble.runtime.progress")
 
 
 def imported_modules(path, package):
@@ -66,14 +67,14 @@ def test_reference_module_imports_only_numpy_stdlib_and_scene(path):
 
 
 def test_compare_module_has_no_mitsuba_import():
-    mods = imported_modules(ROOT / "mimarble" / "compare.py", "mimarble")
+    mods = imported_modules(ROOT / "mimarble" / "tools" / "compare.py", "mimarble.tools")
     assert not [m for m in mods if _forbidden(m)]
 
 
 def test_checker_catches_forbidden_imports(tmp_path):
     # the checker itself must see through relative and from-imports
     f = tmp_path / "x.py"
-    f.write_text("from .. import noise\nfrom mimarble import mitsuba\nimport drjit as dr\n")
+    f.write_text("from ..texture import noise\nfrom mimarble import mitsuba\nimport drjit as dr\n")
     mods = imported_modules(f, "mimarble.reference")
-    assert {"mimarble.noise", "mimarble.mitsuba", "drjit"} <= set(mods)
-    assert all(_forbidden(m) for m in ("mimarble.noise", "mimarble.mitsuba", "drjit"))
+    assert {"mimarble.texture.noise", "mimarble.mitsuba", "drjit"} <= set(mods)
+    assert all(_forbidden(m) for m in ("mimarble.texture.noise", "mimarble.mitsuba", "drjit"))

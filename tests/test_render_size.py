@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import cli
-from mimarble.scene_edits import with_image_size
+from mimarble.cli import main as cli
+from mimarble.scene.edits import with_image_size
 
 SCENE = "scenes/fig10a.scene"
 

@@ -1,5 +1,5 @@
 """Replayed passes are never stale: every edit, in place or structural, renders as a fresh
-trace of the same scene does (mimarble/mitsuba/replay.py).
+trace of the same scene does (mimarble/mitsuba/rendering/replay.py).
 
 Each test renders a loaded scene once (recording its pass), edits it through
 ``mi.traverse``, and compares the replayed render with a render traced from scratch
@@ -15,10 +15,10 @@ from mimarble import scene as scene_language
 
 mi, dr = mimarble.mi, mimarble.dr
 
-from mimarble.mitsuba import passes  # noqa: E402
-from mimarble.mitsuba.render import render_in_passes  # noqa: E402
-from mimarble.mitsuba.replay import scene_key  # noqa: E402
-from mimarble.scene_edits import resized  # noqa: E402
+from mimarble.mitsuba.rendering import passes  # noqa: E402
+from mimarble.mitsuba.rendering.render import render_in_passes  # noqa: E402
+from mimarble.mitsuba.rendering.replay import scene_key  # noqa: E402
+from mimarble.scene.edits import resized  # noqa: E402
 
 SCENE = """
 image    { width 24 height 20 samples 1 background < 0.1 0.1 0.2 > }
@@ -321,7 +321,7 @@ def _bitmap_scene(filter_type, wrap_mode, image):
 
 
 def test_a_new_scene_with_a_freed_ones_id_never_replays_its_recording(llvm, monkeypatch):
-    from mimarble.mitsuba import replay
+    from mimarble.mitsuba.rendering import replay
     monkeypatch.setattr(replay, "id", lambda obj: 0, raising=False)
     image = np.random.default_rng(37).uniform(0.0, 1.0, (4, 4, 3)).astype(np.float32)
     for filter_type, wrap_mode in (("bilinear", "repeat"), ("bilinear", "mirror"),

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 from mimarble import scene as S
-from mimarble.scene_edits import (KeyPathError, filling_the_view, resized, with_constant_colours,
-                                  with_image_size, with_marbles, with_value)
+from mimarble.scene.edits import (KeyPathError, filling_the_view, resized, with_constant_colours,
+    with_image_size, with_marbles, with_value)
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -80,7 +80,7 @@ def test_marble_values_are_checked_by_the_parameter_table():
 def test_the_module_loads_without_drjit_mitsuba_or_numpy():
     """The command line edits the scene (--width) before they load."""
     code = ("import sys; sys.orig_argv = [sys.executable, '-m', 'mimarble']; "   # as the command
-            "import mimarble.scene_edits; "
+            "import mimarble.scene.edits; "
             "print(sorted(m for m in ('drjit', 'mitsuba', 'numpy') if m in sys.modules))")
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT),
                                                                     os.environ.get("PYTHONPATH")])))

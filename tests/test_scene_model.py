@@ -239,7 +239,7 @@ def test_marble_rules_and_keys_are_written_from_the_parameter_table():
     import re
 
     # The rows with a key of their own (ramp_positions is written inside the ramp block).
-    from mimarble.marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+    from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
     from mimarble.scene.grammar import LANGUAGE_MARBLE_KEYS, grammar_text
     names = tuple(p.name for p in PARAMETERS) + LANGUAGE_MARBLE_KEYS     # then transform
     assert S.BLOCK_KEYS["marble"] == names
@@ -320,11 +320,11 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
 
 def test_the_documented_marble_keys_are_the_parameter_table():
     """docs/scene-language.md lists the marble's keys by hand: one row per parameter of
-    mimarble/marble_parameters.py, in its order, with its default."""
+    mimarble/parameters.py, in its order, with its default."""
     from pathlib import Path
 
-    from mimarble.marble_parameters import COLOURS
-    from mimarble.marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+    from mimarble.parameters import COLOURS
+    from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
     from mimarble.scene.grammar import LANGUAGE_MARBLE_KEYS
     text = (Path(__file__).parent.parent / "docs" / "scene-language.md").read_text()
     table = text[text.index("The marble, all keys optional"):]

@@ -10,7 +10,8 @@ from pathlib import Path
 import pytest
 
 from mimarble import scene as S
-from mimarble.scene import mesh_header, parse
+from mimarble.scene import mesh_header
+from mimarble.scene import parse
 from mimarble.scene.limits import (MAX_BOXES, MAX_CHANNEL_DEPTH, MAX_MESH_TRIANGLES,
                                    MAX_MESHES, MAX_PLANES, MAX_TEXTURES)
 from mimarble.scene.mesh_header import MeshFacts, MeshFileError

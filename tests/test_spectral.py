@@ -1,6 +1,6 @@
 """Spectral variants (issue 37, item 5): ``marble``, ``channel_expression``,
 ``channel_material`` and ``marble_medium`` give spectra there, upsampling their RGB colours
-with Mitsuba's sRGB model as ``bitmap`` does (mimarble/srgb_model.py).
+with Mitsuba's sRGB model as ``bitmap`` does (mimarble/texture/srgb_model.py).
 
 Checked against what does not come from that code: Mitsuba's own ``srgb_model_fetch`` (C++,
 one colour at a time), the sigmoid of the model written out in NumPy, the RGB variant's
@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import environment, srgb_model
+from mimarble.runtime import environment
+from mimarble.texture import srgb_model
 
 dr, mi = mimarble.dr, mimarble.mi
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -360,7 +361,7 @@ def test_a_paper_scene_in_path_mode_agrees_with_rgb_within_the_stated_tolerance(
     spec.loader.exec_module(spectral_check)
     render = spectral_check.render
     from mimarble import scene as scene_language
-    from mimarble.scene_edits import with_image_size
+    from mimarble.scene.edits import with_image_size
     use(SPECTRAL)
     scene = with_image_size(scene_language.load(os.path.join(ROOT, "scenes", "fig11a.scene")),
                             width=32, height=32)

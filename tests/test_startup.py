@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import environment
+from mimarble.runtime import environment
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 HEAVY = ("drjit", "mitsuba", "numpy")
@@ -98,7 +98,7 @@ def test_the_command_process_is_recognised(monkeypatch, orig_argv, argv0, expect
 
 def test_the_package_names_come_from_start():
     """The lazily provided names are the real objects (here the package has started)."""
-    assert mimarble.render.__module__ == "mimarble.mitsuba.render"
+    assert mimarble.render.__module__ == "mimarble.mitsuba.rendering.render"
     assert mimarble.mi.variant() is not None and mimarble.dr.__name__ == "drjit"
     with pytest.raises(AttributeError):
         mimarble.no_such_name
@@ -111,7 +111,7 @@ def test_skipping_mitsubas_ad_integrators_leaves_rendering_whole(tmp_path):
 import sys
 sys.path.insert(0, {ROOT!r})
 sys.orig_argv = [sys.executable, "-m", "mimarble"]    # as in the command's process
-from mimarble import environment
+from mimarble.runtime import environment
 assert environment.skip_mitsuba_ad_integrators()
 import mitsuba as mi
 mi.set_variant("llvm_ad_rgb")
@@ -142,7 +142,7 @@ def test_only_the_benchmarks_targets_build_mitsubas_ad_integrators(argv, prb):
 import sys
 sys.path.insert(0, {ROOT!r})
 sys.orig_argv = [sys.executable, "-m", "mimarble"]    # as in the command's process
-from mimarble import cli
+from mimarble.cli import main as cli
 args = cli.build_parser().parse_args({argv!r})
 args.variant = "llvm_ad_rgb"
 cli._start(args)
@@ -183,7 +183,7 @@ def test_the_command_renders_what_the_package_renders(tmp_path):
 def test_the_benchmark_times_each_whole_process():
     """``mimarble bench``'s rows: each run checked for its exit status, so a broken
     command cannot pass for a fast one."""
-    from mimarble import bench, bench_report
+    from mimarble.bench import run as bench, report as bench_report
     t = bench.process_times(os.path.join(ROOT, "scenes", "fig11a.scene"), repeats=1)
     assert all(t[k] > 0 for k in ("help_s", "malformed_scene_s", "render_warm_s", "render_cold_s"))
     text = "\n".join(bench_report._process_lines(t, {"process_s": 0.8}))

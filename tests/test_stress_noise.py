@@ -18,7 +18,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import mimarble
-from mimarble import noise, stress
+from mimarble.texture import noise
+from mimarble.tools import stress
 from mimarble.reference import noise as reference_noise
 import perlin64
 
@@ -222,7 +223,7 @@ def test_float64_drjit_evaluation_matches_the_reference(llvm):
 
 _DETERMINISM_SCRIPT = """
 import hashlib, numpy as np, mimarble
-from mimarble import noise
+from mimarble.texture import noise
 rng = np.random.default_rng(123)
 p = np.concatenate([rng.uniform(-1e3, 1e3, (20000, 3)),
                     10.0 ** rng.uniform(-30, 20, (20000, 3)) * rng.choice([-1, 1], (20000, 3))])

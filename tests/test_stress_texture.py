@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import mimarble
-from mimarble import stress
+from mimarble.tools import stress
 from mimarble.reference import marble as reference_marble
 from mimarble.scene.model import FIG5_RAMP, MarbleChannel
 

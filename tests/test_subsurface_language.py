@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from mimarble import scene as S
-from mimarble.mitsuba import translate
-from mimarble.mitsuba.translate import to_mitsuba
+from mimarble.mitsuba.translate import scene_dict as translate
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
 from mimarble.scene import parse
 from mimarble.scene.limits import MAX_CHANNEL_DEPTH
 
@@ -332,7 +332,7 @@ def test_an_extinction_past_float32_is_refused_at_the_subsurface():
 
 
 def test_the_translucent_scene_exports_its_medium_inside_its_shape():
-    from mimarble.export import to_xml
+    from mimarble.tools.export import to_xml
     xml = to_xml(translucent("albedo color < 1 1 1 > mean_free_path 1"))
     shape = xml[xml.index('<shape type="sphere"'):xml.index("</shape>")]
     assert '<medium type="marble_medium" name="interior">' in shape

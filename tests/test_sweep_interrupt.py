@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from mimarble import sweeps
+from mimarble.sweeps import run as sweeps
 
 ROOT = Path(__file__).resolve().parent.parent
 SIZE = 16

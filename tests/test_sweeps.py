@@ -11,11 +11,11 @@ import pytest
 
 import mimarble
 from mimarble import scene as S
-from mimarble import sweeps
+from mimarble.sweeps import run as sweeps
 from mimarble.mitsuba import to_mitsuba
-from mimarble.mitsuba.render import render_in_passes
-from mimarble.mitsuba.loaded_scenes import LOADED
-from mimarble.scene_edits import resized, with_marbles, with_value
+from mimarble.mitsuba.rendering.render import render_in_passes
+from mimarble.mitsuba.rendering.loaded_scenes import LOADED
+from mimarble.scene.edits import resized, with_marbles, with_value
 
 dr, mi = mimarble.dr, mimarble.mi
 ROOT = Path(__file__).resolve().parent.parent
@@ -59,7 +59,7 @@ def test_a_sweep_writes_every_frame_an_index_and_a_contact_sheet(llvm, tmp_path)
         alone = with_value(with_value(scene, "marble.period", values["marble.period"]),
                            "marble.distortion", values["marble.distortion"])
         expected = render_in_passes(mi.load_dict(to_mitsuba(alone, spp=1)), 1)
-        from mimarble.mitsuba.image_output import srgb8
+        from mimarble.mitsuba.rendering.image_output import srgb8
         assert np.array_equal(png(tmp_path / frame["file"]), srgb8(expected))
 
 

@@ -10,13 +10,14 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble import cli, reference
-from mimarble import progress as progress_module
-from mimarble.mitsuba import image_output, passes
-from mimarble.scene_edits import resized
+from mimarble.cli import main as cli
+from mimarble import reference
+from mimarble.runtime import progress as progress_module
+from mimarble.mitsuba.rendering import image_output, passes
+from mimarble.scene.edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
-render_module = importlib.import_module("mimarble.mitsuba.render")   # the module, not the function
+render_module = importlib.import_module("mimarble.mitsuba.rendering.render")   # the module, not the function
 
 
 def loaded(size, spp, mode="whitted", path="scenes/fig11a.scene", height=None):
@@ -76,7 +77,7 @@ def test_one_compiled_kernel_serves_every_spp(llvm):
     ``mi.render`` each spp compiled its own)."""
     # Under --jit-debug a symbolic call's code holds the number of live instances: scenes
     # of earlier tests freed in between (by the cycle collector) would change it.
-    from mimarble.mitsuba.loaded_scenes import LOADED
+    from mimarble.mitsuba.rendering.loaded_scenes import LOADED
     LOADED.clear()
     gc.collect()
     scene = loaded(16, 1)[0]

@@ -162,7 +162,7 @@ def _grid_medium(sub, sphere):
 
 
 def mitsuba_dict(scene, spp, max_depth, medium=_homogeneous):
-    from mimarble.mitsuba import translate
+    from mimarble.mitsuba.translate import scene_dict as translate
     out = {"type": "scene",
            "integrator": {"type": "volpath", "max_depth": max_depth, "hide_emitters": True},
            "sensor": translate._sensor(scene, {"type": "independent", "sample_count": spp})}
@@ -299,7 +299,7 @@ def test_max_depth_two_shows_the_mirrored_sky_only():
 
 @pytest.fixture(scope="module")
 def llvm_variant():
-    from mimarble import environment
+    from mimarble.runtime import environment
     problem = environment.variant_problem("llvm_ad_rgb")
     if problem:
         pytest.skip(problem)
@@ -382,8 +382,8 @@ def test_the_project_path_mode_agrees_where_it_renders_subsurface(llvm_variant):
     """The project's own translation of a subsurface scene (translate.to_mitsuba, path mode:
     volpath around its marble_medium), once it exists, against the walk at the translator's
     max_depth."""
-    import mimarble.mitsuba.marble_medium  # noqa: F401  (an import error fails, not skips)
-    from mimarble.mitsuba import translate
+    import mimarble.mitsuba.plugins.marble_medium  # noqa: F401  (an import error fails, not skips)
+    from mimarble.mitsuba.translate import scene_dict as translate
     translated = translate.to_mitsuba(MARBLED, "path", spp=48)
     assert translated["integrator"]["type"] == "volpath"
     depth = translated["integrator"].get("max_depth", -1)

@@ -8,7 +8,7 @@ import pytest
 
 import mimarble
 from mimarble import scene as S
-from mimarble.scene_edits import resized
+from mimarble.scene.edits import resized
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENES = sorted((ROOT / "scenes" / "translucent").glob("*.scene"))
@@ -40,7 +40,7 @@ def test_whitted_mode_refuses_a_translucent_scene_at_its_subsurface(llvm):
 
 
 def test_a_subsurface_albedo_bakes_on_a_grid_as_the_reference_marble(tmp_path):
-    from mimarble import bake
+    from mimarble.tools import bake
     from mimarble.reference.channels import channel_color
     scene = S.load(SCENES[0])
     lo, hi = bake.bake_volume(scene, "sphere_0", tmp_path / "albedo.vol", size=4, channel="albedo")
@@ -54,7 +54,7 @@ def test_a_subsurface_albedo_bakes_on_a_grid_as_the_reference_marble(tmp_path):
 def test_the_mean_bound_bounds_the_mean_of_every_channel_kind():
     # error_budget.mean_bound (the medium's density bound) against the float64 reference's
     # channel values at random points (seeded), for colours, marbles and expressions.
-    from mimarble.error_budget import mean_bound
+    from mimarble.texture.error_budget import mean_bound
     from mimarble.reference.channels import channel_color
     marble = S.MarbleChannel(octaves=4, ramp=((0, 0, 0), (4, 1, 0.5), (0.2, 3, 0)))
     negative = S.ColorChannel((-1.0, 0.5, 2.0))

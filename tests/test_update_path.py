@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.marble_parameters import ParameterError
+from mimarble.parameters import ParameterError
 
 mi, dr = mimarble.mi, mimarble.dr
 
@@ -133,7 +133,7 @@ def looked_up(table, scene):
 def test_the_sphere_table_holds_each_spheres_centre_and_radius(llvm):
     """Its columns are the spheres' centres and radii as the scene gives them, looked up
     by the hit shape's id."""
-    from mimarble.mitsuba.sphere_hit import SphereTable
+    from mimarble.mitsuba.plugins.sphere_hit import SphereTable
     scene = sphere_scene()
     table = SphereTable(scene)
     centres, radii = looked_up(table, scene)
@@ -142,7 +142,7 @@ def test_the_sphere_table_holds_each_spheres_centre_and_radius(llvm):
 
 
 def test_an_unfrozen_trace_reuses_the_table_until_a_sphere_moves(llvm):
-    from mimarble.mitsuba.sphere_hit import SphereTable
+    from mimarble.mitsuba.plugins.sphere_hit import SphereTable
     scene = sphere_scene()
     first = SphereTable.for_trace(scene)
     assert SphereTable.for_trace(scene) is first
@@ -184,7 +184,7 @@ def test_compensated_sums_hold_the_exact_sum(llvm):
     """Runs of float32 values of mixed sizes and signs: the compensated sum is the exact
     sum (math.fsum of the same numbers) to 2⁻⁴⁰ of Σ|x|, where float32's plain running
     sum is far off."""
-    from mimarble.mitsuba.passes import compensated_block_sum
+    from mimarble.mitsuba.rendering.passes import compensated_block_sum
     rng = np.random.default_rng(5)
     block, runs = 64, 500
     values = (rng.standard_normal((runs, block)) * 10.0 ** rng.integers(-6, 4, (runs, block))
@@ -203,7 +203,7 @@ def test_compensated_sums_of_huge_and_non_finite_samples_are_the_float64_sums(ll
     """Samples up to float32's largest, ±∞ and NaN: the sum is float64's (math.fsum of the
     same numbers; ∞ and NaN where float64 gives them), never a NaN made by the
     compensation (∞ − ∞) nor an overflow of the float32 running total."""
-    from mimarble.mitsuba.passes import compensated_block_sum
+    from mimarble.mitsuba.rendering.passes import compensated_block_sum
     rng = np.random.default_rng(11)
     big = np.float32(3.4e38)
     runs = [np.full(block, big), np.full(block, -big), rng.uniform(-1, 1, block) * big,
@@ -226,8 +226,8 @@ def test_the_kernel_that_traces_the_samples_computes_in_float32(llvm):
     """The pass's widest kernel (every sample) holds no float64 operation (before: each
     sample's radiance was converted to float64 for the sums there)."""
     from mimarble import scene as S
-    from mimarble.mitsuba.render import render_in_passes
-    from mimarble.scene_edits import resized
+    from mimarble.mitsuba.rendering.render import render_in_passes
+    from mimarble.scene.edits import resized
     scene = S.load("scenes/fig11a.scene")
     loaded = mi.load_dict(mimarble.to_mitsuba(resized(scene, 16), spp=4))
     render_in_passes(loaded, 4)
@@ -243,7 +243,7 @@ def test_a_media_update_waits_for_nothing_and_a_broken_scale_on_the_device_is_na
     scale and the bound read back); a negative one makes the medium's coefficients NaN —
     volpath's paths through it NaN (under JitFlag.Debug, where volpath's NaN handling
     ends them, 0: never the valid image) —, where a literal -1 is still refused."""
-    from mimarble.mitsuba.marble_medium import MarbleMediumError
+    from mimarble.mitsuba.plugins.marble_medium import MarbleMediumError
     medium = {"type": "marble_medium", "albedo": {"type": "marble", "ramp": RAMP},
               "density": {"type": "marble", "ramp": RAMP}}
     scene = mi.load_dict({

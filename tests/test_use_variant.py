@@ -1,5 +1,5 @@
 """``mimarble.use_variant``: the variant chosen or checked in one sentence, the command
-line's ``--variant`` through the same code (mimarble/environment.py)."""
+line's ``--variant`` through the same code (mimarble/runtime/environment.py)."""
 
 import os
 import subprocess
@@ -8,7 +8,7 @@ import sys
 import pytest
 
 import mimarble
-from mimarble import environment
+from mimarble.runtime import environment
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 mi = mimarble.mi

@@ -216,7 +216,7 @@ def test_whitted_under_mi_render_names_the_shape_and_class_of_a_wrong_bsdf(llvm)
 @pytest.mark.parametrize("variant_name", ["scalar_rgb", "llvm_ad_rgb"])
 def test_mimarble_render_refuses_a_wrong_bsdf_before_tracing(variant_name, monkeypatch):
     import importlib
-    rendering = importlib.import_module("mimarble.mitsuba.render")
+    rendering = importlib.import_module("mimarble.mitsuba.rendering.render")
     previous = mi.variant()
     mi.set_variant(variant_name)
     try:
@@ -287,5 +287,5 @@ def test_whitted_render_differentiates_like_finite_differences(llvm):
                                   "plastic", "roughplastic", "thindielectric", "principled",
                                   "constant", "point", "directional"])
 def test_the_plugin_names_table_agrees_with_mitsubas_classes(llvm, name):
-    from mimarble.mitsuba.whitted import MITSUBA_PLUGIN_NAMES
+    from mimarble.mitsuba.plugins.whitted import MITSUBA_PLUGIN_NAMES
     assert MITSUBA_PLUGIN_NAMES[mi.load_dict({"type": name}).class_name()] == name

@@ -9,7 +9,7 @@ hierarchy (:mod:`.triangles`), its own
 random walk through translucent spheres for path mode's ``subsurface`` (:mod:`.volume`), its own
 channel expressions, sphere (u, v) and image maps (:mod:`.channels`, :mod:`.image_map`:
 Pillow decodes, the sRGB curve and bilinear lookup are here). Its modules import only
-NumPy, Pillow, the standard library, ``mimarble.scene`` and ``mimarble.progress``
+NumPy, Pillow, the standard library, ``mimarble.scene`` and ``mimarble.runtime.progress``
 (which loads tqdm only when a bar is asked for).
 
     >>> from mimarble import scene, reference
@@ -22,15 +22,16 @@ from __future__ import annotations
 
 import os
 
-from mimarble.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
+from mimarble.runtime.progress import report   # NumPy-free, Mitsuba-free: tqdm only when asked
 from mimarble.scene.python_numbers import plain_number
 from mimarble.scene import Scene, SceneError, load
 from mimarble.scene.image_header import check_image_maps
 from mimarble.scene.rules import spp_problem
 
-from . import image_map, marble, mesh_file, noise, tracer, triangles
+from mimarble.reference import image_map, marble, noise, tracer, triangles
+from mimarble.meshes import arrays as mesh_file
 from .marble import marble_color, ramp, stripe
-from .mesh_file import MeshData, read_mesh
+from mimarble.meshes.arrays import MeshData, read_mesh
 from .noise import fractal, fractal3, noise3
 from .tracer import (
     EPS_REL,
@@ -89,7 +90,7 @@ def render(scene: Scene | str | os.PathLike, spp: int | None = None, progress=Fa
 
     ``spp=None`` uses ``scene.image.samples``; spp must be a perfect square n².
     ``progress``: False or None for none; True for a tqdm bar on stderr, shown
-    once the render has taken :data:`mimarble.progress.DELAY_S` and only when stderr is a
+    once the render has taken :data:`mimarble.runtime.progress.DELAY_S` and only when stderr is a
     terminal; or a callable ``progress(samples_done, samples_total)``, called
     before the first batch of rays and after each one. A NumPy scalar ``spp`` is the
     Python number it holds (mimarble/scene/python_numbers.py).

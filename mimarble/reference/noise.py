@@ -17,7 +17,7 @@ is the same function as Perlin's lerp form (``ImprovedNoise.noise``): ω(t) is
 1 − fade(|t|), and ``lerp`` of the 8 corner dot products with fade weights
 expands to this sum.
 
-It imports NumPy only — nothing of ``mimarble.noise`` (the Dr.Jit path it is
+It imports NumPy only — nothing of ``mimarble.texture.noise`` (the Dr.Jit path it is
 meant to check). Every step is exact or correctly rounded in float64:
 ``floor`` and ``x − floor(x)`` are exact, and the lattice coordinate is reduced
 modulo 256 with ``np.fmod`` on the float64 integer (exact in IEEE arithmetic),

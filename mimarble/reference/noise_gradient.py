@@ -1,6 +1,6 @@
 """Gradients of the reference noise and fractal sum, in float64 NumPy.
 
-The twin of :func:`mimarble.noise.noise3_gradient`, written from the other form of the
+The twin of :func:`mimarble.texture.noise.noise3_gradient`, written from the other form of the
 noise (:func:`mimarble.reference.noise.noise`): a sum over the 8 corners of
 ω(dx)·ω(dy)·ω(dz)·(G · d), d the offset from the corner and
 ω(t) = 1 − 10|t|³ + 15|t|⁴ − 6|t|⁵. By the product rule

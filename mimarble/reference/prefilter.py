@@ -1,6 +1,6 @@
 """The marble colour averaged over an interval of phase, by quadrature, in float64.
 
-The twin of :mod:`mimarble.prefilter`, sharing nothing with it: the mean of
+The twin of :mod:`mimarble.texture.prefilter`, sharing nothing with it: the mean of
 ramp(t(φ)) over [φ − w/2, φ + w/2] by composite Gauss–Legendre quadrature (4 nodes
 on each of ``pieces`` equal sub-intervals) of the reference marble's own stripe and
 ramp. f = ramp∘t is smooth between the ramp's keys and continuous across them, so the

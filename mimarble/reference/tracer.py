@@ -67,7 +67,7 @@ from mimarble.scene.model import Scene, in_object_space, samples_per_axis
 from mimarble.scene.rules import shortened
 
 from .channels import channel_color, needs_uv, sphere_uv
-from .mesh_file import read_mesh
+from mimarble.meshes.arrays import read_mesh
 from .triangles import TriangleBVH
 
 __all__ = [

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import math
 
-from . import mesh_header, transforms
+from mimarble.scene import mesh_header
+from mimarble.scene import transforms
 
 __all__ = ["PLANE_REACH", "plane_frame", "object_to_world", "plane_disk", "sphere_bounds",
            "box_corners", "mesh_corners", "apply", "apply_linear"]

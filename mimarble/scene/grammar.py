@@ -2,7 +2,7 @@
 written from the marble's parameter table.
 
 The marble's keys and the syntax of their values are facts of the table
-(mimarble/marble_parameters.py): one rule a row, its value written as its kind says. So
+(mimarble/parameters.py): one rule a row, its value written as its kind says. So
 a new parameter is a new key of the language without an edit here or in ``scene.lark``,
 and the grammar cannot disagree with what the builder checks or the plugin reads (the
 language adds one rule of its own: every colour it writes, ramps' too, is ≥ 0).
@@ -12,9 +12,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .. import marble_parameters
+from mimarble import parameters as marble_parameters
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
-from ..marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
 
 __all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "LANGUAGE_MARBLE_KEYS", "marble_rules", "grammar_text"]
 
@@ -45,7 +45,7 @@ def marble_rules() -> str:
     """The marble block's rules in Lark's notation: the block, its keys, one rule a key."""
     width = max(len(p.name) for p in PARAMETERS) + 1
     rules = [
-        "// The marble block, written from mimarble/marble_parameters.py by",
+        "// The marble block, written from mimarble/parameters.py by",
         "// mimarble/scene/grammar.py (each value's range: after parsing).",
         'marble: "marble" "{" _marble_key* "}"',
         "_marble_key: " + " | ".join([p.name for p in PARAMETERS] + list(LANGUAGE_MARBLE_KEYS)),

@@ -3,7 +3,7 @@
 Read by the builder (which keys a block may hold), by the syntax-error wording (which
 keywords to list, in what order) and by whoever documents or tests the language. The
 marble block's keys are the rows of the marble's parameter table
-(mimarble/marble_parameters.py), as its grammar rules are (grammar.py), then the
+(mimarble/parameters.py), as its grammar rules are (grammar.py), then the
 language's own keys (grammar.LANGUAGE_MARBLE_KEYS: ``transform``, the pattern's
 translate / rotate / scale, and ``space``).
 """
@@ -11,7 +11,7 @@ translate / rotate / scale, and ``space``).
 from __future__ import annotations
 
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
-from ..marble_parameters import KEYWORD_PARAMETERS as PARAMETERS
+from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
 from .grammar import LANGUAGE_MARBLE_KEYS
 
 __all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BARE_CHANNEL_KEYS", "BLOCK_KEYS"]

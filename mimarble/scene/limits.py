@@ -13,7 +13,7 @@ parameter table's.
 
 from __future__ import annotations
 
-from ..marble_parameters import BY_NAME
+from mimarble.parameters import BY_NAME
 
 __all__ = ["LIMITS", "FLT_MAX", "FLT_MIN_NORMAL", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
            "MAX_AREA_LIGHT_SIZE", "MAX_CHANNEL_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES",

@@ -8,7 +8,7 @@ change times); ``mesh_bounds(path)`` is its bounds, for the geometry that places
 their extent (scene/geometry.py). The scene language checks every mesh with mesh_facts
 while it parses, the translator every mesh of a scene it is given
 (:func:`check_mesh_files`: scenes built in Python, files changed since the parse); the
-reference tracer's reader (mimarble/reference/mesh_file.py) reads the PLY header with
+reference tracer's reader (mimarble/meshes/arrays.py) reads the PLY header with
 :func:`ply_header` and the OBJ lines with :func:`obj_statements`, so both see one grammar
 and one set of limits. Standard library only.
 
@@ -86,9 +86,9 @@ import struct
 import sys
 from dataclasses import dataclass, field
 
-from .limits import FLT_MAX, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, MAX_MESHES
-from .reading import open_failure, open_regular
-from .rules import shortened
+from mimarble.scene.limits import FLT_MAX, MAX_MESH_BYTES, MAX_MESH_TRIANGLES, MAX_MESHES
+from mimarble.scene.reading import open_failure, open_regular
+from mimarble.scene.rules import shortened
 
 __all__ = ["MeshFacts", "MeshFileError", "mesh_facts", "mesh_bounds", "check_mesh_files",
            "MAX_PRECISE_UV", "MAX_PLY_HEADER_BYTES",
@@ -316,9 +316,9 @@ def check_mesh_files(scene) -> list[str]:
     coordinates past :data:`MAX_PRECISE_UV` read by an image map, one per mesh file.
     The translator calls it for every route into Mitsuba; the reference tracer reads the
     files with the same checks (tracer.read_meshes)."""
-    from .errors import SceneError
-    from .model import ImageChannel, walk
-    from .rules import image_map_uv_problem, mesh_triangles_problem
+    from mimarble.scene.errors import SceneError
+    from mimarble.scene.model import ImageChannel, walk
+    from mimarble.scene.rules import image_map_uv_problem, mesh_triangles_problem
     imaged = {name for name, material in scene.materials.items()
               if any(isinstance(c, ImageChannel) for channel in material.channels().values()
                      for c in walk(channel))}

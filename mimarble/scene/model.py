@@ -36,7 +36,7 @@ from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from typing import Literal, NamedTuple, Union
 
-from .. import marble_parameters
+from mimarble import parameters as marble_parameters
 from . import rules, transforms
 from .limits import MAX_IMAGE_SAMPLES
 
@@ -90,7 +90,7 @@ MarbleFilter = Literal["none", "bandlimit", "prefilter"]
 Axis = Literal["x", "y", "z"]
 
 #: The marble functions, its filters and axes, and the Fig. 5 ramp (the marble's
-#: parameter table, mimarble/marble_parameters.py, declares them).
+#: parameter table, mimarble/parameters.py, declares them).
 MARBLE_FUNCTIONS: tuple[str, ...] = marble_parameters.FUNCTIONS
 MARBLE_FILTERS: tuple[str, ...] = marble_parameters.FILTERS
 AXES: tuple[str, ...] = marble_parameters.AXES
@@ -391,19 +391,19 @@ class MarbleChannel(marble_parameters.MarbleParameters):
         cosine:   t = 0.5 * (cos(v_axis + distortion * F(v)) + 1)   (period unused)
 
     Its fields are the rows of the marble's parameter table
-    (mimarble/marble_parameters.py: names, defaults, ranges), in order, then ``pos``.
+    (mimarble/parameters.py: names, defaults, ranges), in order, then ``pos``.
 
     The colour is ``ramp`` at ``t``: K >= 1 colours at keys ``k / (K - 1)`` (or at
     ``ramp_positions``), piecewise linear, ``t`` clamped to [0, 1] (one colour: a
     constant). ``gain`` and ``lacunarity`` (0.5 and 2, the paper's) weigh and space the
     octaves, F = sum gain^i N(lacunarity^i v); ``triangle`` and ``sawtooth`` are
-    POV-Ray's waves of the ``abs_sine`` phase (mimarble/stripes.py).
+    POV-Ray's waves of the ``abs_sine`` phase (mimarble/texture/stripes.py).
 
     ``filter`` and ``tolerance`` are rendering options for Mitsuba (``bandlimit``
     leaves out octaves finer than the pixel footprint, ``prefilter`` averages the
     colour over the pixel's interval of phase; octaves that the colour error
     ``tolerance`` allows are left out, ``None``: the scene's default,
-    mimarble/error_budget.py); the reference tracer always renders the full marble.
+    mimarble/texture/error_budget.py); the reference tracer always renders the full marble.
 
     ``space`` (keyword-only, the language's ``space world|object``): ``world`` (the
     default, the paper's) evaluates the marble at the world point p; ``object`` at the

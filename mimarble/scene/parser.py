@@ -42,10 +42,11 @@ import re
 from lark import Lark, Token, Tree
 from lark.exceptions import UnexpectedInput
 
-from .. import marble_parameters
-from ..marble_parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter,
-                                 ParameterError, hex_colour, hex_colour_problem)
-from . import mesh_header, rules, transforms
+from mimarble import parameters as marble_parameters
+from mimarble.parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter, ParameterError,
+    hex_colour, hex_colour_problem)
+from mimarble.scene import mesh_header
+from mimarble.scene import rules, transforms
 from .comments import blanked
 from .errors import SceneError
 from .grammar import grammar_text
@@ -115,13 +116,13 @@ def _parser_cache_file(grammar: str) -> str | bool:
     Building the LALR tables takes ~0.15 s, three times the rest of a scene
     error's answer; Lark's cache keeps them as a pickle checked against the
     grammar's hash. The file lives in the user's own cache folder
-    (:func:`mimarble.files.cache_folder`), not in a shared temporary folder where
+    (:func:`mimarble.runtime.files.cache_folder`), not in a shared temporary folder where
     another user could plant one.
     """
     import hashlib
     import lark
 
-    from ..files import cache_folder
+    from mimarble.runtime.files import cache_folder
     root = cache_folder()
     try:
         root.mkdir(parents=True, exist_ok=True)

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import numbers
 
-from ..marble_parameters import single_precision
+from mimarble.parameters import single_precision
 from .limits import (FLT_MAX, FLT_MIN_NORMAL, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
                      MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES,
                      MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES, MAX_MESH_TRIANGLES)

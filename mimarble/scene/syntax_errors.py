@@ -14,7 +14,7 @@ import re
 from lark import Token
 from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput, UnexpectedToken
 
-from ..marble_parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
+from mimarble.parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
 from .keywords import BARE_CHANNEL_KEYS, BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
 from .model import SPACES

@@ -6,7 +6,7 @@ Each step moves the *pattern* in world space, in the order written (POV-Ray's ru
 its ``translate``, ``rotate`` and ``scale``): the steps S₁, S₂, … Sₙ compose into
 M = Sₙ ⋯ S₂ · S₁, the marble's ``to_world``, and the marble at a world point p is the
 untransformed marble at M⁻¹·p, then scaled by the marble's own ``scale`` (a frequency):
-v = scale · M⁻¹ · p (mimarble/texture_mapping.py).
+v = scale · M⁻¹ · p (mimarble/texture/mapping.py).
 
 * ``translate < x y z >``: the pattern moves by (x, y, z);
 * ``rotate < a b c >``: about the x axis by a degrees, then about y by b, then about z
@@ -100,7 +100,7 @@ def _determinant(m) -> float:
 def matrix_problem(matrix: Matrix) -> str | None:
     """What keeps the renderer (single precision) from using ``matrix`` and its inverse:
     an entry past float32's range, a 3×3 part that the marble plugin finds singular
-    (|det| ≤ (10⁻⁶·max|entry|)³, mimarble/texture_mapping.py) or whose determinant
+    (|det| ≤ (10⁻⁶·max|entry|)³, mimarble/texture/mapping.py) or whose determinant
     leaves float32's range."""
     entries = [abs(v) for row in matrix[:3] for v in row]
     if not all(v <= FLT_MAX for v in entries):

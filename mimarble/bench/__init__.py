@@ -1,0 +1,1 @@
+"""``mimarble bench``: run time against error, and what skipping saves."""

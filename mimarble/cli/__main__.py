@@ -1,0 +1,5 @@
+import sys
+
+from mimarble.cli.main import main
+
+sys.exit(main())

@@ -1,0 +1,1 @@
+"""Mesh files (PLY, OBJ): their facts for the parser and their arrays for the renderers."""

@@ -1,0 +1,538 @@
+"""The ``marble`` texture: the paper's ChannelMarble as a Mitsuba 3 texture.
+
+    v = scale · to_world⁻¹ · p                          (mimarble/texture/mapping.py)
+    F(v) = Σ_{i<K} ω^i N(λ^i v)   (the paper: ω = ½, λ = 2)   (mimarble/texture/noise.py)
+    φ = period·v_a + distortion·F(v),   t = t(φ)         (mimarble/texture/stripes.py)
+    colour = ramp(t)   (evenly spaced, or at positions)  (mimarble/texture/ramp.py)
+
+filtered over the pixel's footprint as ``filter`` says (mimarble/texture/filters.py), with
+the octaves the error budget keeps (mimarble/texture/error_budget.py). The parameters — names,
+defaults, ranges, roles — are the table of mimarble/parameters.py, also printed
+in ``help(Marble)``. What the texture does not need it does not compute: no noise when
+``distortion`` is 0 (and not being differentiated), no transform when ``to_world`` is
+not given, a constant when the ramp has one colour.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from mimarble.runtime import environment
+from mimarble.texture import error_budget, filters as pixel_filter, srgb_model
+from mimarble.texture.finite_arithmetic import finite_product
+from mimarble.parameters import (AXES, BY_NAME, COLOURS, INTEGER, MAX_LACUNARITY, PARAMETERS,
+    POSITIONS, MarbleParameters, ParameterError, checked, parameter_table, parse_positions,
+    parse_ramp, ramp_count_problem)
+from mimarble.texture.noise import Spectrum, fractal_sum, lattice_tables
+from mimarble.mitsuba.plugins.registration import (Kept, RGBTexture, describe, first_number,
+    plugin, transform_matrix)
+from mimarble.texture.ramp import Ramp, positions_storage, ramp_storage
+from mimarble.texture.stripes import STRIPES
+from mimarble.texture.mapping import (NoFootprintWarning, TextureMapping, footprints_omitted,
+    without_footprint)
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+
+@plugin("texture", "marble")
+class Marble(RGBTexture):
+    __doc__ = ("Marble solid texture (Park & Park 2004): see mimarble/mitsuba/plugins/marble.py.\n\n"
+               + parameter_table() + "\n\nAlso ``to_world`` (transform, identity): places the "
+               "texture in the world; must be invertible; always in ``mi.traverse``, not "
+               "differentiable.")
+
+    def __init__(self, props):
+        mi.Texture.__init__(self, props)
+        variant_problem = srgb_model.variant_problem("marble")
+        if variant_problem:
+            raise ParameterError(variant_problem)
+        # Spectral variants: the model that turns the colour into a spectrum, held (see
+        # RGBTexture.eval and mimarble/texture/srgb_model.py); None elsewhere.
+        self.srgb_table = srgb_model.model_table()
+        params = MarbleParameters.from_properties(props)
+        self.function, self.axis, self.turbulence, self.filter = \
+            params.function, params.axis, params.turbulence, params.filter
+        self.tolerance = error_budget.DEFAULT_TOLERANCE if params.tolerance is None \
+            else params.tolerance
+        self.stripe, self.axis_index = STRIPES[self.function], AXES.index(self.axis)
+        # What mi.traverse edits in place: the table's traversed rows and to_world.
+        # (ramp_positions only when given: having them is structural.)
+        self.editable = {p.name: _editable(p, getattr(params, p.name))
+                         for p in PARAMETERS if p.is_traversed
+                         and getattr(params, p.name) is not None}
+        self.ramp = Ramp(self.editable["ramp"], self.editable.get("ramp_positions"))
+        self.mapping = TextureMapping.from_properties(props)
+        self.editable["to_world"] = self.mapping.to_world
+        if dr.is_jit_v(mi.Float):        # the noise's tables, held (see lattice_tables)
+            self.lattice = lattice_tables(mi.UInt32)
+            self._zero = dr.opaque(mi.Float, 0.0)   # see _kept_attached
+        self.pixel_filter = None
+        # The warning of eval, once per texture, and never for one that has been traced
+        # with footprints (a whitted scene's marble, traced again by another scene's
+        # symbolic call over every live material, is not that scene's concern).
+        self._quiet_about_footprints = Kept(False)
+        # What the host holds of each traversed value (None: held on the device only, an
+        # edit the host never saw; see parameters_changed): the properties' values, and
+        # to_world's matrix (literals, read without waiting).
+        self._held = Kept({name: getattr(params, name) for name in self.editable
+                           if name in BY_NAME})
+        self._held.value["to_world"] = _matrix(self.mapping.to_world)
+        # The host's values told of (hold), and those the host read or was given, by the
+        # Dr.Jit variable they are the value of (see _host_value).
+        self._told, self._pending = Kept({}), Kept({})
+        self._changed(set())
+
+    # -- Mitsuba object protocol -------------------------------------------
+
+    def traverse(self, cb):
+        for name, value in self.editable.items():
+            differentiable = name in BY_NAME and BY_NAME[name].in_place
+            cb.put(name, value, mi.ParamFlags.Differentiable if differentiable
+                   else mi.ParamFlags.NonDifferentiable)
+
+    def hold(self, name: str, value) -> None:
+        """Tell the texture the value of traversed ``name`` that was just written through
+        ``mi.traverse`` (call it after writing, before ``params.update()``), as the host
+        holds it: a number, the ramp's colours (RGB triples or its string), the positions,
+        to_world (a transform or a 4×4 matrix). A value written as a Dr.Jit array (a ramp's
+        ``Color3f``, positions) is never a literal, so without this it counts as on the
+        device and decisions that need it take the value-independent choice (every octave);
+        told, it is taken as the host's, as a fresh load takes it: the same bits as a
+        texture loaded with that value. Remembered with the Dr.Jit variable now in place,
+        so a later edit of the same key (a new variable) is not taken for it. Only a value
+        the host truly holds; it is checked at the update as a literal edit is. (The
+        loaded-scene cache tells each value it writes, mimarble/mitsuba/rendering/loaded_scenes.py.)"""
+        if name not in self.editable:
+            raise ParameterError(f"marble: {name!r} is not a traversed parameter "
+                                 f"({', '.join(self.editable)})")
+        if not dr.is_jit_v(mi.Float):    # the scalar variant reads every value anyway
+            return
+        if name == "to_world":
+            matrix = transform_matrix(value) if hasattr(value, "matrix") else value
+            host = np.array(matrix, dtype=np.float64).reshape(4, 4)
+        elif BY_NAME[name].kind == COLOURS:
+            host = parse_ramp(value, name)
+        elif BY_NAME[name].kind == POSITIONS:
+            host = parse_positions(value, name)
+        else:
+            host = value if isinstance(value, (bool, int, float)) else float(value)
+        # Until the update: should it refuse the value, the last valid one put back is
+        # still the one told of before.
+        self._pending.value[name] = _told(self.editable[name], host)
+
+    def parameters_changed(self, keys=[]):
+        """Check the values as ``mi.traverse`` left them, and decide what the kernel
+        evaluates, without reading back a value the host does not hold (no wait for the
+        device: an optimisation step stays asynchronous).
+
+        ``keys``: the names Mitsuba says were edited (none: every one may have been). An
+        edited value the host holds — a Python number set through ``mi.traverse`` is a
+        Dr.Jit literal, read without waiting — and a structural one (``octaves``, which
+        decides the kernel) are checked here with the table's rules: an invalid edit
+        raises and puts the last valid values back. Any other edited value (computed on
+        the device: an optimiser's, a ramp array) is checked in the kernel instead: while
+        one breaks its rule, the texture is NaN everywhere (:meth:`check_values` says
+        which rule, reading them). Decisions made from values (the octaves the error
+        budget keeps, whether the noise is needed) take the value-independent choice for
+        a value on the device (docs/design-decisions.md, "The update path")."""
+        self._changed(set(keys) if keys else set(self.editable))
+
+    def _changed(self, keys: set) -> None:
+        jit = dr.is_jit_v(mi.Float)
+        held = dict(self._held.value)
+        for name in keys & set(self.editable):
+            held[name] = self._host_value(name)
+        if jit:
+            # Opaque, next: a new value reuses the compiled kernel, a recording of it
+            # (dr.freeze) takes every one as an input, copies too.
+            dr.make_opaque(*self.editable.values())
+        try:
+            for name in keys:
+                if held.get(name) is not None and name in BY_NAME:
+                    held[name] = checked(BY_NAME[name], held[name])
+            self._check_counts()
+            if held["to_world"] is not None:
+                self.mapping.check(held["to_world"])
+        except ParameterError:
+            self._pending = Kept({})
+            for name, value in getattr(self, "_last_valid", Kept({})).value.items():
+                # In place: mi.traverse holds these very objects.
+                mi.set_property(self.editable[name], value)
+            raise
+        self._last_valid = Kept({name: type(value)(value) for name, value in self.editable.items()})
+        self._held = Kept(held)
+        if jit:
+            # What the host holds, by the variable now in place (make_opaque gave a literal
+            # edit a new one): read again at a later update that names the key (a full
+            # update names every key) while that variable stays; none for a value on the
+            # device. A key not named keeps its entry: its variable is as it was.
+            told = dict(self._told.value)
+            for name in (keys or set(self.editable)) & set(self.editable):
+                if held.get(name) is not None:
+                    told[name] = _told(self.editable[name], held[name])
+                else:
+                    told.pop(name, None)
+            self._told, self._pending = Kept(told), Kept({})
+        values = held
+        on_device = {name for name, value in values.items() if value is None}
+        self.ramp.changed()
+        if jit:                     # the kernel reads the traversed values themselves
+            self.scale, self.period, self.distortion = (
+                self.editable[name] for name in ("scale", "period", "distortion"))
+        else:                       # the scalar variant computes on Python floats
+            self.scale, self.period, self.distortion = (
+                values[name] for name in ("scale", "period", "distortion"))
+        self.mapping.changed(self.scale, values["to_world"])
+        # Structural: a new count traces a new kernel at the next eval. The budget bounds
+        # the colour's error, not its derivatives' (every octave's gradient is of the same
+        # size, 2^i·2^−i): a parameter being differentiated keeps every octave; so does a
+        # value the budget reads that is on the device (the budget is made on the host).
+        self.octaves = values["octaves"]
+        differentiated = any(dr.grad_enabled(self.editable[p.name]) for p in PARAMETERS
+                             if p.in_place and p.name in self.editable)
+        budget_unknown = bool(on_device & {"distortion", "ramp", "ramp_positions", "gain"})
+        self.octaves_evaluated = self.octaves if values["gain"] is None else \
+            error_budget.octaves_needed(
+                0.0 if differentiated or budget_unknown else self.tolerance, self.octaves,
+                values["distortion"], values["ramp"], self.function, gain=values["gain"],
+                positions=values.get("ramp_positions"))
+        # The octaves' gain and lacunarity: the traversed values themselves in JIT variants
+        # (opaque, differentiable), Python floats in the scalar one (mimarble/texture/noise.py);
+        # None for a value on the device, whose derived constants the device computes.
+        self.spectrum = Spectrum(values["gain"], values["lacunarity"],
+                                 self.editable["gain"] if jit else None,
+                                 self.editable["lacunarity"] if jit else None,
+                                 opaque=jit, octaves=self.octaves_evaluated)
+        # Distortion 0 needs no noise, unless distortion, gain or lacunarity is being
+        # differentiated (their derivatives reach the colour through F: F, and 0·∂F).
+        self.needs_noise = self.octaves_evaluated > 0 and (
+            values["distortion"] is None or values["distortion"] != 0.0
+            or dr.grad_enabled(self.distortion) or self.spectrum.differentiated())
+        if self.pixel_filter is not None and self._ramp_size == self.ramp.size:
+            self.pixel_filter.changed()
+        else:                       # a filter's tables are made for a number of colours
+            self.pixel_filter = pixel_filter.choose(self, self.filter)
+        self._ramp_size = self.ramp.size
+        # The largest ramp component: what the host holds, else read when max() asks; in
+        # JIT variants also on the device (a reduction, no read back) for the kernels that
+        # read it (held_maximum).
+        self._max = None if values["ramp"] is None else float(np.max(values["ramp"]))
+        if jit:
+            c = dr.detach(self.editable["ramp"])
+            self._held_max = dr.max(dr.maximum(dr.maximum(c[0], c[1]), c[2]))
+            dr.make_opaque(self._held_max)
+        self.valid = self._kernel_check(on_device) if jit else None
+
+    def _host_value(self, name):
+        """The value of traversed ``name`` as the table holds it, if the host holds it —
+        told (:meth:`hold`, or held since it was read or loaded) for the very variable in
+        place, or a literal — or it is structural (read: it decides the kernel); else None."""
+        value = self.editable[name]
+        if dr.is_jit_v(mi.Float):
+            for told in (self._pending.value.get(name), self._told.value.get(name)):
+                if told is not None and told[0] == _indices(value):
+                    return told[2]
+            if name != "octaves" and not _literal(value):
+                return None
+        if name == "to_world":
+            return _matrix(value)
+        parameter = BY_NAME[name]
+        if parameter.kind == COLOURS:
+            return tuple(map(tuple, self.ramp.numpy().tolist()))
+        if parameter.kind == POSITIONS:
+            return tuple(self.ramp.positions_numpy().tolist())
+        number = first_number(value)
+        return int(number) if parameter.kind == INTEGER and number.is_integer() else number
+
+    def _check_counts(self) -> None:
+        """The rules the host checks on every edit, from the arrays' widths (never a
+        read): the ramp's number of colours, one position for each."""
+        lo, hi = BY_NAME["ramp"].bounds
+        count = dr.width(self.editable["ramp"]) if dr.is_jit_v(mi.Float) \
+            else len(self.ramp.numpy())
+        if not lo <= count <= hi:
+            raise ParameterError(f"marble: ramp has {count} colours; it holds {lo}..{hi}")
+        if "ramp_positions" in self.editable:
+            positions = dr.width(self.editable["ramp_positions"]) \
+                if dr.is_jit_v(mi.Float) else len(self.ramp.positions_numpy())
+            problem = ramp_count_problem(range(count), range(positions))
+            if problem:
+                raise ParameterError(f"marble: {problem}")
+
+    def _kernel_check(self, on_device: set):
+        """The table's rules for the values on the device, as one opaque Dr.Jit Bool the
+        kernel reads (True when the host checked every value: the same kernel either way,
+        so that a first edit on the device compiles nothing new): scale > 0, period and
+        distortion finite, 0 < gain < 1, 1 < lacunarity ≤ MAX_LACUNARITY, every ramp
+        component finite, positions in [0, 1] and non-decreasing, to_world finite and
+        invertible (as texture_mapping.check_invertible). Its reductions run on the
+        device; nothing is read back."""
+        e = {name: dr.detach(value) for name, value in self.editable.items()}
+        rules = []
+        if "scale" in on_device:
+            rules.append((e["scale"] > 0.0) & dr.isfinite(e["scale"]))
+        for name in ("period", "distortion"):
+            if name in on_device:
+                rules.append(dr.isfinite(e[name]))
+        if "gain" in on_device:
+            rules.append((e["gain"] > 0.0) & (e["gain"] < 1.0))
+        if "lacunarity" in on_device:
+            rules.append((e["lacunarity"] > 1.0) & (e["lacunarity"] <= MAX_LACUNARITY))
+        if "ramp" in on_device:
+            c = e["ramp"]
+            rules.append(dr.all(dr.isfinite(c[0]) & dr.isfinite(c[1]) & dr.isfinite(c[2])))
+        if "ramp_positions" in on_device:
+            p = e["ramp_positions"]
+            rules.append(dr.all((p >= 0.0) & (p <= 1.0)))
+            if dr.width(p) > 1:
+                k = dr.arange(mi.UInt32, dr.width(p) - 1)
+                rules.append(dr.all(dr.gather(mi.Float, p, k + 1) >= dr.gather(mi.Float, p, k)))
+        if "to_world" in on_device:
+            m = e["to_world"].matrix
+            finite = mi.Bool(True)
+            for i in range(4):
+                for j in range(4):
+                    finite &= dr.isfinite(m[i][j])
+            linear = mi.Matrix3f(*(m[i][j] for i in range(3) for j in range(3)))
+            largest = dr.max(dr.abs(mi.Vector3f(*(dr.max(dr.abs(mi.Vector3f(
+                m[i][0], m[i][1], m[i][2]))) for i in range(3)))))
+            rules.append(finite & (largest > 0.0)
+                         & (dr.abs(dr.det(linear)) > dr.power(1e-6 * largest, 3)))
+        valid = mi.Bool(True)
+        for rule in rules:
+            valid = valid & rule
+        dr.make_opaque(valid)
+        return valid
+
+    def check_values(self) -> None:
+        """Every traversed value checked on the host with the table's rules, reading back
+        those on the device (a wait): ParameterError naming the first broken rule, as an
+        edit the host holds gets at ``params.update()``. Nothing is changed."""
+        for name in self.editable:
+            if name in BY_NAME:
+                value = self._read_back(BY_NAME[name])
+                checked(BY_NAME[name], value)
+        self._check_counts()
+        if "ramp_positions" in self.editable:
+            problem = ramp_count_problem(self.ramp.numpy(), self.ramp.positions_numpy())
+            if problem:
+                raise ParameterError(f"marble: {problem}")
+        self.mapping.check(_matrix(self.mapping.to_world, read=True))
+
+    def _read_back(self, parameter):
+        """A traversed parameter's value as the table holds it, read back now."""
+        value = self.editable[parameter.name]
+        if parameter.kind == COLOURS:
+            return self.ramp.numpy()
+        if parameter.kind == POSITIONS:
+            return tuple(self.ramp.positions_numpy().tolist())
+        number = first_number(value)
+        return int(number) if parameter.kind == INTEGER and number.is_integer() else number
+
+    def recording_key(self) -> tuple:
+        """Everything outside Dr.Jit's variables that decides the code ``eval`` traces: a
+        recording of its kernels (mimarble/mitsuba/rendering/replay.py) is replayed only for the
+        same key; the values themselves are the recording's inputs."""
+        return ("marble", self.function, self.axis, self.turbulence,
+                type(self.pixel_filter).__name__, self.octaves_evaluated, self.needs_noise,
+                self.ramp.size, self.ramp.positioned, self.mapping.to_texture is None)
+
+    def to_string(self):
+        return describe("Marble", {
+            "function": self.function, "axis": self.axis,
+            "scale": first_number(self.scale), "period": first_number(self.period),
+            "distortion": first_number(self.distortion),
+            "octaves": f"{self.octaves} ({self.octaves_evaluated} within tolerance "
+                       f"{self.tolerance:g})",
+            "gain": first_number(self.spectrum.gain),
+            "lacunarity": first_number(self.spectrum.lacunarity),
+            "turbulence": self.turbulence, "filter": self.filter,
+            "ramp": f"{self.ramp.size} colours"
+                    + (" at positions" if self.ramp.positioned else ""),
+            "to_world": "identity" if self.mapping.to_texture is None else "given"})
+
+    def is_spatially_varying(self):
+        return self.ramp.size > 1
+
+    def mean(self):
+        """The mean luminance where the phase is spread uniformly (mimarble/texture/ramp.py);
+        differentiable with respect to the ramp. Spectral variants: ``srgb_model_mean`` (the
+        sRGB model's spectrum averaged over 16 wavelengths evenly spaced over 360–830 nm) of
+        the one spectrum of that mean colour — what ``srgb`` answers for that colour, but not
+        what ``bitmap`` answers (the mean of its texels' spectral means): the model is not
+        linear, so a red–blue ramp gives 0.661 where its two colours' spectral means average
+        0.544."""
+        if mi.is_spectral:
+            return srgb_model.mean(self.srgb_table, self.ramp.mean(self.stripe))
+        return mi.luminance(self.ramp.mean(self.stripe))
+
+    def max(self):
+        """The largest ramp component (read back, once, after an edit on the device)."""
+        if self._max is None:
+            self._max = first_number(self._held_max)
+        return self._max
+
+    def held_maximum(self) -> tuple:
+        """(:meth:`max` as the texture holds it — JIT variants: a one-lane Dr.Jit value
+        made from the ramp without a read back, current after every edit of it, which a
+        kernel reads (``marble_medium``'s density bound) —, no host values:
+        plugins.held_maximum)."""
+        return (self._held_max if dr.is_jit_v(mi.Float) else self._max), ()
+
+    # -- Evaluation ------------------------------------------------------------
+
+    def phase(self, v, F=None):
+        """φ = period·v_a + distortion·F (cosine: v_a + distortion·F); F None: no noise."""
+        noise = 0.0 if F is None else finite_product(self.distortion, F)
+        return self.stripe.phase(v[self.axis_index], self.period, noise)
+
+    def phase_gradient(self, noise_gradient=None):
+        """∇_v φ, given distortion·∇F (None: no noise)."""
+        return self.stripe.phase_gradient(self.axis_index, self.period, noise_gradient)
+
+    def eval_3(self, si, active=True):
+        """The colour at ``si``; 0 where ``active`` is False, as Mitsuba's ``bitmap``
+        gives (every lookup is in bounds by construction, so none needs the mask).
+        ``eval`` is this colour, or in spectral variants its spectrum (RGBTexture.eval)."""
+        if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
+            return self._kept_attached(dr.select(active, dr.select(
+                self._defined(True), self.ramp.constant(dr.width(si.p)), dr.nan), 0.0))
+        if self.pixel_filter.needs_footprint and not self._quiet_about_footprints.value \
+                and not footprints_omitted():
+            self._quiet_about_footprints.value = True
+            if without_footprint(si):
+                warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=2)
+        point = self.mapping.map(si, self.pixel_filter.needs_footprint)
+        # A NaN or infinite point gets a NaN colour, decided here once rather than left to
+        # how each backend's min/max and float→int conversions treat NaN (they differ).
+        colour = dr.select(self._defined(point.finite), self.pixel_filter.colour(self, point),
+                           dr.nan)
+        return self._kept_attached(dr.select(active, colour, 0.0))
+
+    def _kept_attached(self, colour):
+        """``colour``, plus 0·p for each in-place parameter p being differentiated: where
+        the colour does not depend on p by structure — a one-colour ramp (scale, period,
+        distortion, gain, lacunarity, positions), one octave (gain: ω⁰ = 1; lacunarity:
+        λ⁰ = 1) — its derivative is then 0, and Mitsuba's ``prb`` finds the contribution
+        attached to the AD graph rather than raising. The 0 is an opaque value the texture
+        holds: Dr.Jit's AD drops a product with a literal 0 (and its edge). Nothing is added
+        while nothing is differentiated (the images are untouched)."""
+        if not dr.is_jit_v(mi.Float):
+            return colour
+        for p in PARAMETERS:
+            value = self.editable.get(p.name) if p.in_place else None
+            if value is not None and dr.grad_enabled(value):
+                first = dr.gather(type(value), value, mi.UInt32(0)) if dr.width(value) > 1 \
+                    else value
+                colour = colour + self._zero * (first if p.kind != COLOURS else first[0])
+        return colour
+
+    def _defined(self, finite):
+        """Where the colour is defined: at finite points (``finite``), and only while every
+        value on the device keeps its rule (:meth:`_kernel_check`); elsewhere NaN. (The
+        scalar variant holds every value on the host.)"""
+        return finite if self.valid is None else finite & self.valid
+
+    def prepare_alternate(self) -> None:
+        """Make what :meth:`eval_and_alternate` reads (the phase-average tables), before a
+        kernel that calls it is traced."""
+        if self.ramp.size > 1:
+            self.pixel_filter.prepare_alternate()
+
+    def eval_and_alternate(self, si, active=True):
+        """(:meth:`eval`'s colour, a second estimate of the pixel's colour): the filter's
+        other view of the footprint (mimarble/texture/filters.py) — the prefiltered mean for a
+        point sample, the colour at the point for a filtered marble. Their difference is
+        the marble's own estimate of how wrong one sample of it can be here, which
+        adaptive sampling reads (mimarble/mitsuba/rendering/adaptive.py). Needs the footprint (ray
+        differentials) and :meth:`prepare_alternate` first."""
+        if self.ramp.size == 1 or self.pixel_filter.average is None:
+            # A constant; or a marble not prepared (another scene's, traced by a symbolic
+            # call over every live material): one estimate.
+            colour = self.eval_3(si, active)          # (kept attached there)
+            return colour, colour
+        point = self.mapping.map(si, True)
+        colour, alternate = self.pixel_filter.colour_and_alternate(self, point)
+        return tuple(self._kept_attached(dr.select(active, dr.select(
+            self._defined(point.finite), c, dr.nan), 0.0)) for c in (colour, alternate))
+
+    def _no_footprint_message(self) -> str:
+        name = f" {self.id()!r}" if self.id() else ""
+        return (f"marble{name}: filter={self.filter!r} has no pixel footprint to filter "
+                f"over: the integrator computed no ray differentials (si.duv_dx, si.duv_dy "
+                f"are 0), so the marble is its colour at the point, as filter='none'. "
+                f"mimarble's 'whitted' provides them; Mitsuba's own integrators ('path', "
+                f"'prb', 'direct', ...) do not (docs/mitsuba-scene.md). Said once per "
+                f"texture; a symbolic call traces every live instance, so this may be a "
+                f"marble of another scene still loaded.")
+
+    def eval_1_grad(self, si, active=True):
+        """∂(luminance)/∂(u, v), exact, by the chain rule (what Mitsuba's ``bumpmap`` reads):
+
+            ∇_p lum = lum(ramp′(t)) · t′(φ) · scale · (period·e_a + distortion·∇F(v)),
+
+        mapped to world space by ``to_world``'s inverse transpose, then dotted with
+        ∂p/∂u and ∂p/∂v; ∇F with F, in one pass, over every evaluated octave (filters
+        act on the colour, not on its derivative).
+        """
+        if self.ramp.size == 1:
+            return dr.zeros(mi.Vector2f, dr.width(si.p))
+        v = self.mapping.point(si.p)
+        if self.needs_noise:
+            F = fractal_sum(v, self.octaves_evaluated, self.turbulence, gradient=True,
+                            spectrum=self.spectrum)
+            phase, grad_phase = self.phase(v, F.value), self.phase_gradient(F.gradient
+                                                                            * self.distortion)
+        else:
+            phase, grad_phase = self.phase(v), self.phase_gradient()
+        slope = mi.luminance(self.ramp.slope(self.stripe.t(phase)))
+        gradient = self.mapping.gradient_to_world(
+            (slope * self.stripe.slope(phase) * self.scale) * grad_phase)
+        return dr.select(self._defined(True), mi.Vector2f(dr.dot(gradient, si.dp_du),
+                                                         dr.dot(gradient, si.dp_dv)), dr.nan)
+
+
+def _literal(value) -> bool:
+    """Whether every component of a JIT value is a literal: a number the host holds (a
+    Python number set through ``mi.traverse`` is one), read without waiting."""
+    if isinstance(value, (mi.Transform4f, mi.ScalarTransform4f)) or hasattr(value, "matrix"):
+        value = value.matrix
+    if dr.depth_v(value) > 1:
+        return all(_literal(value[k]) for k in range(len(value)))
+    return value.state == dr.VarState.Literal
+
+
+def _indices(value) -> tuple:
+    """The Dr.Jit variables (JIT and AD indices) a traversed value is made of."""
+    return tuple(dr.detail.collect_indices(value))
+
+
+def _told(value, host) -> tuple:
+    """(the variables of ``value``, a copy of it holding them — so none is freed and its
+    index reused by another value while this is kept —, the ``host`` value)."""
+    return _indices(value), type(value)(value), host
+
+
+def _matrix(transform, read: bool = False) -> np.ndarray | None:
+    """``transform``'s 4×4 matrix as float64, if its entries are literals (read without
+    waiting) or ``read``; else None (on the device)."""
+    if dr.is_jit_v(mi.Float) and not read and not _literal(transform):
+        return None
+    return transform_matrix(transform) if read or not dr.is_jit_v(mi.Float) else \
+        np.array([[transform.matrix[i][j][0] for j in range(4)] for i in range(4)],
+                 dtype=np.float64)
+
+
+def _editable(parameter, value):
+    """A traversed parameter's value in a container Mitsuba can write into in every
+    variant: ``mi.Float`` in JIT variants; in scalar_rgb, where mi.Float is a Python
+    float, a one-element ``ArrayXf``; the ramp's own (mimarble/texture/ramp.py). An integer is
+    held as a float too, so that an edit to 2.5 is seen and refused, not truncated."""
+    if parameter.kind == COLOURS:
+        return ramp_storage(value)
+    if parameter.kind == POSITIONS:
+        return positions_storage(value)
+    return mi.Float(value) if dr.is_jit_v(mi.Float) else dr.scalar.ArrayXf([value])
+

@@ -1,0 +1,247 @@
+"""Sphere hits refined in float64, and shadow rays that cannot meet their own sphere.
+
+Mitsuba's ``sphere`` solves the ray's quadratic in float32 in the AD variants and
+re-projects the hit as p = c + r·n in float32, so a hit on a large sphere is off
+by about ulp(|c| + r): 1e-3 on a "ground sphere" of radius 10⁴ under a unit
+sphere. That error is far larger than Mitsuba's spawn offset
+((1 + max|p_k|)·RayEpsilon, RayEpsilon = 1500·2⁻²⁴ ≈ 8.9e-5), so shadow rays from
+such a floor start inside it and find it again: speckled acne and false shadows
+(14 dB against the reference tracer).
+
+The cure keeps Mitsuba's intersection (it decides *which* sphere is hit) and
+then, on the sphere it found, in float64:
+
+* solve |o + t·d − c|² = r² by the numerically stable quadratic and take the
+  root nearest Mitsuba's t, so p = o + t·d is exact to float64 and then rounded
+  once to float32; the normal is (p − c)/r.
+
+Shadow rays follow the rendering model's contract (docs/rendering-model.md,
+"Shadows"): from p′ = p + ε·n, ε = EPS_REL·(1 + max|p_k|) with the reference
+tracer's EPS_REL = 1e-4 (not Mitsuba's RayEpsilon: the 10 % difference moved
+shadow edges by a sample), to the light along the whole segment. When Mitsuba's
+float32 test says such a ray meets its *own* sphere first, the answer is
+checked again along the same line, from the point where the ray is
+δ = SHADOW_OFFSET_ULPS · 2⁻²³ · (max|c_k| + r + max|p_k|) above the surface: δ
+bounds the error of Mitsuba's own float32 intersection of that ray with that
+sphere (the quadratic is solved from o − c, a projection onto the ray and
+|o′|² − r², each rounded at the scale |c| + r, and the origin p′ at |p|), so
+past it the sphere is only met where it really is: never on the lit outside of
+a convex sphere, across the inside when the hit was seen from within. Staying
+on the reference's line (rather than moving the origin δ along the normal) keeps
+contact shadows where they are.
+
+Non-sphere shapes keep Mitsuba's hit. The sphere table is indexed by the
+shape's registry id, clamped into the table, so the gathers are in bounds by
+construction.
+"""
+
+from __future__ import annotations
+
+from mimarble.runtime import environment
+from mimarble.mitsuba.plugins.registration import transform_matrix
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+#: Shadow-ray offset in units of 2⁻²³·(max|c_k| + r + max|p_k|) (≈ ulps of that scale).
+SHADOW_OFFSET_ULPS = 2.0
+_ULP = 2.0 ** -23
+#: The rendering model's shadow-ray offset ε = EPS_REL·(1 + max|p_k|) (the reference
+#: tracer's ``EPS_REL``; repeated here, as that package must not be imported by this one).
+EPS_REL = 1e-4
+#: Shadow rays stop this fraction short of the light. Mitsuba's ``spawn_ray_to`` stops
+#: ShadowEpsilon = 8.9e-4 short (meant for area lights' own shapes; point lights have
+#: none), which let a light enclosed by a sphere of radius < 8.9e-4 of its distance
+#: light everything (16 dB); 2⁻²⁰ is still 4× the float32 error of that hit.
+SHADOW_END_REL = 2.0 ** -20
+
+
+def spheres_only(scene) -> bool:
+    """Whether every shape of the Mitsuba scene is a ``sphere`` (a static fact: what
+    code is traced may depend on it)."""
+    return all(shape.shape_type() == mi.ShapeType.Sphere for shape in scene.shapes())
+
+
+def _sphere_geometry(shape):
+    """(centre, radius) of a Mitsuba sphere as float64 Python numbers, else None."""
+    if shape.shape_type() != mi.ShapeType.Sphere:
+        return None
+    m = transform_matrix(mi.traverse(shape)["to_world"])
+    centre = (float(m[0, 3]), float(m[1, 3]), float(m[2, 3]))
+    radius = float((m[0, 0] ** 2 + m[1, 0] ** 2 + m[2, 0] ** 2) ** 0.5)   # as Mitsuba's sphere
+    return centre, radius
+
+
+def _placements(scene) -> list:
+    """The spheres' ``to_world`` as ``mi.traverse`` holds them (the variables a table is
+    kept for)."""
+    return [mi.traverse(s)["to_world"] for s in scene.shapes()
+            if s.shape_type() == mi.ShapeType.Sphere]
+
+
+class SphereTable:
+    """Centres and radii of a scene's spheres, looked up per lane by the hit shape.
+
+    A table is built from the shapes' ``to_world`` (a ``mi.traverse`` per sphere), read to
+    the host once per build: the values are evaluated, so after the first read no read
+    waits for a kernel (docs/design-decisions.md, "Replaying recorded kernels", says why
+    it is not built on the device). Its columns are opaque Dr.Jit arrays that the table
+    holds (``DRJIT_STRUCT``), so that a recording of the kernels
+    (mimarble/mitsuba/rendering/replay.py) takes them as inputs; what decides the traced code,
+    :attr:`structure`, is part of the recording's key. Where it comes from
+    (:meth:`for_trace`): the table :meth:`of` keeps for the scene, made again only when a
+    shape's ``to_world`` is another Dr.Jit variable (an edit; the table holds copies of
+    them, so none can be freed and its index reused) — a recorded pass uses the one its
+    caller refreshed; the scalar variant, which traces every sample, keeps one while the
+    shapes' bounding boxes stay.
+    """
+
+    DRJIT_STRUCT = {"columns": list}
+    #: Tables by scene, with what they were built for; a table holds its scene's shapes
+    #: (to tell a new scene that took a freed one's id), so few are kept.
+    _tables: dict = {}
+    KEPT = 4
+
+    @classmethod
+    def of(cls, scene, placements=None) -> "SphereTable":
+        """The table of ``scene``: the one built before, unless a shape has moved or
+        changed size since — told by ``placements`` (the shapes' ``to_world``, as
+        ``mi.traverse`` holds them: the same variables as the table's copies), else by the
+        shapes' bounding boxes (the scalar variant)."""
+        if placements is not None:
+            facts = tuple(tuple(dr.detail.collect_indices(p)) for p in placements)
+        else:
+            facts = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
+        facts_then, table, held = cls._tables.pop(id(scene), (None, None, None))
+        # The very shapes too: a new scene may take a freed one's id.
+        if facts_then != facts or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
+            if len(cls._tables) >= cls.KEPT:
+                cls._tables.pop(next(iter(cls._tables)))
+            table = cls(scene)
+            # Copies hold the very variables, so none is freed and its index reused.
+            held = None if placements is None else [type(p)(p) for p in placements]
+        cls._tables[id(scene)] = (facts, table, held)       # the most recently used last
+        return table
+
+    @classmethod
+    def for_trace(cls, scene) -> "SphereTable":
+        """The table a trace of ``scene`` reads (see the class docstring)."""
+        if not dr.is_jit_v(mi.Float):
+            return cls.of(scene)
+        if dr.flag(dr.JitFlag.FreezingScope) and id(scene) in cls._tables:
+            return cls._tables[id(scene)][1]
+        return cls.of(scene, _placements(scene))
+
+    @classmethod
+    def forget(cls, scene) -> None:
+        """Drop the table of ``scene`` (which holds its shapes alive)."""
+        cls._tables.pop(id(scene), None)
+
+    @property
+    def structure(self) -> tuple:
+        """What decides the code :func:`refine` and :func:`occluded` trace."""
+        return (getattr(self, "size", None), self.large)
+
+    def __init__(self, scene):
+        self.shapes = list(scene.shapes())
+        self.geometry = [_sphere_geometry(s) for s in self.shapes]
+        if dr.is_jit_v(mi.Float):
+            # Every shape's id sizes the table (a hit's id indexes it, clamped to its end):
+            # a plane or mesh whose id is past the last sphere's finds r = 0.
+            ids = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in self.shapes]
+            size = max(ids, default=0) + 1
+            columns = [[0.0] * size for _ in range(4)]   # cx, cy, cz, r; r = 0: not a sphere
+            for shape_id, geometry in zip(ids, self.geometry):
+                if geometry is not None:
+                    (cx, cy, cz), r = geometry
+                    for column, value in zip(columns, (cx, cy, cz, r)):
+                        column[shape_id] = value
+            self.size = size
+            self.columns = [mi.Float64(c) for c in columns]
+            dr.make_opaque(*self.columns)     # evaluated, never a literal: recorded as inputs
+        scales = [max(map(abs, g[0])) + g[1] for g in self.geometry if g is not None]
+        # Whether Mitsuba's float32 error on some sphere can reach the shadow-ray offset
+        # ε ≥ EPS_REL (max|c_k| + r > 419): then refine() works in float64 and occluded()
+        # looks for false hits on the own sphere; below it both would change nothing.
+        self.large = any(SHADOW_OFFSET_ULPS * _ULP * x > EPS_REL for x in scales)
+
+    def lookup(self, shape):
+        """(centre: Point3d, radius: Float64) per lane; radius 0 where no sphere was hit."""
+        if dr.is_jit_v(mi.Float):
+            index = dr.minimum(dr.reinterpret_array(mi.UInt32, shape), self.size - 1)
+            cx, cy, cz, r = (dr.gather(mi.Float64, c, index) for c in self.columns)
+            return mi.Point3d(cx, cy, cz), r
+        for candidate, geometry in zip(self.shapes, self.geometry):
+            if geometry is not None and shape is not None and shape == candidate:
+                return mi.Point3d(*geometry[0]), geometry[1]
+        return mi.Point3d(0.0, 0.0, 0.0), 0.0
+
+
+def _largest_component(v):
+    return dr.maximum(dr.maximum(dr.abs(v.x), dr.abs(v.y)), dr.abs(v.z))
+
+
+def refine(table: SphereTable, ray, si, hit):
+    """(p, n, on_sphere): the hit point and outward normal, refined in float64 where
+    Mitsuba hit a sphere (Mitsuba's own p and n elsewhere).
+
+    Scenes without a large sphere keep Mitsuba's hit as it is: its error is then
+    below the shadow-ray offset, and the refinement would cost ~18 % of a render
+    (fig11a 500², 1 spp, 2-core AMD EPYC: 29.8 → 35.3 ms).
+    """
+    if not table.large:
+        return si.p, mi.Vector3f(si.n), mi.Bool(False) & hit
+    centre, radius = table.lookup(si.shape)
+    on_sphere = hit & (radius > 0)
+    o, d = mi.Point3d(ray.o), mi.Vector3d(ray.d)
+    oc = o - centre
+    a = dr.squared_norm(d)
+    b = dr.dot(oc, d)
+    # |o − c|² − r² as (|o − c| − r)(|o − c| + r): no cancellation of two large squares.
+    distance = dr.norm(oc)
+    c = (distance - radius) * (distance + radius)
+    discriminant = dr.maximum(b * b - a * c, 0.0)        # a grazing hit Mitsuba found: tangent
+    q = -(b + dr.copysign(dr.sqrt(discriminant), b))
+    q = dr.select(q == 0.0, -b, q)
+    t0 = q / a
+    t1 = dr.select(q != 0.0, c / q, t0)
+    t_mitsuba = mi.Float64(si.t)
+    t = dr.select(dr.abs(t0 - t_mitsuba) <= dr.abs(t1 - t_mitsuba), t0, t1)
+    p64 = o + d * t
+    n64 = (p64 - centre) / dr.select(on_sphere, radius, 1.0)
+    p = dr.select(on_sphere, mi.Point3f(p64), si.p)
+    n = dr.select(on_sphere, dr.normalize(mi.Vector3f(n64)), mi.Vector3f(si.n))
+    return p, n, on_sphere
+
+
+def _ray_to(origin, target, time, wavelengths):
+    to_target = target - origin
+    distance = dr.norm(to_target)
+    return mi.Ray3f(origin, to_target / distance, distance * (1.0 - SHADOW_END_REL),
+                    time, wavelengths)
+
+
+def occluded(scene, table: SphereTable, si, p, n_facing, on_sphere, target, active):
+    """The paper's ``shadowHit``: does anything lie between the hit and ``target``?
+
+    From p′ = p + ε·n_facing, ε = EPS_REL·(1 + max|p_k|), as the reference tracer
+    (n_facing faces the light on every lane that asks). In scenes with a sphere
+    large enough for Mitsuba's float32 error to matter (:attr:`SphereTable.large`),
+    a ray whose first hit is its own sphere is tested again along the same line
+    from where it is δ above the surface (module docstring); only those lanes pay
+    for the second ray.
+    """
+    origin = p + n_facing * ((1.0 + _largest_component(p)) * EPS_REL)
+    ray = _ray_to(origin, target, si.time, si.wavelengths)
+    if not table.large:
+        return scene.ray_test(ray, active)
+    first = scene.ray_intersect_preliminary(ray, active)
+    blocked = mi.Bool(active) & first.is_valid()
+    own = blocked & on_sphere & (first.shape == si.shape)
+    centre, radius = table.lookup(si.shape)
+    scale = _largest_component(centre) + radius + mi.Float64(_largest_component(p))
+    delta = mi.Float(scale * (SHADOW_OFFSET_ULPS * _ULP))
+    # δ above the surface along a ray that leaves it at cos θ = n·d. Below cos θ = 1e-3
+    # the light grazes the surface and n·l (the diffuse term) is < 1e-3 anyway.
+    skip = dr.minimum(delta / dr.maximum(dr.dot(n_facing, ray.d), 1e-3), 0.5 * ray.maxt)
+    retry = mi.Ray3f(ray(skip), ray.d, ray.maxt - skip, ray.time, ray.wavelengths)
+    return (blocked & ~own) | (own & scene.ray_test(retry, own))

@@ -1,0 +1,1 @@
+"""Rendering through Mitsuba: passes, replay, loaded scenes, adaptive sampling, output."""

@@ -1,0 +1,1 @@
+"""The process around the renderers: libLLVM and variant, kernel cache, machine, files, progress."""

@@ -1,0 +1,1 @@
+"""The marble's mathematics in Dr.Jit: noise, stripes, ramp, mapping, filters, error budget."""
