@@ -203,7 +203,7 @@ def targets_scene(scene_paths):
     for path in scene_paths:
         if Path(path).stem == "fig11a":
             return str(path)
-    beside_package = Path(__file__).resolve().parent.parent / "scenes" / "fig11a.scene"
+    beside_package = Path(__file__).resolve().parents[2] / "scenes" / "fig11a.scene"
     return str(beside_package) if beside_package.is_file() else None
 
 

@@ -1,5 +1,1 @@
-"""The ``mimarble`` command line: ``main`` parses the arguments and runs one command."""
-
-from mimarble.cli.main import main
-
-__all__ = ["main"]
+"""The ``mimarble`` command line: ``mimarble.cli.main.main`` parses the arguments and runs one command."""

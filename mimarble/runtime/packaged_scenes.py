@@ -26,7 +26,7 @@ from pathlib import Path
 from .files import output_name_problem, write_atomically
 
 #: Where the packaged scenes are (the checkout's ``scenes/`` through the link).
-FOLDER = (Path(__file__).resolve().parent / "scenes").resolve()
+FOLDER = (Path(__file__).resolve().parent.parent / "scenes").resolve()
 SUFFIX = ".scene"
 
 

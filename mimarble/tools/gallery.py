@@ -6,7 +6,7 @@ import time
 from pathlib import Path
 
 from mimarble import scene as scene_language
-from mimarble.mitsuba.rendering import render
+from mimarble.mitsuba.rendering.render import render
 from mimarble.mitsuba import write_image
 from mimarble.scene.edits import with_image_size
 
