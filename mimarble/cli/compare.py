@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from mimarble.cli.shared import (_adaptive_words, _check_adaptive_options, _check_folder,
-    _check_suffix, _checked_name, _load_scene, _say, _spp, _start, _write)
+    _check_suffix, _checked_name, _load_scene, _max_spp, _say, _spp, _start, _write)
 
 
 def _compare(args) -> int:
@@ -27,7 +27,8 @@ def _compare(args) -> int:
               "what they filter or sample otherwise", file=sys.stderr)
     metrics, ours, ref = compare_with_reference(
         scene, spp, tolerance=args.tolerance, filter=args.filter, edge_spp=args.edge_spp,
-        adaptive=args.adaptive, max_spp=args.max_spp, name=args.scene, progress=True)
+        adaptive=args.adaptive, max_spp=None if args.adaptive is None else _max_spp(args, spp),
+        name=args.scene, progress=True)
     if args.diff is not None:
         _write(Path(args.diff), error_map_with_legend(ours, ref), eight_bit=True)
     reference_spp = metrics.get("reference_spp", spp)

@@ -11,7 +11,9 @@ from mimarble.cli.shared import (UsageError, _check_spp, _checked_name, _load_sc
 
 
 def _sweep(args) -> int:
-    from mimarble.sweeps.run import SweepError, check_workers, frames, settings_from
+    from mimarble.sweeps.cluster import check_workers
+    from mimarble.sweeps.frames import frames
+    from mimarble.sweeps.settings import SweepError, settings_from
     if not args.set:
         raise UsageError("a sweep needs at least one --set KEY=VALUES")
     out = Path(_checked_name(args.output, "-o"))
@@ -33,7 +35,8 @@ def _sweep(args) -> int:
     if args.spp is not None:
         _check_spp(args.spp)
     _start(args)
-    from mimarble.sweeps.run import summary_sentence, sweep
+    from mimarble.sweeps.index import summary_sentence
+    from mimarble.sweeps.run import sweep
     start = time.perf_counter()
     try:
         index = sweep(scene, settings, out, spp=args.spp, workers=args.workers,

@@ -257,9 +257,12 @@ def compare_with_reference(scene, spp: int, *, tolerance=None, filter=None, edge
     ``metrics``: :func:`image_metrics` of ours against the reference, with ``scene``
     (``name``, else the scene's file), ``spp``, ``variant`` and each renderer's seconds;
     an adaptive render (``adaptive``, a threshold) is compared with the reference at its
-    most samples per pixel (``max_spp``, None: ``mimarble.render``'s default), and its
-    metrics say so (``adaptive``, ``max_spp``, ``reference_spp``). Mitsuba must be
-    started (``mimarble.start``)."""
+    most samples per pixel, ``max_spp`` (given with ``adaptive``), and its metrics say so
+    (``adaptive``, ``max_spp``, ``reference_spp``). Mitsuba must be started
+    (``mimarble.start``)."""
+    if adaptive is not None and max_spp is None:
+        raise ValueError("compare_with_reference: give max_spp with adaptive (the reference "
+                         "renders at it)")
     import time
 
     import mimarble
@@ -268,10 +271,7 @@ def compare_with_reference(scene, spp: int, *, tolerance=None, filter=None, edge
     ours = mimarble.render(scene, spp=spp, progress=progress, tolerance=tolerance,
                            filter=filter, edge_spp=edge_spp, adaptive=adaptive, max_spp=max_spp)
     mitsuba_seconds = time.perf_counter() - start
-    reference_spp = spp
-    if adaptive is not None:
-        from mimarble.mitsuba.rendering.adaptive import DEFAULT_MAX_SPP
-        reference_spp = max(DEFAULT_MAX_SPP, spp) if max_spp is None else max_spp
+    reference_spp = spp if adaptive is None else max_spp
     start = time.perf_counter()
     ref = reference.render(scene, spp=reference_spp, progress=progress)
     reference_seconds = time.perf_counter() - start
