@@ -168,7 +168,7 @@ def _bench_command(sub) -> None:
                    help="the adaptive modes' thresholds: a first pass of 1 spp, then more samples "
                         "where a pixel's estimated error (linear colour) is above T (times "
                         "n² at n² samples), one run per T (default: 0.005 halving down to "
-                        "4.5e-6, mimarble.bench.run.ADAPTIVE_THRESHOLDS)")
+                        "4.5e-6, mimarble.bench.modes.ADAPTIVE_THRESHOLDS)")
     p.add_argument("--max-spp", type=int, default=64, metavar="N",
                    help="the adaptive modes' most samples per pixel, a perfect square (default 64)")
     p.add_argument("--no-adaptive", action="store_true",

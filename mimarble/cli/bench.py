@@ -41,19 +41,20 @@ def _bench(args) -> int:
     for path in scenes:
         mimarble_scene.load(path)   # every scene error before minutes of measuring
     _start(args)
-    from mimarble.bench import run as bench
-    targets_scene = None if args.no_targets else bench.targets_scene(scenes)
-    if not args.no_targets and targets_scene is None:
+    from mimarble.bench.modes import ADAPTIVE_THRESHOLDS, modes
+    from mimarble.bench.run import run_bench
+    from mimarble.bench.targets import targets_scene
+    targets = None if args.no_targets else targets_scene(scenes)
+    if not args.no_targets and targets is None:
         raise UsageError("the targets are measured on scenes/fig11a.scene, which is not here; "
                          "give it among the scenes or pass --no-targets")
-    results = bench.run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
-                              converged_spp=args.converged_spp, targets=targets_scene,
-                              paper=not args.no_paper, povray=not args.no_povray,
-                              tolerance=args.tolerance,
-                              modes=bench.modes(args.filter, args.edge_spp,
-                                                adaptive=not args.no_adaptive),
-                              thresholds=tuple(args.adaptive or bench.ADAPTIVE_THRESHOLDS),
-                              max_spp=args.max_spp)
+    results = run_bench(scenes, size=args.size, spps=tuple(args.spp), repeats=args.repeats,
+                        converged_spp=args.converged_spp, targets=targets,
+                        paper=not args.no_paper, povray=not args.no_povray,
+                        tolerance=args.tolerance,
+                        modes=modes(args.filter, args.edge_spp, adaptive=not args.no_adaptive),
+                        thresholds=tuple(args.adaptive or ADAPTIVE_THRESHOLDS),
+                        max_spp=args.max_spp)
     from mimarble.bench.report import format_report
     from mimarble.runtime.files import write_json
     results["command"] = "mimarble " + " ".join(shlex.quote(a) for a in args.argv)
