@@ -321,10 +321,7 @@ def _edge_spp(text: str) -> int:
 def _adaptive_threshold(text: str) -> float:
     """``--adaptive``: a finite number > 0 (argparse reports the error as a usage error)."""
     from mimarble.scene.rules import adaptive_problem
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    value = _number(text)
     problem = adaptive_problem(value, None, 1, 1, 1)
     if problem:
         raise argparse.ArgumentTypeError(f"{text} {problem.split(' ', 1)[1]}")
@@ -333,10 +330,15 @@ def _adaptive_threshold(text: str) -> float:
 
 def _tolerance(text: str) -> float:
     """``--tolerance``: a finite number ≥ 0 (argparse reports the error as a usage error)."""
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    value = _number(text)
     if not (value >= 0 and value != float("inf")):
         raise argparse.ArgumentTypeError(f"{text} must be a finite number ≥ 0")
     return value
+
+
+def _number(text: str) -> float:
+    """``text`` as a float, or argparse's usage error saying it is no number."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
