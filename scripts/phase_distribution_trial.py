@@ -12,7 +12,7 @@ For fig11a and fig09d at 256², 1 spp, renders each marble with
 
 and variants of the last two (:data:`CONFIGURATIONS`: harmonics, the narrow fallback,
 the prefilter margin, a scaled linear variance), and measures against the float64
-reference at 256 spp (``mimarble.bench.run.converged``, cached) the RMSE inside the
+reference at 256 spp (``mimarble.bench.timing.converged``, cached) the RMSE inside the
 silhouettes (pixels whose 3×3 neighbourhood sees one shape, ``edge_mask`` at 16 spp)
 and over the whole image, and the render time: the median of 5 warm
 ``render_in_passes`` after a ``dr.sync_thread()``, taken in ``--rounds`` rounds that
@@ -48,7 +48,7 @@ import mimarble
 from mimarble.runtime import files
 from mimarble.texture import filters as pixel_filter
 from mimarble import scene as scene_language
-from mimarble.bench.run import converged
+from mimarble.bench.timing import converged
 from mimarble.runtime.machine import machine_facts
 from mimarble.mitsuba.rendering import replay
 from mimarble.mitsuba.rendering.render import render_in_passes

@@ -57,14 +57,14 @@ def startup_run(way: str, out: str) -> None:
     ``now``, the sweep's phases timed from outside (its own functions wrapped)."""
     import mimarble
     mimarble.start()
-    from mimarble.sweeps import run as sweeps
+    from mimarble.sweeps import cluster as sweep_cluster, run as sweeps
     from mimarble import scene as S
     from mimarble.scene.edits import resized
     scene = resized(S.load(ROOT / "scenes" / "fig11a.scene"), 128)
     setting = {"marble.period": [0.5, 1.5, 2.5, 4.0], "marble.distortion": [1.0, 2.5, 4.0, 6.0]}
     at = {}
-    make = before_issue_28 if way == "before" else sweeps.local_cluster
-    stop, record = sweeps._stop_dask, sweeps._record_written
+    make = before_issue_28 if way == "before" else sweep_cluster.local_cluster
+    stop, record = sweep_cluster._stop_dask, sweeps._record_written
 
     def cluster(*args, **kwargs):
         at["start"] = time.perf_counter()
@@ -82,7 +82,7 @@ def startup_run(way: str, out: str) -> None:
             at.setdefault("first", time.perf_counter())
         return record(pending, rendered, wait)
 
-    sweeps.local_cluster, sweeps._stop_dask, sweeps._record_written = \
+    sweep_cluster.local_cluster, sweep_cluster._stop_dask, sweeps._record_written = \
         cluster, timed_stop, timed_record
     at["begin"] = time.perf_counter()
     index = sweeps.sweep(scene, setting, out, workers=None if way == "one_process" else 2)
@@ -141,11 +141,11 @@ def steady(repeats: int, frames: int = 64) -> dict:
     import mimarble
     mimarble.start()
     from dask.distributed import Client
-    from mimarble.sweeps import run as sweeps
+    from mimarble.sweeps import cluster as sweep_cluster, run as sweeps
     from mimarble import scene as S
     from mimarble.scene.edits import resized
     out = {}
-    cluster = sweeps.local_cluster(2, mimarble.mi.variant())
+    cluster = sweep_cluster.local_cluster(2, mimarble.mi.variant())
     client = Client(cluster)
     try:
         for size in (32, 128, 512):

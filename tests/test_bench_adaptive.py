@@ -8,7 +8,8 @@ import pytest
 
 from mimarble.bench import (run as bench, page as bench_page, plot as bench_plot,
     report as bench_report)
-from mimarble.bench.run import time_to_rmse, times_to_plain_rmse
+from mimarble.bench.curves import speedups_at_equal_error, time_to_rmse, times_to_plain_rmse
+from mimarble.bench import modes as bench_modes
 
 MACHINE = {"processor": "AMD EPYC", "cores": 2, "variant": "llvm_ad_rgb"}
 
@@ -81,7 +82,7 @@ def synthetic_results():
             "modes": [{"name": "plain"}, {"name": "adaptive", "adaptive": True}],
             "adaptive": {"thresholds": [0.01, 0.005, 0.0025, 0.00125], "first_spp": 1,
                          "max_spp": 64},
-            "speedup_at_plain16_rmse": bench.speedups_at_equal_error(runs),
+            "speedup_at_plain16_rmse": speedups_at_equal_error(runs),
             "time_to_rmse": times_to_plain_rmse(runs)}
 
 
@@ -158,13 +159,13 @@ def test_the_plot_draws_adaptive_curves_and_plain_levels(tmp_path):
 
 
 def test_the_default_modes_add_adaptive_sampling_of_plain_and_prefiltered_marble():
-    names = [m.name for m in bench.modes()]
+    names = [m.name for m in bench_modes.modes()]
     assert names == ["plain", "bandlimit", "prefilter", "prefilter+edges", "adaptive",
                      "adaptive+prefilter"]
-    assert [m.name for m in bench.modes(adaptive=False)] == names[:4]
-    assert [(m.name, m.filter, m.adaptive) for m in bench.modes("prefilter")] == [
+    assert [m.name for m in bench_modes.modes(adaptive=False)] == names[:4]
+    assert [(m.name, m.filter, m.adaptive) for m in bench_modes.modes("prefilter")] == [
         ("prefilter", "prefilter", False), ("adaptive+prefilter", "prefilter", True)]
-    assert bench.DEFAULT_SPPS[-1] == 64 < bench.DEFAULT_CONVERGED_SPP
+    assert bench_modes.DEFAULT_SPPS[-1] == 64 < bench_modes.DEFAULT_CONVERGED_SPP
 
 
 # ---------------------------------------------------------------------------
@@ -172,7 +173,7 @@ def test_the_default_modes_add_adaptive_sampling_of_plain_and_prefiltered_marble
 
 def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
     pytest.importorskip("mimarble.mitsuba.rendering.adaptive")
-    modes = (bench.Mode("plain"), bench.Mode("adaptive", adaptive=True))
+    modes = (bench_modes.Mode("plain"), bench_modes.Mode("adaptive", adaptive=True))
     results = bench.run_bench(["scenes/fine-veins/veins-p4-d4-s2.scene"], size=32,
                               spps=(1, 4, 16, 64), converged_spp=16, repeats=1, paper=False,
                               cache_dir=tmp_path, progress=False, modes=modes,

@@ -16,7 +16,8 @@ import pytest
 from commands import mimarble_cli as cli, one_sentence  # noqa: E402
 
 from mimarble import scene as S
-from mimarble.sweeps import contact_sheet, run as sweeps
+from mimarble.sweeps import (cluster as sweep_cluster, contact_sheet, frames as sweep_frames,
+                             index as sweep_index, run as sweeps, settings as sweep_settings)
 from mimarble.scene.edits import resized
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -168,13 +169,13 @@ def test_a_shortened_frame_list_is_started_afresh(swept):
 
 def test_another_sweep_of_another_length_is_refused_not_started_afresh(swept):
     before = {p.name: p.stat().st_mtime_ns for p in swept.iterdir()}
-    with pytest.raises(sweeps.SweepError, match="holds another sweep"):
+    with pytest.raises(sweep_settings.SweepError, match="holds another sweep"):
         sweeps.sweep(tiny(), {"marble.period": [1.0, 2.0, 3.0]}, swept, spp=1)
     assert {p.name: p.stat().st_mtime_ns for p in swept.iterdir()} == before
 
 
 def test_a_huge_index_is_not_read(swept, monkeypatch):
-    monkeypatch.setattr(sweeps, "MAX_INDEX_BYTES", 100)
+    monkeypatch.setattr(sweep_index, "MAX_INDEX_BYTES", 100)
     _, rendered, warned = resume(swept)
     assert len(warned) == 1 and "larger than" in warned[0]
     assert rendered == [0, 1]
@@ -245,7 +246,7 @@ def garbled_inside(path):
 def test_a_done_frame_whose_image_is_damaged_is_rendered_again(swept, damage, words):
     damage(swept / NAMES[1])
     if damage is garbled_inside:
-        assert sweeps.image_problem(swept / NAMES[1], (8, 8)) is None   # the header is fine
+        assert sweep_index.image_problem(swept / NAMES[1], (8, 8)) is None   # the header is fine
     _, rendered, warned = resume(swept)
     assert rendered == [1]
     assert len(warned) == 1 and words in warned[0] and NAMES[1] in warned[0], warned
@@ -255,7 +256,7 @@ def test_a_done_frame_whose_image_is_damaged_is_rendered_again(swept, damage, wo
 def test_an_image_that_does_not_decode_fails_a_cell_not_the_sheet(swept):
     garbled_inside(swept / NAMES[0])
     index = json.loads((swept / "sweep.json").read_text())
-    path = sweeps.write_contact_sheet(swept, index)
+    path = contact_sheet.write_contact_sheet(swept, index)
     assert path.exists()
     assert index["frames"][0]["status"] == "failed"
     assert index["frames"][0]["error"].startswith("its image does not decode")
@@ -268,11 +269,11 @@ def test_an_image_that_does_not_decode_fails_a_cell_not_the_sheet(swept):
 def test_a_huge_range_is_refused_before_its_values_are_made():
     tracemalloc.start()
     try:
-        with pytest.raises(sweeps.SweepError, match=r"1000000000 values; a sweep renders at "
+        with pytest.raises(sweep_settings.SweepError, match=r"1000000000 values; a sweep renders at "
                                                     r"most 10000 frames"):
-            sweeps.parse_setting("marble.period=0:1:1000000000")
-        with pytest.raises(sweeps.SweepError, match="at most 10000"):
-            sweeps.settings_from({"marble.period": range(10 ** 12)})
+            sweep_settings.parse_setting("marble.period=0:1:1000000000")
+        with pytest.raises(sweep_settings.SweepError, match="at most 10000"):
+            sweep_settings.settings_from({"marble.period": range(10 ** 12)})
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -281,11 +282,11 @@ def test_a_huge_range_is_refused_before_its_values_are_made():
 
 def test_too_many_frames_are_refused_before_any_is_made(monkeypatch):
     built = []
-    monkeypatch.setattr(sweeps, "with_value", lambda *a: built.append(a))
-    settings = sweeps.settings_from(["marble.period=0:1:200", "marble.distortion=1:8:200"])
-    with pytest.raises(sweeps.SweepError, match=r"^40000 frames \(200 × 200 values\); a sweep "
+    monkeypatch.setattr(sweep_frames, "with_value", lambda *a: built.append(a))
+    settings = sweep_settings.settings_from(["marble.period=0:1:200", "marble.distortion=1:8:200"])
+    with pytest.raises(sweep_settings.SweepError, match=r"^40000 frames \(200 × 200 values\); a sweep "
                                                 r"renders at most 10000"):
-        sweeps.frames(tiny(), settings)
+        sweep_frames.frames(tiny(), settings)
     assert built == []
 
 
@@ -295,8 +296,8 @@ def test_too_many_frames_are_refused_before_any_is_made(monkeypatch):
     ({f"k{i}": [1] for i in range(17)}, "17 settings; a sweep takes at most 16"),
 ])
 def test_settings_past_the_limits_are_refused(spec, words):
-    with pytest.raises(sweeps.SweepError, match=words):
-        sweeps.frames(tiny(), sweeps.settings_from(spec))
+    with pytest.raises(sweep_settings.SweepError, match=words):
+        sweep_frames.frames(tiny(), sweep_settings.settings_from(spec))
 
 
 def test_too_many_frames_from_the_command_is_one_sentence(tmp_path):
@@ -307,15 +308,15 @@ def test_too_many_frames_from_the_command_is_one_sentence(tmp_path):
 
 
 def test_workers_past_a_few_per_core_are_refused_with_the_limit(tmp_path):
-    most = sweeps.WORKERS_PER_CORE * os.cpu_count()
+    most = sweep_cluster.WORKERS_PER_CORE * os.cpu_count()
     line = one_sentence(cli("sweep", "scenes/fig11a.scene", "--set", "marble.period=1",
                             "--workers", 1000, "-o", tmp_path / "out"))
     assert f"--workers 1000: at most {most} here" in line
     assert not (tmp_path / "out").exists()
-    assert sweeps.check_workers(most) == most
+    assert sweep_cluster.check_workers(most) == most
     for bad in (0, -1, True, 2.5, "3", most + 1):
-        with pytest.raises(sweeps.SweepError, match="--workers"):
-            sweeps.check_workers(bad)
+        with pytest.raises(sweep_settings.SweepError, match="--workers"):
+            sweep_cluster.check_workers(bad)
 
 
 def test_a_contact_sheet_of_many_frames_stays_within_its_pixels(tmp_path):
@@ -324,7 +325,7 @@ def test_a_contact_sheet_of_many_frames_stays_within_its_pixels(tmp_path):
     index = {"scene": "x.scene", "settings": [{"key": "marble.period", "values": list(range(n))}],
              "frames": [{"index": k, "values": {"marble.period": k}, "status": "failed"}
                         for k in range(n)]}
-    path = sweeps.write_contact_sheet(tmp_path, index)
+    path = contact_sheet.write_contact_sheet(tmp_path, index)
     width, height = Image.open(path).size
     assert width * height <= contact_sheet.CONTACT_SHEET_PIXELS * 1.05
 
@@ -364,16 +365,16 @@ def test_a_server_that_answers_garbage_is_not_a_dask_scheduler(tmp_path):
 def test_a_web_server_is_not_a_dask_scheduler(llvm, tmp_path):
     pytest.importorskip("distributed")
     address = serve(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")
-    with pytest.raises(sweeps.SweepError, match="is not a Dask scheduler"):
+    with pytest.raises(sweep_settings.SweepError, match="is not a Dask scheduler"):
         sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, scheduler=address)
     assert not (tmp_path / "out").exists()
 
 
 def test_a_server_that_says_nothing_times_out(llvm, tmp_path, monkeypatch):
     pytest.importorskip("distributed")
-    monkeypatch.setattr(sweeps, "SCHEDULER_TIMEOUT_S", 1)
+    monkeypatch.setattr(sweep_cluster, "SCHEDULER_TIMEOUT_S", 1)
     address = serve(b"")
-    with pytest.raises(sweeps.SweepError, match=r"no Dask scheduler answered there within 1 s"):
+    with pytest.raises(sweep_settings.SweepError, match=r"no Dask scheduler answered there within 1 s"):
         sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, scheduler=address)
     assert not (tmp_path / "out").exists()
 
@@ -388,7 +389,7 @@ def test_an_output_name_too_long_is_one_sentence(tmp_path):
 
 
 def test_an_output_name_too_long_from_python_is_a_sweep_error(llvm, tmp_path):
-    with pytest.raises(sweeps.SweepError, match="cannot make the sweep's folder"):
+    with pytest.raises(sweep_settings.SweepError, match="cannot make the sweep's folder"):
         sweeps.sweep(tiny(), SETTING, tmp_path / ("x" * 300), spp=1)
 
 
@@ -410,7 +411,7 @@ def another_process_holding_the_lock(out):
     import subprocess
     import sys
     out.mkdir(exist_ok=True)
-    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out / sweeps.LOCK)],
+    holder = subprocess.Popen([sys.executable, "-c", HOLD_LOCK, str(out / sweep_index.LOCK)],
                               stdout=subprocess.PIPE, text=True)
     assert holder.stdout.readline().strip() == "held"
     return holder
@@ -420,7 +421,7 @@ def test_a_second_sweep_into_a_folder_in_use_is_refused_and_writes_nothing(llvm,
     out = tmp_path / "out"
     holder = another_process_holding_the_lock(out)
     try:
-        with pytest.raises(sweeps.SweepError, match=rf"another sweep \(process {holder.pid}\) "
+        with pytest.raises(sweep_settings.SweepError, match=rf"another sweep \(process {holder.pid}\) "
                                                     r"is writing into this folder"):
             sweeps.sweep(tiny(), SETTING, out, spp=1)
         (tmp_path / "s.scene").write_text((ROOT / "scenes" / "fig11a.scene").read_text())
@@ -428,7 +429,7 @@ def test_a_second_sweep_into_a_folder_in_use_is_refused_and_writes_nothing(llvm,
                                     "marble.period=1,2", "--width", "8", "--height", "8",
                                     "--spp", "1", "-o", out))
         assert "another sweep" in sentence
-        assert sorted(os.listdir(out)) == [sweeps.LOCK]
+        assert sorted(os.listdir(out)) == [sweep_index.LOCK]
     finally:
         holder.kill()
         holder.wait()
@@ -439,7 +440,7 @@ def test_a_lock_left_by_a_killed_sweep_blocks_nothing(llvm, tmp_path):
     holder = another_process_holding_the_lock(out)
     holder.kill()                                   # SIGKILL: no chance to let go
     holder.wait()
-    assert (out / sweeps.LOCK).read_text() == str(holder.pid)
+    assert (out / sweep_index.LOCK).read_text() == str(holder.pid)
     index = sweeps.sweep(tiny(), SETTING, out, spp=1)
     assert [f["status"] for f in index["frames"]] == ["done", "done"]
     sweeps.sweep(tiny(), SETTING, out, spp=1)       # and this one let go of it when it ended
@@ -453,12 +454,12 @@ def test_a_lock_file_that_is_a_link_or_a_pipe_is_refused(llvm, tmp_path, plant):
     victim = tmp_path / "victim"
     victim.write_text("keep")
     if plant == "link":
-        (out / sweeps.LOCK).symlink_to(victim)
+        (out / sweep_index.LOCK).symlink_to(victim)
     else:
-        os.mkfifo(out / sweeps.LOCK)
-    with pytest.raises(sweeps.SweepError, match="symbolic link|not a regular file"):
+        os.mkfifo(out / sweep_index.LOCK)
+    with pytest.raises(sweep_settings.SweepError, match="symbolic link|not a regular file"):
         sweeps.sweep(tiny(), SETTING, out, spp=1)
-    assert victim.read_text() == "keep" and sorted(os.listdir(out)) == [sweeps.LOCK]
+    assert victim.read_text() == "keep" and sorted(os.listdir(out)) == [sweep_index.LOCK]
 
 
 def test_sweep_resolves_a_packaged_scene_name_as_render_does(llvm, tmp_path, monkeypatch):
@@ -482,7 +483,7 @@ def test_sweep_resolves_a_packaged_scene_name_as_render_does(llvm, tmp_path, mon
 ])
 def test_settings_in_another_form_or_past_float32_are_one_sentence(llvm, tmp_path, settings,
                                                                     words):
-    with pytest.raises(sweeps.SweepError, match=re.escape(words)):
+    with pytest.raises(sweep_settings.SweepError, match=re.escape(words)):
         sweeps.sweep(tiny(), settings, tmp_path / "out", spp=1)
     assert not (tmp_path / "out").exists()
 
@@ -503,7 +504,7 @@ def test_a_value_past_float32_is_refused_before_any_frame(tmp_path, value):
 
 @pytest.mark.parametrize("stop_after", [-1, 1.5, True, "1", np.float64(1.0)])
 def test_stop_after_is_a_whole_number_at_least_0(llvm, tmp_path, stop_after):
-    with pytest.raises(sweeps.SweepError, match="stop_after=.* must be a whole number ≥ 0"):
+    with pytest.raises(sweep_settings.SweepError, match="stop_after=.* must be a whole number ≥ 0"):
         sweeps.sweep(tiny(), SETTING, tmp_path / "out", spp=1, stop_after=stop_after)
     assert not (tmp_path / "out").exists()
 
@@ -524,6 +525,6 @@ def test_numpy_numbers_are_taken_as_the_python_numbers_they_hold(llvm, tmp_path)
 @pytest.mark.parametrize("out", ["", "a\0b", os.fsdecode(b"o\xff")])
 def test_a_sweep_folder_name_no_writer_takes_is_refused(llvm, tmp_path, monkeypatch, out):
     monkeypatch.chdir(tmp_path)
-    with pytest.raises(sweeps.SweepError, match="empty name|NUL|not UTF-8"):
+    with pytest.raises(sweep_settings.SweepError, match="empty name|NUL|not UTF-8"):
         sweeps.sweep(tiny(), SETTING, out, spp=1)
     assert os.listdir(tmp_path) == []

@@ -183,7 +183,7 @@ def test_the_command_renders_what_the_package_renders(tmp_path):
 def test_the_benchmark_times_each_whole_process():
     """``mimarble bench``'s rows: each run checked for its exit status, so a broken
     command cannot pass for a fast one."""
-    from mimarble.bench import run as bench, report as bench_report
+    from mimarble.bench import report as bench_report, targets as bench
     t = bench.process_times(os.path.join(ROOT, "scenes", "fig11a.scene"), repeats=1)
     assert all(t[k] > 0 for k in ("help_s", "malformed_scene_s", "render_warm_s", "render_cold_s"))
     text = "\n".join(bench_report._process_lines(t, {"process_s": 0.8}))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from mimarble.sweeps import run as sweeps
+from mimarble.sweeps import index as sweep_index
 
 ROOT = Path(__file__).resolve().parent.parent
 SIZE = 16
@@ -89,9 +89,9 @@ def test_ctrl_c_on_two_workers_says_one_line_stops_them_and_leaves_whole_files(t
     assert 0 < len(done) < FRAMES and index["summary"]["rendered_now"] == len(done)
     assert {f["status"] for f in index["frames"]} <= {"done", "todo"}
     for frame in done:
-        assert sweeps.image_problem(out / frame["file"], (SIZE, SIZE)) is None
+        assert sweep_index.image_problem(out / frame["file"], (SIZE, SIZE)) is None
     names = [p.name for p in out.iterdir()]
     assert not [n for n in names if re.search(r"\.mimarble-\d+-", n)]
     for name in names:
         if name.endswith(".png"):
-            assert sweeps.image_problem(out / name, (SIZE, SIZE)) is None, name
+            assert sweep_index.image_problem(out / name, (SIZE, SIZE)) is None, name

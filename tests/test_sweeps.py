@@ -11,7 +11,8 @@ import pytest
 
 import mimarble
 from mimarble import scene as S
-from mimarble.sweeps import run as sweeps
+from mimarble.sweeps import (cluster as sweep_cluster, frames as sweep_frames,
+                             index as sweep_index, run as sweeps, settings as sweep_settings)
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.mitsuba.rendering.loaded_scenes import LOADED
@@ -31,19 +32,19 @@ def png(path):
 
 
 def test_settings_are_lists_or_ranges():
-    assert sweeps.parse_setting("marble.period=0.5,1,2,4").values == (0.5, 1, 2, 4)
-    assert sweeps.parse_setting("marble.distortion=1:8:4").values == pytest.approx(
+    assert sweep_settings.parse_setting("marble.period=0.5,1,2,4").values == (0.5, 1, 2, 4)
+    assert sweep_settings.parse_setting("marble.distortion=1:8:4").values == pytest.approx(
         (1.0, 3.3333333, 5.6666667, 8.0))
-    assert sweeps.parse_setting("marble.function=sine,cosine").values == ("sine", "cosine")
+    assert sweep_settings.parse_setting("marble.function=sine,cosine").values == ("sine", "cosine")
     for bad in ("marble.period", "=1,2", "marble.period=1:2", "marble.period=1:2:0"):
-        with pytest.raises(sweeps.SweepError):
-            sweeps.parse_setting(bad)
+        with pytest.raises(sweep_settings.SweepError):
+            sweep_settings.parse_setting(bad)
 
 
 def test_a_bad_key_is_a_sweep_error_naming_the_option():
     scene = small()
-    with pytest.raises(sweeps.SweepError, match=r"^--set marble\.perod: unknown key"):
-        sweeps.frames(scene, sweeps.settings_from({"marble.perod": [1.0]}))
+    with pytest.raises(sweep_settings.SweepError, match=r"^--set marble\.perod: unknown key"):
+        sweep_frames.frames(scene, sweep_settings.settings_from({"marble.perod": [1.0]}))
 
 
 def test_a_sweep_writes_every_frame_an_index_and_a_contact_sheet(llvm, tmp_path):
@@ -130,7 +131,7 @@ def test_the_summary_counts_failed_frames_and_their_retry(llvm, tmp_path, monkey
     first = sweeps.sweep(small(8), setting, tmp_path, spp=1, stop_after=2)
     assert first["summary"] == {"frames": 3, "already_done": 0, "rendered_now": 1,
                                 "failed": 1, "left": 1}
-    assert sweeps.summary_sentence(first) == \
+    assert sweep_index.summary_sentence(first) == \
         "3 frames: 0 already done, 1 rendered now, 1 failed, 1 left"
     monkeypatch.setattr(sweeps, "render_frame", original)
     second = sweeps.sweep(small(8), setting, tmp_path, spp=1)
@@ -145,7 +146,7 @@ def test_a_resumed_sweep_with_nothing_left_starts_no_cluster(llvm, tmp_path, mon
 
     def no_cluster(*args, **kwargs):
         raise AssertionError("a LocalCluster was started for no frame")
-    monkeypatch.setattr(sweeps, "local_cluster", no_cluster)
+    monkeypatch.setattr(sweep_cluster, "local_cluster", no_cluster)
     index = sweeps.sweep(small(8), setting, tmp_path, spp=1, workers=2)
     assert index["summary"]["already_done"] == 2
 
@@ -169,7 +170,7 @@ def test_a_failing_frame_is_recorded_and_the_sweep_goes_on(llvm, tmp_path, monke
 
 def test_another_sweeps_folder_is_refused(llvm, tmp_path):
     sweeps.sweep(small(), {"marble.period": [1.0]}, tmp_path, spp=1)
-    with pytest.raises(sweeps.SweepError, match="another sweep"):
+    with pytest.raises(sweep_settings.SweepError, match="another sweep"):
         sweeps.sweep(small(), {"marble.period": [2.0]}, tmp_path, spp=1)
 
 
@@ -206,9 +207,9 @@ def test_values_are_checked_and_numpy_values_taken(llvm, tmp_path):
                               ("marble.octaves", 70, "octaves must be in 0..64"),
                               ("camera.fov", 200.0, "below 180"),
                               ("image.samples", 3, "perfect square")):
-        with pytest.raises(sweeps.SweepError, match=words):
-            sweeps.frames(scene, sweeps.settings_from({key: [value]}))
-    with pytest.raises(sweeps.SweepError, match="leave out --spp"):
+        with pytest.raises(sweep_settings.SweepError, match=words):
+            sweep_frames.frames(scene, sweep_settings.settings_from({key: [value]}))
+    with pytest.raises(sweep_settings.SweepError, match="leave out --spp"):
         sweeps.sweep(scene, {"image.samples": [1, 4]}, tmp_path / "a", spp=1)
     index = sweeps.sweep(scene, {"marble.octaves": np.arange(2, 4)}, tmp_path / "b", spp=1)
     assert [f["values"]["marble.octaves"] for f in index["frames"]] == [2, 3]
@@ -224,7 +225,7 @@ def test_a_frame_whose_image_cannot_be_written_fails_alone(llvm, tmp_path):
 
 def test_a_resumed_sweep_must_be_the_same_scene_at_the_same_size(llvm, tmp_path):
     sweeps.sweep(small(24), {"marble.period": [1.0]}, tmp_path, spp=1)
-    with pytest.raises(sweeps.SweepError, match="another sweep"):
+    with pytest.raises(sweep_settings.SweepError, match="another sweep"):
         sweeps.sweep(small(32), {"marble.period": [1.0]}, tmp_path, spp=1)
 
 
@@ -241,6 +242,6 @@ def test_a_running_scheduler_is_joined_by_its_address(llvm, tmp_path):
         index = sweeps.sweep(small(16), {"marble.period": [1.0, 2.0]}, tmp_path, spp=1,
                              scheduler=cluster.scheduler_address)
     assert [f["status"] for f in index["frames"]] == ["done", "done"]
-    with pytest.raises(sweeps.SweepError, match="cannot start or reach"):
+    with pytest.raises(sweep_settings.SweepError, match="cannot start or reach"):
         sweeps.sweep(small(16), {"marble.period": [1.0]}, tmp_path / "x", spp=1,
                      scheduler="tcp://127.0.0.1:9")

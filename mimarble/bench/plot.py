@@ -4,7 +4,7 @@ Each run of :func:`mimarble.bench.run.run_bench` on a paper scene is a faint poi
 scene, mode and spp, or an adaptive mode's threshold); each mode's curve joins its
 means over the paper scenes at each setting (over every scene when the benchmark had
 no paper scene); the dashed lines are plain 16 and 64 spp's mean RMSE, the levels
-each mode's time is measured to (:func:`mimarble.bench.run.times_to_plain_rmse`, scene by
+each mode's time is measured to (:func:`mimarble.bench.curves.times_to_plain_rmse`, scene by
 scene); the black staircase is the Pareto front of the drawn runs — for every time, the
 least error any run reached in no more time. Both axes are logarithmic: error falls
 as a power of the samples, so equal ratios are equal steps.

@@ -42,7 +42,7 @@ def paper_runs(runs: list) -> list:
 
 
 def _target_modes(targets: dict) -> list[str]:
-    """The modes the targets compared (``bench.TARGET_MODES``), in their order."""
+    """The modes the targets compared (``mimarble.bench.modes.TARGET_MODES``), in their order."""
     return list(targets["rmse_0.01"]["by_mode"])
 
 

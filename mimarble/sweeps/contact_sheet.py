@@ -10,9 +10,15 @@ following links (mimarble/scene/reading.py): the sheet reads nothing but the fra
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 from mimarble.runtime import files
 from mimarble.scene.reading import open_regular
+from mimarble.sweeps.frames import error_text, file_name
+from mimarble.sweeps.settings import Setting
+
+#: The contact sheet's name in a sweep's folder.
+CONTACT_SHEET = "contact.png"
 
 #: The contact sheet's pixels at most (~150 MB as 8-bit RGB): past ~1 700 frames at the
 #: usual 160-pixel cells, the cells shrink (not below MIN_CELL) to keep it so.
@@ -105,3 +111,23 @@ def _short(key: str) -> str:
 
 def _text(value) -> str:
     return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def write_contact_sheet(out_dir, index: dict, cell: int = 160, size=None) -> Path:
+    """``contact.png`` of the sweep in ``out_dir`` (:func:`draw_contact_sheet`). Each done
+    frame's image is read from its derived name (mimarble/sweeps/frames.py, ``file_name``)
+    in ``out_dir``, nothing else; one that does not decode (or is not ``size``, (width,
+    height), if given) is drawn as a failed cell and marked failed in ``index``, with why,
+    so that it is rendered again."""
+    out_dir = Path(out_dir)
+    named = [Setting(s["key"], tuple(s["values"])) for s in index["settings"]]
+    cells = [(entry["values"], out_dir / file_name({"index": k, "values": entry["values"]}, named)
+              if entry["status"] == "done" else None)
+             for k, entry in enumerate(index["frames"])]
+    path = out_dir / CONTACT_SHEET
+    title = f"{Path(index['scene']).name}: " + ", ".join(s["key"] for s in index["settings"])
+    undecodable = draw_contact_sheet(path, title, index["settings"], cells, cell, size)
+    for k, error in undecodable.items():
+        index["frames"][k].update(status="failed",
+                                  error=f"its image does not decode ({error_text(error)})")
+    return path

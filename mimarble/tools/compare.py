@@ -6,9 +6,14 @@
 * :func:`error_map_with_legend` — that picture over its legend (``compare --diff``): a
   colour bar with the log scale's decades labelled, drawn into the image.
 
+* :func:`compare_with_reference` — ``mimarble compare``'s workflow: a scene rendered
+  through Mitsuba and by the reference tracer, and the metrics of the one against the
+  other (:func:`reference_differs`: whether the options render otherwise than it).
+
 This module imports NumPy and the standard library only (no Mitsuba), so the
 metrics can be used on any pair of arrays; the legend's labels are drawn with
-matplotlib, imported when a legend is asked for.
+matplotlib, imported when a legend is asked for, and the renderers are imported by
+:func:`compare_with_reference` when it is called.
 """
 
 from __future__ import annotations
@@ -17,7 +22,7 @@ import math
 
 import numpy as np
 
-__all__ = ["image_metrics", "error_map", "ERROR_MAP_RANGE", "ERROR_MAP_COLORS", "colormap",
+__all__ = ["image_metrics", "compare_with_reference", "reference_differs", "error_map", "ERROR_MAP_RANGE", "ERROR_MAP_COLORS", "colormap",
            "ROWS_PER_CHUNK", "error_map_legend", "error_map_with_legend", "error_map_scale",
            "LEGEND_HEIGHT", "LEGEND_MIN_WIDTH", "LEGEND_BAR_ROWS", "legend_bar_columns"]
 
@@ -230,3 +235,50 @@ def error_map_with_legend(test, reference, vmax=None, vmin=None) -> np.ndarray:
     out[:height, :width] = picture
     out[height:] = legend
     return out
+
+
+def reference_differs(scene, filter=None, edge_spp=None, adaptive=None) -> bool:
+    """Whether ``mimarble.render`` with these options renders otherwise than the reference
+    tracer's plain supersampling (the ground truth): a marble's pixel filter (``filter``,
+    else each marble's own), edge samples or adaptive sampling differ from it by what
+    they filter or sample otherwise."""
+    from mimarble.scene import walk
+    filters = {filter} if filter else {
+        getattr(inner, "filter", "none") for material in scene.materials.values()
+        for channel in material.channels().values() for inner in walk(channel)}
+    return bool(filters - {"none"} or edge_spp or adaptive)
+
+
+def compare_with_reference(scene, spp: int, *, tolerance=None, filter=None, edge_spp=None,
+                           adaptive=None, max_spp=None, name=None, progress=False):
+    """Render ``scene`` through Mitsuba in whitted mode (``mimarble.render`` with these
+    options) and with the float64 reference tracer; → ``(metrics, ours, reference)``.
+
+    ``metrics``: :func:`image_metrics` of ours against the reference, with ``scene``
+    (``name``, else the scene's file), ``spp``, ``variant`` and each renderer's seconds;
+    an adaptive render (``adaptive``, a threshold) is compared with the reference at its
+    most samples per pixel, ``max_spp`` (given with ``adaptive``), and its metrics say so
+    (``adaptive``, ``max_spp``, ``reference_spp``). Mitsuba must be started
+    (``mimarble.start``)."""
+    if adaptive is not None and max_spp is None:
+        raise ValueError("compare_with_reference: give max_spp with adaptive (the reference "
+                         "renders at it)")
+    import time
+
+    import mimarble
+    from mimarble import reference
+    start = time.perf_counter()
+    ours = mimarble.render(scene, spp=spp, progress=progress, tolerance=tolerance,
+                           filter=filter, edge_spp=edge_spp, adaptive=adaptive, max_spp=max_spp)
+    mitsuba_seconds = time.perf_counter() - start
+    reference_spp = spp if adaptive is None else max_spp
+    start = time.perf_counter()
+    ref = reference.render(scene, spp=reference_spp, progress=progress)
+    reference_seconds = time.perf_counter() - start
+    metrics = image_metrics(ours, ref)
+    metrics.update(scene=str(name if name is not None else scene.source), spp=spp,
+                   variant=mimarble.mi.variant(), mitsuba_seconds=mitsuba_seconds,
+                   reference_seconds=reference_seconds)
+    if adaptive is not None:
+        metrics.update(adaptive=adaptive, max_spp=reference_spp, reference_spp=reference_spp)
+    return metrics, ours, ref

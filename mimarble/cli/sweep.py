@@ -1,0 +1,53 @@
+"""``mimarble sweep``: the options checked, then mimarble/sweeps/run.py's ``sweep``."""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+
+from mimarble.cli.shared import (UsageError, _check_spp, _checked_name, _load_scene, _say,
+    _start)
+
+
+def _sweep(args) -> int:
+    from mimarble.sweeps.cluster import check_workers
+    from mimarble.sweeps.frames import frames
+    from mimarble.sweeps.settings import SweepError, settings_from
+    if not args.set:
+        raise UsageError("a sweep needs at least one --set KEY=VALUES")
+    out = Path(_checked_name(args.output, "-o"))
+    try:
+        if out.exists() and not out.is_dir():
+            raise UsageError(f"-o {out}: exists and is not a folder")
+        if not out.parent.is_dir():
+            raise UsageError(f"-o {out}: the folder it would go in, {out.parent}, does not exist")
+    except OSError as e:          # a name longer than the file system takes, a loop of links
+        raise UsageError(f"-o {out}: {e.strerror or e}") from None
+    scene = _load_scene(args)
+    try:
+        if args.workers is not None:
+            check_workers(args.workers)             # at most a few per core
+        settings = settings_from(args.set)
+        frames(scene, settings)                     # their number, then every key and value
+    except SweepError as e:
+        raise UsageError(str(e)) from None
+    if args.spp is not None:
+        _check_spp(args.spp)
+    _start(args)
+    from mimarble.sweeps.index import summary_sentence
+    from mimarble.sweeps.run import sweep
+    start = time.perf_counter()
+    try:
+        index = sweep(scene, settings, out, spp=args.spp, workers=args.workers,
+                      scheduler=args.scheduler, compare=args.compare, progress=True)
+    except SweepError as e:
+        raise UsageError(str(e)) from None
+    failed = [f for f in index["frames"] if f["status"] != "done"]
+    # "16 frames: 14 already done, 2 rendered now, 0 failed": what this run did.
+    _say(f"{out}: {summary_sentence(index)} ({time.perf_counter() - start:.1f} s); "
+          f"index {out / 'sweep.json'}"
+          + ("" if failed else f", contact sheet {out / 'contact.png'}"))
+    for f in failed:
+        _say(f"  frame {f['index']} {f['values']}: {f['error']}", file=sys.stderr)
+    return 1 if failed else 0
