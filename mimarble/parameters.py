@@ -27,6 +27,7 @@ import re
 import struct
 from typing import Any
 
+from mimarble.contract import FLT_MAX, FLT_MIN_NORMAL, MAX_OCTAVES
 from mimarble.mitsuba.properties import numbered_properties
 
 __all__ = ["Parameter", "ParameterError", "MarbleParameters", "PARAMETERS", "BY_NAME",
@@ -46,8 +47,8 @@ AXES: tuple[str, ...] = ("x", "y", "z")
 FILTERS: tuple[str, ...] = ("none", "bandlimit", "prefilter")
 #: The paper's Fig. 5 ramp: 8 colours from red <1 0 0> to orange <1 0.875 0>.
 FIG5_RAMP: tuple[tuple[float, float, float], ...] = tuple((1.0, k / 8.0, 0.0) for k in range(8))
-#: The largest octave count accepted (octaves past 25 cost nothing: mimarble/texture/noise.py).
-MAX_OCTAVES = 64
+# MAX_OCTAVES (mimarble.contract): the largest octave count accepted (octaves past 25
+# cost nothing: mimarble/texture/noise.py).
 #: The most colours a ramp may hold.
 MAX_RAMP_COLOURS = 256
 #: The largest lacunarity: the finest of 64 octaves, at frequency λ^63, keeps every point
@@ -176,11 +177,10 @@ class Parameter:
         return positions_text(value) if self.kind == POSITIONS else value
 
 
-#: The smallest normal float32: smaller (subnormal) values read back from the renderer's
-#: float32 as zero (measured: the plugin read ``scale 1e-40`` back as 0).
-_FLT_MIN_NORMAL = 2.0 ** -126
-#: The largest float32.
-_FLT_MAX = 3.4028234663852886e38
+# Subnormal values read back from the renderer's float32 as zero (measured: the plugin
+# read ``scale 1e-40`` back as 0).
+_FLT_MIN_NORMAL = FLT_MIN_NORMAL
+_FLT_MAX = FLT_MAX
 
 
 def single_precision(value: float) -> float:

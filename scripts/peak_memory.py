@@ -22,6 +22,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from mimarble.contract import RENDER_MODES
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -38,7 +40,7 @@ def main() -> int:
     parser.add_argument("--scene", default=str(ROOT / "scenes" / "fig11a.scene"))
     parser.add_argument("--size", type=int, default=8192)
     parser.add_argument("--spp", type=int, default=4)
-    parser.add_argument("--mode", choices=("whitted", "path"), default="whitted")
+    parser.add_argument("--mode", choices=RENDER_MODES, default="whitted")
     parser.add_argument("--command", choices=("render", "reference"), default="render")
     args = parser.parse_args()
     text = Path(args.scene).read_text()

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import mimarble
+from mimarble.contract import EPS_REL, T_MIN_REL
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.mitsuba.rendering import adaptive, silhouettes
@@ -183,7 +184,7 @@ def test_clip_planes_enclose_every_shape_and_spheres_keep_theirs(tmp_path):
     near, far = clip_planes(scene)
     assert near == 1.0 and far == pytest.approx(math.hypot(2.0, radius) * 1.001)
     # Inside a box: the reference's smallest hit distance; a mesh: that too, far the cap.
-    floor = 1e-6 * (1 + 10)
+    floor = T_MIN_REL * (1 + 10)
     around = m.Box("g", (-20, -20, -20), (20, 20, 20))
     assert clip_planes(scene_of(g, eye=eye, boxes=(around,)))[0] == floor
     mesh = m.Mesh("g", write_ply(tmp_path / "t.ply", *TETRAHEDRON))
@@ -331,7 +332,7 @@ def shadowed_plane(offset, scale, size=40):
 def expected_plane_pixels(scene):
     """(where the plane is the first hit, its colour, where a shadow edge is near) by the
     rendering model: ka·A + kd·(n·l)·V, V the shadow ray from p + ε·n against the sphere,
-    ε = 1e-4·(1 + max|p_k|) (either root: the ray may start inside it)."""
+    ε = EPS_REL·(1 + max|p_k|) (either root: the ray may start inside it)."""
     plane, sphere = scene.planes[0], scene.spheres[0]
     t, p, n = plane_hits(scene, plane)
     eye, d = primary_rays(scene)
@@ -343,7 +344,7 @@ def expected_plane_pixels(scene):
     light = np.array(scene.lights[0].position)
     to_light = light - p
     n_dot_l = (to_light @ n) / np.linalg.norm(to_light, axis=-1)
-    start = p + (1e-4 * (1 + np.abs(p).max(axis=-1)))[..., None] * n
+    start = p + (EPS_REL * (1 + np.abs(p).max(axis=-1)))[..., None] * n
     towards = light - start
     length = np.linalg.norm(towards, axis=-1)
     towards /= length[..., None]

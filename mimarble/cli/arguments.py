@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 
+from mimarble.contract import RENDER_MODES
 from mimarble.mitsuba.rendering.crop import CONVENTION
 from mimarble.runtime.image_formats import JPEG_QUALITIES, JPEG_QUALITY
 from mimarble.parameters import FILTERS, SWEEPABLE
@@ -107,7 +108,7 @@ def _render_command(sub) -> None:
                         "samples too); path mode draws the window's own samples, so its noise "
                         "differs from the full render's (the same expected image)")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
-    p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
+    p.add_argument("--mode", choices=RENDER_MODES, default="whitted",
                    help="whitted: the paper's shading (default); path: physically based — "
                         "marble as a dielectric (a highlight of a few percent, not the paper's "
                         "Phong highlight), black background, noisy at few samples (use --spp 256); "
@@ -240,7 +241,7 @@ def _gallery_command(sub) -> None:
                    help="the longer side of each image in pixels; the shorter keeps the "
                         "scene's aspect, rounded to the nearest pixel (a 320x240 scene at "
                         "--size 160 is 160x120; default: 160)")
-    p.add_argument("--mode", choices=("whitted", "path"), default="whitted")
+    p.add_argument("--mode", choices=RENDER_MODES, default="whitted")
     _add_variant(p)
 
 
@@ -257,7 +258,7 @@ def _export_command(sub) -> None:
     p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
     p.add_argument("-o", "--output", help="OUT.xml, or OUT.py with --python (default: the "
                                           "scene's name with .xml or .py, here)")
-    p.add_argument("--mode", choices=("whitted", "path"), default="whitted",
+    p.add_argument("--mode", choices=RENDER_MODES, default="whitted",
                    help="the rendering model translated (default whitted; see render --mode)")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     p.add_argument("--python", action="store_true",

@@ -38,12 +38,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["P", "G", "omega", "noise", "noise3", "fractal", "fractal3", "MAX_OCTAVES", "NOISE_BOUND"]
+from mimarble.contract import MAX_OCTAVES, NOISE_BOUND
 
-#: The largest octave count the scene language allows.
-MAX_OCTAVES = 64
-#: The supremum of |noise| (about 1.0364; see the tests), not 1.
-NOISE_BOUND = 1.0364
+__all__ = ["P", "G", "omega", "noise", "noise3", "fractal", "fractal3", "MAX_OCTAVES", "NOISE_BOUND"]
 
 # Ken Perlin's permutation of 0..255 (ImprovedNoise.java, 2002).
 P = np.array([

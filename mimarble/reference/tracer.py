@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from mimarble.contract import EPS_REL, T_MIN_REL
 from mimarble.scene import geometry
 from mimarble.scene.errors import SceneError
 from mimarble.scene.limits import MAX_MESH_TRIANGLES
@@ -95,10 +96,6 @@ __all__ = [
     "render",
 ]
 
-#: Primary rays accept hits at t > T_MIN_REL·(1 + max_k |origin_k|).
-T_MIN_REL = 1e-6
-#: Shadow rays start at p + ε·n with ε = EPS_REL·(1 + max_k |p_k|).
-EPS_REL = 1e-4
 #: Rays traced per batch (rounded down to whole pixels, at least one pixel).
 CHUNK_RAYS = 65536
 #: The material components, in the order of the shading formula.

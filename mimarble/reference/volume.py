@@ -117,6 +117,8 @@ from mimarble.scene.model import (
 )
 from mimarble.scene.rules import spp_problem
 
+from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, VOLPATH_MAX_DEPTH
+
 from .channels import channel_color
 from .tracer import T_MIN_REL, camera_rays
 from .tracer import _roots as sphere_roots    # both roots, the stable quadratic
@@ -134,12 +136,7 @@ __all__ = [
 ]
 
 #: Mitsuba volpath's ``max_depth`` for path mode, and this walk's default (module docstring).
-MAX_DEPTH = 1024
-#: Russian roulette from this depth on (Mitsuba's default ``rr_depth``).
-ROULETTE_DEPTH = 5
-#: The largest survival probability of the roulette without a depth limit (Mitsuba's):
-#: every path ends.
-ROULETTE_MAX = 0.95
+MAX_DEPTH = VOLPATH_MAX_DEPTH
 #: Paths traced per batch (whole pixels, at least one pixel).
 CHUNK_PATHS = 1 << 17
 

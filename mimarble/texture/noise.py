@@ -63,6 +63,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from mimarble.contract import FLOAT32_INTEGER_LIMIT, MAX_OCTAVES_EVALUATED, NOISE_BOUND, SKIPPED_OCTAVES_BOUND
 from mimarble.runtime import environment
 from mimarble.parameters import BY_NAME, MAX_OCTAVES
 
@@ -85,11 +86,7 @@ PERMUTATION = (
     128, 195, 78, 66, 215, 61, 156, 180,
 )
 
-NOISE_BOUND = 1.0364           # sup |N|, Perlin's improved noise in 3D
-MAX_OCTAVES_EVALUATED = 25     # octaves from here on are below float32 resolution
-SKIPPED_OCTAVES_BOUND = NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)
-
-_TWO_24 = float(2 ** 24)
+_TWO_24 = FLOAT32_INTEGER_LIMIT
 
 
 def fade(t):

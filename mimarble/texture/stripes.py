@@ -26,13 +26,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mimarble.contract import FLOAT32_INTEGER_LIMIT
 from mimarble.runtime import environment
 from .finite_arithmetic import finite_product, finite_sum
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
 _TWO_PI = 2.0 * math.pi
-_LARGEST_MEANINGFUL_ANGLE = float(2 ** 24)
+_LARGEST_MEANINGFUL_ANGLE = FLOAT32_INTEGER_LIMIT
 
 
 def reduce_angle(x):

@@ -29,6 +29,7 @@ import time
 
 import numpy as np
 
+from mimarble.contract import FLOAT32_INTEGER_LIMIT, FLOAT32_UNIT_ROUNDOFF
 from mimarble.runtime import environment
 from mimarble.texture import error_budget
 from mimarble.texture.finite_arithmetic import finite_product
@@ -45,7 +46,7 @@ __all__ = ["U", "LIPSCHITZ_L1", "NOISE_ARITHMETIC_ERROR", "DEFAULT_MAGNITUDES", 
            "meaningful_limit", "run_stress", "format_report"]
 
 #: Unit roundoff of float32 (round to nearest): |fl(x) − x| ≤ U·|x|.
-U = 2.0 ** -24
+U = FLOAT32_UNIT_ROUNDOFF
 #: sup over R³ of ‖∇N‖₁ (the Lipschitz constant of N for the max-norm of the step).
 #: Measured: 5.24 by hill-climbing from the 2000 steepest of 2·10⁶ random points
 #: (float64 central differences); the largest single partial derivative is 3.12.
@@ -146,7 +147,7 @@ def meaningful_limit(scale: float = 1.0) -> dict:
     s = abs(scale)
     return {
         "no_fraction": 2.0 ** 23 / s,          # v has no fractional bits: the lattice itself
-        "all_even_integers": 2.0 ** 24 / s,    # every octave sits on lattice points: N = 0
+        "all_even_integers": FLOAT32_INTEGER_LIMIT / s,    # every octave sits on lattice points: N = 0
         "steps_per_cell_16": 2.0 ** 19 / s,    # a lattice cell is resolved in only 16 steps
     }
 

@@ -76,7 +76,7 @@ from mimarble.runtime import environment
 from mimarble.texture import srgb_model
 from mimarble.mitsuba.plugins.registration import (describe, first_number, held_maximum, plugin,
     recording_key)
-from mimarble.scene.limits import FLT_MAX
+from mimarble.contract import FLT_MAX
 from .channel_expression import gives_rgb
 
 dr, mi = environment.import_drjit_and_mitsuba()

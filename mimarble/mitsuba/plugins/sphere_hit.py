@@ -37,6 +37,7 @@ construction.
 
 from __future__ import annotations
 
+from mimarble.contract import EPS_REL, FLOAT32_EPSILON
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import transform_matrix
 
@@ -44,10 +45,9 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Shadow-ray offset in units of 2⁻²³·(max|c_k| + r + max|p_k|) (≈ ulps of that scale).
 SHADOW_OFFSET_ULPS = 2.0
-_ULP = 2.0 ** -23
-#: The rendering model's shadow-ray offset ε = EPS_REL·(1 + max|p_k|) (the reference
-#: tracer's ``EPS_REL``; repeated here, as that package must not be imported by this one).
-EPS_REL = 1e-4
+_ULP = FLOAT32_EPSILON
+# The rendering model's shadow-ray offset ε = EPS_REL·(1 + max|p_k|), shared with the
+# reference tracer through mimarble.contract.
 #: Shadow rays stop this fraction short of the light. Mitsuba's ``spawn_ray_to`` stops
 #: ShadowEpsilon = 8.9e-4 short (meant for area lights' own shapes; point lights have
 #: none), which let a light enclosed by a sphere of radius < 8.9e-4 of its distance

@@ -57,29 +57,19 @@ import numpy as np
 
 from mimarble.texture import error_budget
 from mimarble.parameters import checked
+from mimarble.contract import FLOAT32_EPSILON, FLT_MAX, RENDER_MODES, T_MIN_REL, VOLPATH_MAX_DEPTH
 from mimarble.scene import geometry, model
 from mimarble.scene.errors import SceneError
 from mimarble.scene.image_header import check_image_maps
-from mimarble.scene.limits import FLT_MAX
 from mimarble.scene.mesh_header import check_mesh_files
 from mimarble.scene.rules import cross, shortened, spp_problem
 
-MODES = ("whitted", "path")
+MODES = RENDER_MODES
 #: The keys ``mi.load_dict`` reads as a dict's own — its plugin type and its id — never as
 #: a child (a texture under the key ``id`` became the scene's id: "std::bad_cast"). No
 #: top-level entry takes one: a named texture called ``id`` gets the id ``id_2``.
 LOAD_DICT_KEYS = ("type", "id")
 
-#: volpath's max_depth for a scene with a translucent material: the most scattering events
-#: of a path, each medium scattering and each non-null surface interaction (a refraction
-#: through the boundary too) counting one (Mitsuba's volpath.cpp). Light in a white marble
-#: scatters hundreds of times: measured with the float64 reference random walk on a unit
-#: sphere under a white sky, albedo 0.99 and mean free path 0.05 keep 0.628 of the light at
-#: 64, 0.697 at 256, 0.699 at 1024 and 4096; albedo 0.999, mfp 0.02, 0.888 at 1024 against
-#: 0.895 at 4096. Russian roulette (volpath's default, from depth 5 on) ends paths long
-#: before the cap wherever the albedo is lower; the reference random walk stops at the same
-#: depth, so that the two agree.
-VOLPATH_MAX_DEPTH = 1024
 
 
 class ModeError(SceneError, ValueError):
@@ -166,8 +156,8 @@ def _marble_gains(scene: model.Scene) -> dict:
     return gains
 
 
-# The reference tracer accepts hits from t = 1e-6·(1 + max|eye_k|) on (T_MIN_REL).
-_NEAREST_HIT_REL = 1e-6
+# The reference tracer accepts hits from t = T_MIN_REL·(1 + max|eye_k|) on.
+_NEAREST_HIT_REL = T_MIN_REL
 
 
 def _box_distance(point, corners) -> float:
@@ -245,7 +235,7 @@ class Float32RangeWarning(UserWarning):
 # 2⁻²³·(max|c_k| + r). Measured (docs/rendering-model.md, "Large spheres"): a ground sphere
 # agrees with the reference while that error is up to 1.6× the eye's distance to the
 # surface, and fails from 3.2× on; the warning comes from 1×.
-_FLOAT32_ERROR_SCALE = 2.0 ** -23
+_FLOAT32_ERROR_SCALE = FLOAT32_EPSILON
 
 # Embree, Mitsuba's ray tracer in the scalar and LLVM variants, takes coordinates only in
 # ±1.844e18 (its FLT_LARGE): a sphere whose bounding box reaches past it is dropped, and a

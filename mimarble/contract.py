@@ -1,0 +1,83 @@
+"""The numbers both renderers and the checks must agree on, declared once.
+
+The Mitsuba path (float32, Dr.Jit) and the float64 reference tracer are written
+independently — the reference imports no Mitsuba or Dr.Jit — but they compute the same
+image only if they trace with the same epsilons, bound the noise alike, stop a path at
+the same depth and refuse the same numbers. Those shared constants live here, each with
+its reason, and every former copy reads them.
+
+Standard library only and nothing from the package, so that any module (the scene
+language, which may not import NumPy; the CLI, which must start fast; both renderers)
+can import it. Each value's expression is kept exactly as it was where it came from:
+some reach kernels as literals and must round to the same float32.
+"""
+
+from __future__ import annotations
+
+__all__ = ["T_MIN_REL", "EPS_REL", "FLT_MAX", "FLT_MIN_NORMAL", "FLOAT32_EPSILON", "FLOAT32_UNIT_ROUNDOFF",
+           "FLOAT32_INTEGER_LIMIT",
+           "NOISE_BOUND", "MAX_OCTAVES", "MAX_OCTAVES_EVALUATED", "SKIPPED_OCTAVES_BOUND",
+           "VOLPATH_MAX_DEPTH", "ROULETTE_DEPTH", "ROULETTE_MAX", "RENDER_MODES"]
+
+# ---------------------------------------------------------------------------
+# Tracing (docs/rendering-model.md)
+
+#: Primary rays accept hits at t > T_MIN_REL·(1 + max_k |origin_k|): the reference's
+#: nearest hit, which the translator keeps the Mitsuba camera's near clip below.
+T_MIN_REL = 1e-6
+#: Shadow rays start at p + ε·n with ε = EPS_REL·(1 + max_k |p_k|), in both renderers
+#: (not Mitsuba's RayEpsilon: the 10 % difference moved shadow edges by a pixel).
+EPS_REL = 1e-4
+
+# ---------------------------------------------------------------------------
+# float32, the Mitsuba path's precision
+
+#: The largest float32: every number of a scene must be at most this in magnitude.
+FLT_MAX = 3.4028234663852886e38
+#: The smallest normal float32, 2⁻¹²⁶: a smaller nonzero number is 0 to the renderer (its
+#: JIT flushes subnormals to zero), so a size or an angle that must not be zero must be
+#: at least this.
+FLT_MIN_NORMAL = 2.0 ** -126
+#: The gap between 1 and the next float32 (2⁻²³): float32 rounding errors scale with it.
+FLOAT32_EPSILON = 2.0 ** -23
+#: float32's unit roundoff (round to nearest): |fl(x) − x| ≤ 2⁻²⁴·|x|.
+FLOAT32_UNIT_ROUNDOFF = 2.0 ** -24
+#: 2²⁴: from here on every float32 is an integer (no fraction left to a lattice or an angle).
+FLOAT32_INTEGER_LIMIT = float(2 ** 24)
+
+# ---------------------------------------------------------------------------
+# Noise and its octave sum
+
+#: sup |N| of Perlin's improved noise in 3D (about 1.0364, not 1; tests measure it).
+NOISE_BOUND = 1.0364
+#: The most octaves a marble may sum (the parameter table's bound, and the reference's).
+MAX_OCTAVES = 64
+#: At the paper's gain ½ octaves from here on change the sum by less than float32 resolves.
+MAX_OCTAVES_EVALUATED = 25
+#: What the octaves left out from MAX_OCTAVES_EVALUATED on can add: NOISE_BOUND·2^−24.
+SKIPPED_OCTAVES_BOUND = NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)
+
+# ---------------------------------------------------------------------------
+# Path mode (translucent materials)
+
+#: volpath's max_depth for a scene with a translucent material, and the reference random
+#: walk's: the most scattering events of a path, each medium scattering and each non-null
+#: surface interaction (a refraction through the boundary too) counting one (Mitsuba's
+#: volpath.cpp). Light in a white marble scatters hundreds of times: measured with the
+#: float64 reference random walk on a unit sphere under a white sky, albedo 0.99 and mean
+#: free path 0.05 keep 0.628 of the light at 64, 0.697 at 256, 0.699 at 1024 and 4096;
+#: albedo 0.999, mfp 0.02, 0.888 at 1024 against 0.895 at 4096. Russian roulette ends
+#: paths long before the cap wherever the albedo is lower.
+VOLPATH_MAX_DEPTH = 1024
+#: Russian roulette from this depth on (Mitsuba volpath's default ``rr_depth``).
+ROULETTE_DEPTH = 5
+#: The largest survival probability of the roulette without a depth limit (Mitsuba's):
+#: every path ends.
+ROULETTE_MAX = 0.95
+
+# ---------------------------------------------------------------------------
+# Names
+
+#: The render modes: ``whitted`` (the paper's direct lighting) and ``path`` (volpath, for
+#: translucent materials).
+RENDER_MODES = ("whitted", "path")
