@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mimarble import reference
-from mimarble.reference import tracer
+from mimarble.reference import preparation, tracer
 from mimarble.reference.marble import marble_color
 from mimarble.reference.triangles import TriangleBVH
 from mimarble.scene import SceneError, geometry
@@ -314,7 +314,7 @@ def test_image_map_on_a_shape_without_uv_is_refused(tmp_path):
 def test_meshes_refused_past_the_scenes_triangle_limit(tmp_path, monkeypatch):
     obj = tmp_path / "two.obj"
     obj.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 4 3\n")     # 2 triangles
-    monkeypatch.setattr(tracer, "MAX_MESH_TRIANGLES", 3)
+    monkeypatch.setattr(preparation, "MAX_MESH_TRIANGLES", 3)
     meshes = (Mesh("grey", "a.obj", str(obj)), Mesh("grey", "b.obj", str(obj)))
     with pytest.raises(SceneError, match="mesh file 'b.obj': the scene's meshes hold 4 triangles"):
         tracer.prepare(scene_of(meshes=meshes))

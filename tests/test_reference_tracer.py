@@ -8,7 +8,7 @@ import pytest
 
 from mimarble import scene as sc
 from mimarble import reference
-from mimarble.reference import tracer
+from mimarble.reference import intersection, tracer
 
 T15 = math.tan(math.radians(15.0))
 KA, KD, KS = (0.3, 0.5, 0.7), (0.2, 0.6, 0.4), (0.25, 0.1, 0.05)
@@ -232,13 +232,13 @@ def test_eye_inside_sphere_sees_its_inside_lit_two_sided():
 
 def test_shadow_hit_stops_testing_blocked_rays(monkeypatch):
     tested = []
-    real = tracer._roots
+    real = intersection._roots
 
     def counting(o, d, c, r):
         tested.append(len(d))
         return real(o, d, c, r)
 
-    monkeypatch.setattr(tracer, "_roots", counting)
+    monkeypatch.setattr(intersection, "_roots", counting)
     centers = np.array([[0.0, 0, 0], [3.0, 0, 0], [6.0, 0, 0]])
     o = np.array([[-3.0, 0, 0], [-3.0, 0, 0], [-3.0, 5, 0]])
     d = np.array([[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]])

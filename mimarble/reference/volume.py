@@ -102,26 +102,14 @@ import numbers
 
 import numpy as np
 
-from mimarble.scene import geometry
-from mimarble.scene.model import (
-    Add,
-    ColorChannel,
-    ImageChannel,
-    MarbleChannel,
-    Mix,
-    Multiply,
-    RectangleArea,
-    Scene,
-    SphereArea,
-    in_object_space,
-)
+from mimarble.scene.model import Scene
 from mimarble.scene.rules import spp_problem
 
-from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, VOLPATH_MAX_DEPTH
+from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, T_MIN_REL, VOLPATH_MAX_DEPTH
 
-from .channels import channel_color
-from .tracer import T_MIN_REL, camera_rays
-from .tracer import _roots as sphere_roots    # both roots, the stable quadratic
+from .intersection import _roots as sphere_roots    # both roots, the stable quadratic
+from .preparation import camera_rays
+from .volume_scene import _Lights, _problem, _Spheres, area_radiance, channel_interval, density_bound
 
 __all__ = [
     "MAX_DEPTH",
@@ -174,187 +162,6 @@ def _uniform_sphere(rng, k):
     r = np.sqrt(np.maximum(1.0 - z * z, 0.0))
     phi = 2.0 * math.pi * rng.random(k)
     return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1)
-
-
-# ---------------------------------------------------------------------------
-# The majorant: bounds of a channel by interval arithmetic
-
-def channel_interval(channel) -> tuple[np.ndarray, np.ndarray]:
-    """(lo, hi), each (3,): every value of each colour component of ``channel`` lies in
-    [lo, hi]. A colour is its value; a marble is its ramp at a clamped t, a convex
-    combination of its ramp colours, so within their smallest and largest component; a sum
-    adds the intervals, a product takes the extremes of the four corner products, a mix
-    a·(1 − w) + b·w combines those (a number w as a point interval). Image maps are refused
-    (ValueError): they have no value off a surface."""
-    if isinstance(channel, ColorChannel):
-        v = np.array(channel.rgb, dtype=np.float64)
-        return v, v.copy()
-    if isinstance(channel, MarbleChannel):
-        ramp = np.array(channel.ramp, dtype=np.float64).reshape(-1, 3)
-        return ramp.min(axis=0), ramp.max(axis=0)
-    if isinstance(channel, ImageChannel):
-        raise ValueError(f"an image map ({channel.location!r}) has no value inside a volume: "
-                         f"a subsurface's albedo and density must be colours, marbles or "
-                         f"expressions of them")
-    if isinstance(channel, Add):
-        parts = [channel_interval(c) for c in channel.operands]
-        return sum(p[0] for p in parts), sum(p[1] for p in parts)
-    if isinstance(channel, Multiply):
-        lo, hi = channel_interval(channel.operands[0])
-        for c in channel.operands[1:]:
-            lo, hi = _product(lo, hi, *channel_interval(c))
-        return lo, hi
-    if isinstance(channel, Mix):
-        a, b = channel_interval(channel.a), channel_interval(channel.b)
-        if isinstance(channel.weight, float):
-            w = (np.full(3, channel.weight), np.full(3, channel.weight))
-        else:
-            w = channel_interval(channel.weight)
-        keep = _product(*a, 1.0 - w[1], 1.0 - w[0])
-        take = _product(*b, *w)
-        return keep[0] + take[0], keep[1] + take[1]
-    raise TypeError(f"unknown channel type {type(channel).__name__}")
-
-
-def _product(alo, ahi, blo, bhi):
-    corners = np.stack([alo * blo, alo * bhi, ahi * blo, ahi * bhi])
-    return corners.min(axis=0), corners.max(axis=0)
-
-
-def density_bound(subsurface) -> float:
-    """An upper bound of the density d = max(0, mean of the density channel's components)
-    of a subsurface (1 without a density channel): max(0, mean of the components' upper
-    bounds). The majorant is this over the mean free path."""
-    if subsurface.density is None:
-        return 1.0
-    hi = channel_interval(subsurface.density)[1]
-    return max(0.0, float(hi.sum()) / 3.0)
-
-
-# ---------------------------------------------------------------------------
-# Lights
-
-def area_radiance(light, lookat) -> np.ndarray:
-    """The radiance (3,) path mode gives an area light (``light.area``), so that its
-    radiant intensity towards the look-at point is the path-mode point light's I·π·d²
-    (d = |position − lookat|): a sphere of radius R shows the disk π·R² to every
-    direction, so L = I·d²/R²; a rectangle of edges a₁, a₂ (area S = |a₁ × a₂|), one-sided
-    towards the look-at point, has intensity S·L·cos θ₀ there, so L = I·π·d²/(S·cos θ₀)
-    (cos θ₀ = 1 where the look-at point is not in front of it)."""
-    color = np.array(light.color, dtype=np.float64)
-    position = np.array(light.position, dtype=np.float64)
-    look = np.array(lookat, dtype=np.float64)
-    d2 = float(np.sum((position - look) ** 2))
-    area = light.area
-    if isinstance(area, SphereArea):
-        return color * d2 / area.radius ** 2
-    normal = np.cross(np.array(area.axis1, dtype=np.float64), np.array(area.axis2, dtype=np.float64))
-    size = float(np.linalg.norm(normal))
-    facing = abs(float(normal @ (look - position))) / (size * math.sqrt(d2)) if d2 > 0 else 1.0
-    facing = facing if facing > 0 else 1.0
-    return color * math.pi * d2 / (size * facing)
-
-
-def _rectangle(light, lookat):
-    """(centre, to_local (3×3: world offset → (s, t, height)), unit normal towards the
-    look-at point) of a rectangle light: p = c + s·a₁/2 + t·a₂/2 for s, t ∈ [−1, 1]."""
-    a1 = np.array(light.area.axis1, dtype=np.float64)
-    a2 = np.array(light.area.axis2, dtype=np.float64)
-    c = np.array(light.position, dtype=np.float64)
-    n = np.cross(a1, a2)
-    n /= np.linalg.norm(n)
-    if n @ (np.array(lookat, dtype=np.float64) - c) < 0:
-        n = -n
-    frame = np.stack([a1 / 2, a2 / 2, n], axis=1)       # columns: local → world
-    return c, np.linalg.inv(frame), n
-
-
-# ---------------------------------------------------------------------------
-# Scene checks and arrays
-
-def _problem(scene: Scene) -> str | None:
-    """Why the walk cannot render ``scene`` (one sentence), or None."""
-    others = [kind for kind, items in (("planes", scene.planes), ("boxes", scene.boxes),
-                                       ("meshes", scene.meshes)) if items]
-    if others:
-        return (f"render_translucent renders translucent spheres only; this scene has "
-                f"{' and '.join(others)}")
-    eye = np.array(scene.camera.eye, dtype=np.float64)
-    spheres = scene.spheres
-    for k, sphere in enumerate(spheres):
-        material = scene.materials[sphere.material]
-        if material.subsurface is None:
-            return (f'render_translucent renders translucent spheres only; sphere_{k} has the '
-                    f'material "{material.name}", which has no subsurface')
-        c, r = np.array(sphere.center, dtype=np.float64), sphere.radius
-        if np.linalg.norm(eye - c) <= r * (1.0 + 1e-9):
-            return f"the eye is inside (or on) sphere_{k}: the walk starts every path outside"
-        for j in range(k):
-            other = spheres[j]
-            if np.linalg.norm(c - np.array(other.center)) <= (r + other.radius) * (1.0 + 1e-9):
-                return (f"sphere_{j} and sphere_{k} overlap or touch: each translucent sphere "
-                        f"must lie outside the others")
-        for m, light in enumerate(scene.lights):
-            if light.area is None:
-                continue
-            if _light_meets(light, c, r):
-                return (f"the area light light_{m} meets sphere_{k}: each translucent sphere "
-                        f"must lie clear of the lights")
-    return None
-
-
-def _light_meets(light, c, r) -> bool:
-    """Whether the area light's shape comes within r (times 1 + 1e-9) of the point c."""
-    position = np.array(light.position, dtype=np.float64)
-    reach = r * (1.0 + 1e-9)
-    if isinstance(light.area, SphereArea):
-        return bool(np.linalg.norm(c - position) <= reach + light.area.radius)
-    centre, to_local, normal = _rectangle(light, light.position)
-    s, t, _ = to_local @ (c - centre)
-    if abs(s) <= 1.0 and abs(t) <= 1.0:          # c lies over the parallelogram: its plane
-        return bool(abs(float((c - centre) @ normal)) <= reach)
-    a1, a2 = np.array(light.area.axis1) / 2, np.array(light.area.axis2) / 2
-    corners = [centre + i * a1 + j * a2 for i, j in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-    for k in range(4):                           # else the nearest point is on an edge
-        p, q = corners[k], corners[(k + 1) % 4]
-        w = np.clip(float((c - p) @ (q - p)) / float((q - p) @ (q - p)), 0.0, 1.0)
-        if np.linalg.norm(c - (p + w * (q - p))) <= reach:
-            return True
-    return False
-
-
-class _Spheres:
-    """The translucent spheres as arrays, with their media."""
-
-    def __init__(self, scene: Scene):
-        spheres = scene.spheres
-        subs = [scene.materials[s.material].subsurface for s in spheres]
-        self.centers = np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3)
-        self.radii = np.array([s.radius for s in spheres], dtype=np.float64)
-        self.ior = np.array([s.ior for s in subs], dtype=np.float64)
-        self.mfp = np.array([s.mean_free_path for s in subs], dtype=np.float64)
-        self.majorant = np.array([density_bound(s) for s in subs]) / self.mfp
-        self.albedo = [s.albedo for s in subs]
-        self.density = [s.density for s in subs]
-        self.object_space = [any(in_object_space(ch) for ch in s.channels().values())
-                             for s in subs]
-        self.from_world = np.linalg.inv(np.array([geometry.object_to_world(s) for s in spheres],
-                                                 dtype=np.float64).reshape(-1, 4, 4))[:, :3, :]
-
-    def coefficients(self, s: int, p: np.ndarray):
-        """(σ_t/σ̄ (k,), albedo (k, 3)) of sphere s's medium at world points p (k, 3)."""
-        obj = None
-        if self.object_space[s]:
-            m = self.from_world[s]
-            obj = p @ m[:, :3].T + m[:, 3]
-        albedo = np.clip(channel_color(self.albedo[s], p, object_points=obj), 0.0, 1.0)
-        if self.density[s] is None:
-            ratio = np.ones(len(p))
-        else:
-            d = np.maximum(channel_color(self.density[s], p, object_points=obj).mean(axis=1), 0.0)
-            # σ_t/σ̄ = d/bound(d) ≤ 1 (the bound holds; min() only absorbs rounding)
-            ratio = np.minimum(d / (self.majorant[s] * self.mfp[s]), 1.0)
-        return ratio, albedo
 
 
 # ---------------------------------------------------------------------------
@@ -434,19 +241,6 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     spread = np.maximum(square - spp * mean * mean, 0.0) / (spp - 1) if spp > 1 \
         else np.zeros_like(mean)
     return image, spread.reshape(height, width, 3)
-
-
-class _Lights:
-    """Area lights as arrays: spheres (centre, radius, radiance), rectangles (centre,
-    to_local, normal, radiance). Point lights are left out (module docstring)."""
-
-    def __init__(self, scene: Scene):
-        lookat = scene.camera.lookat
-        self.spheres = [(np.array(l.position, dtype=np.float64), l.area.radius,
-                         area_radiance(l, lookat))
-                        for l in scene.lights if isinstance(l.area, SphereArea)]
-        self.rectangles = [_rectangle(l, lookat) + (area_radiance(l, lookat),)
-                           for l in scene.lights if isinstance(l.area, RectangleArea)]
 
 
 def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps=None):
