@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mimarble.bench.report import (ADAPTIVE_TARGETS, group_cell, group_name, paper_runs, setting,
+from mimarble.bench.goals import ADAPTIVE_TARGETS, MARBLE_OVER_CONSTANT, OCTAVE_RATE, OCTAVES_32_OVER_8, RMSE_SPEEDUP
+from mimarble.bench.report import (group_cell, group_name, paper_runs, setting,
     setting_label)
 from mimarble.runtime.files import write_atomically
 
@@ -152,20 +153,21 @@ def _targets_table(results: dict) -> list[str]:
     ratios = "; ".join(f"{mode} {t[f'octaves32_over_8_{mode}']['ratio']:.2f} "
                        f"({t[f'octaves32_over_8_{mode}']['t32_ms']:.1f} / "
                        f"{t[f'octaves32_over_8_{mode}']['t8_ms']:.1f} ms)" for mode in modes)
-    lines.append(f"| time(octaves 32) / time(octaves 8) ≤ 1.3 | {ratios} |")
+    lines.append(f"| time(octaves 32) / time(octaves 8) {OCTAVES_32_OVER_8.bound} | {ratios} |")
     r = t["marble8_over_constant"]
-    lines.append(f"| time(marble, 8 octaves) / time(constant colour) ≤ 3.0 (stretch 2.0) | "
+    lines.append(f"| time(marble, 8 octaves) / time(constant colour) {MARBLE_OVER_CONSTANT.bound}"
+                 f"{MARBLE_OVER_CONSTANT.stretched()} | "
                  f"{r['ratio']:.2f} ({r['marble_ms']:.1f} / {r['constant_ms']:.1f} ms) |")
     r = t["octave_evals_per_s_per_core"]
     rate = f"{r['rate'] / 1e6:.0f} M" if r["rate"] else "not measurable (noisy machine)"
-    lines.append(f"| ≥ 100 M octave evaluations / s / core in the render (stretch 200 M) | "
+    lines.append(f"| {OCTAVE_RATE.bound} octave evaluations / s / core in the render{OCTAVE_RATE.stretched()} | "
                  f"{rate} (24 octaves {r['t24_ms']:.1f} ms − none {r['t0_ms']:.1f} ms over "
                  f"{r['hits']:.0f} hits) |")
     r = t["rmse_0.01"]
     to = ", ".join(f"{mode} {r['by_mode'][mode]['ms_to_rmse_0.01']:.0f} ms"
                    for mode in modes if r["by_mode"][mode].get("ms_to_rmse_0.01"))
     speedup = f"{r['speedup']:.2f}×" if r.get("speedup") else "not reached by both modes"
-    lines.append(f"| band-limited reaches RMSE ≤ 0.01 ≥ 4× sooner | {speedup} ({to}) |")
+    lines.append(f"| band-limited reaches RMSE ≤ 0.01 {RMSE_SPEEDUP.bound} sooner | {speedup} ({to}) |")
     return lines
 
 
