@@ -5,7 +5,7 @@ mimarble/scene/limits.py (each limit's value and reason is written there only).
     ./go python scripts/limits_table.py --check  # exit 1 if the table is not what the records say
 
 tests/test_limits_table.py runs the check, so a limit changed in the code without the docs
-following fails the suite.
+following fails the suite. The markers are replaced as scripts/module_map.py replaces its own.
 """
 
 from __future__ import annotations
@@ -15,6 +15,9 @@ from pathlib import Path
 
 from mimarble.scene.limits import markdown_table
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from module_map import with_section, write_or_check  # noqa: E402  (a script beside this one)
+
 ROOT = Path(__file__).resolve().parent.parent
 DOCS = ROOT / "docs" / "scene-language.md"
 BEGIN = "<!-- limits table: written by scripts/limits_table.py from mimarble/scene/limits.py; do not edit -->"
@@ -23,24 +26,12 @@ END = "<!-- end of the limits table -->"
 
 def with_table(text: str, table: str) -> str:
     """``text`` with the part between the markers replaced by ``table``."""
-    head, sep, rest = text.partition(BEGIN)
-    if not sep or END not in rest:
-        raise SystemExit(f"{DOCS}: the limits table's markers are missing")
-    tail = rest.partition(END)[2]
-    return f"{head}{BEGIN}\n{table}\n{END}{tail}"
+    return with_section(text, table, BEGIN, END)
 
 
 def main(argv) -> int:
-    text = DOCS.read_text(encoding="utf-8")
-    new = with_table(text, markdown_table())
-    if "--check" in argv[1:]:
-        if new != text:
-            print(f"{DOCS.relative_to(ROOT)}: the limits table is stale; "
-                  "run ./go python scripts/limits_table.py", file=sys.stderr)
-            return 1
-        return 0
-    DOCS.write_text(new, encoding="utf-8")
-    return 0
+    return write_or_check(DOCS, with_table(DOCS.read_text(encoding="utf-8"), markdown_table()), argv,
+                          "the limits table")
 
 
 if __name__ == "__main__":

@@ -41,26 +41,34 @@ def module_map(package_dir: Path = ROOT / "mimarble") -> str:
     return "\n".join(lines)
 
 
+def with_section(text: str, body: str, begin: str, end: str) -> str:
+    """``text`` with the part between the markers ``begin`` and ``end`` replaced by ``body``."""
+    head, sep, rest = text.partition(begin)
+    if not sep or end not in rest:
+        raise SystemExit(f"the markers {begin!r} and {end!r} are missing")
+    tail = rest.partition(end)[2]
+    return f"{head}{begin}\n{body}\n{end}{tail}"
+
+
 def with_map(text: str, the_map: str) -> str:
-    """``text`` with the part between the markers replaced by ``the_map``."""
-    head, sep, rest = text.partition(BEGIN)
-    if not sep or END not in rest:
-        raise SystemExit(f"{DOCS}: the module map's markers are missing")
-    tail = rest.partition(END)[2]
-    return f"{head}{BEGIN}\n{the_map}\n{END}{tail}"
+    """``text`` with the part between the module map's markers replaced by ``the_map``."""
+    return with_section(text, the_map, BEGIN, END)
+
+
+def write_or_check(docs: Path, new: str, argv, what: str) -> int:
+    """Write ``new`` to ``docs``; with ``--check`` in ``argv``, exit status 1 if it differs."""
+    if "--check" in argv[1:]:
+        if new != docs.read_text(encoding="utf-8"):
+            print(f"{docs.relative_to(ROOT)}: {what} is stale; run ./go python {argv[0]}", file=sys.stderr)
+            return 1
+        return 0
+    docs.write_text(new, encoding="utf-8")
+    return 0
 
 
 def main(argv) -> int:
-    text = DOCS.read_text(encoding="utf-8")
-    new = with_map(text, module_map())
-    if "--check" in argv[1:]:
-        if new != text:
-            print(f"{DOCS.relative_to(ROOT)}: the module map is stale; "
-                  "run ./go python scripts/module_map.py", file=sys.stderr)
-            return 1
-        return 0
-    DOCS.write_text(new, encoding="utf-8")
-    return 0
+    return write_or_check(DOCS, with_map(DOCS.read_text(encoding="utf-8"), module_map()), argv,
+                          "the module map")
 
 
 if __name__ == "__main__":
