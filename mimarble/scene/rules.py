@@ -1,7 +1,7 @@
 """The scene's value rules, written once for their two callers: the parser and the model.
 
 Each rule takes a value and says what is wrong with it, in the language's words
-(``radius must be > 0``), or None. The parser (parser.py) raises the sentence as a
+(``radius must be > 0``), or None. The parser (builder.py) raises the sentence as a
 :class:`~mimarble.scene.SceneError` at the token it read, adding ``found`` and the token
 as written; the model's constructors (model.py) raise it as a ValueError, adding the
 value. So a scene built in Python hears the same sentence as one read from a file.
