@@ -9,7 +9,8 @@ import os
 
 from lark import Token, Tree
 
-from mimarble.scene import mesh_header
+from mimarble.meshes import facts as meshes
+from mimarble.meshes.limits import MeshFileError
 from mimarble.scene import rules
 from .build_values import ValueReader, pos_of, unquoted, vector_text
 from .model import MESH_FORMATS, Box, Mesh, Plane, Pos, Sphere
@@ -69,7 +70,7 @@ class ShapeBuilder(ValueReader):
     def mesh(self, st: Tree) -> tuple[Mesh, Token, bool]:
         """``mesh { file "…" transform { … } material "m" }``: the file, relative to the
         scene file, is checked at its string — a PLY or OBJ name, then what
-        mesh_header.mesh_facts says of it (a regular file there, within the size limit,
+        meshes.facts.mesh_facts says of it (a regular file there, within the size limit,
         in the image maps' words; its header; each sentence after ``mesh file 'NAME':``)
         — and its triangles counted toward the scene's limit; the mesh is refused at its
         file string when they pass it."""
@@ -86,8 +87,8 @@ class ShapeBuilder(ValueReader):
         facts = self.meshes_read.get(path)       # a file used by several meshes: read once
         if facts is None:
             try:
-                facts = self.meshes_read[path] = mesh_header.mesh_facts(path)
-            except mesh_header.MeshFileError as e:
+                facts = self.meshes_read[path] = meshes.mesh_facts(path)
+            except MeshFileError as e:
                 raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': {e}") from None
         self.triangles += facts.triangles
         problem = rules.mesh_triangles_problem(self.triangles)

@@ -13,22 +13,17 @@ parameter table's.
 
 from __future__ import annotations
 
+from mimarble.contract import FLT_MAX, FLT_MIN_NORMAL
+from mimarble.meshes.limits import MAX_MESH_BYTES, MAX_MESH_TRIANGLES
 from mimarble.parameters import BY_NAME
+
+# FLT_MAX, FLT_MIN_NORMAL: float32's (contract.py); MAX_MESH_TRIANGLES, MAX_MESH_BYTES:
+# what a mesh file may hold (meshes/limits.py). Each is stated there, with why.
 
 __all__ = ["LIMITS", "FLT_MAX", "FLT_MIN_NORMAL", "MAX_SCENE_BYTES", "MAX_IMAGE_MAP_PIXELS", "MAX_CHANNEL_DEPTH",
            "MAX_AREA_LIGHT_SIZE", "MAX_CHANNEL_SIZE", "MAX_LIGHTS", "MAX_LIGHT_SAMPLES", "MAX_SPHERES", "MAX_IMAGE_SAMPLES",
            "MAX_PLANES", "MAX_BOXES", "MAX_MESHES", "MAX_MESH_TRIANGLES", "MAX_MESH_BYTES",
            "MAX_TEXTURES"]
-
-#: The largest float32: the Mitsuba path is single precision, so every number of a scene
-#: must be at most this in magnitude.
-FLT_MAX = 3.4028234663852886e38
-
-#: The smallest normal float32, 2⁻¹²⁶: a smaller nonzero number is 0 to the renderer (its
-#: JIT flushes subnormals to zero), so a size or an angle that must not be zero must be
-#: at least this. Messages print it, as FLT_MAX, with every digit of its double (repr):
-#: rounded, "3.4e38" reads as if 3.4028235e38 (FLT_MAX to 8 digits, past it) were within.
-FLT_MIN_NORMAL = 2.0 ** -126
 
 #: A scene file's size, bytes (4 MiB). The file is read whole and Lark builds a tree of it,
 #: in time and memory that grow with it; the largest scene the other limits allow is a
@@ -78,15 +73,6 @@ MAX_BOXES = 10_000
 
 #: Mesh statements per scene (each a file read, and a shape in Mitsuba's scene).
 MAX_MESHES = 256
-
-#: Triangles over all the meshes of a scene (2²⁰, about a million): the reference tracer
-#: holds them in float64 with a bounding-volume hierarchy (~0.3 GB at the limit), and a
-#: mesh file's header is checked against it before anything is read past it.
-MAX_MESH_TRIANGLES = 1 << 20
-
-#: A mesh file's size, bytes (256 MiB): a million triangles fit in a tenth of it, in any
-#: of the PLY or OBJ encodings read here.
-MAX_MESH_BYTES = 1 << 28
 
 #: Named textures per scene (``texture "NAME" { … }``).
 MAX_TEXTURES = 10_000

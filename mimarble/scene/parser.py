@@ -16,7 +16,7 @@ Two stages:
 Limits (limits.py, docs/scene-language.md "Limits") are enforced at the edge: a scene
 file larger than :data:`~mimarble.scene.limits.MAX_SCENE_BYTES` is refused from its
 size (at most that many bytes and one more are read), a FIFO or a device without being
-opened for a read that could block (reading.py).
+opened for a read that could block (runtime/reading.py).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from .errors import SceneError
 from .lark_front import oversized, scene_tree
 from .limits import LIMITS, MAX_SCENE_BYTES
 from .model import Scene
-from .reading import NotRegularFile, open_regular
+from mimarble.runtime.reading import NotRegularFile, open_regular
 from .syntax_errors import decoded
 
 __all__ = ["parse", "load", "LIMITS"]
