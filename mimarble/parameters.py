@@ -1,7 +1,7 @@
 """The marble's parameters, declared once: name, type, default, range, and role.
 
 Everything that reads or writes a marble parameter is made from :data:`PARAMETERS`:
-the scene language's grammar and its checks (``mimarble/scene/parser.py``), the
+the scene language's grammar and its checks (``mimarble/scene/builder.py``), the
 scene model's :class:`~mimarble.scene.model.MarbleChannel`, the ``marble`` plugin's
 reading, validation and ``mi.traverse`` keys (:meth:`MarbleParameters.from_properties`,
 ``mimarble/mitsuba/plugins/marble.py``), the translator's texture dict, the sweep keys and the values a

@@ -388,7 +388,7 @@ def test_what_the_check_accepts_both_readers_read_alike(llvm, tmp_path, case):
     rounded."""
     import mitsuba as mi
     from mimarble.meshes.arrays import read_mesh
-    from mimarble.scene.mesh_header import mesh_facts
+    from mimarble.meshes.facts import mesh_facts
     name, data, _ = READ_ALIKE[case]
     path = tmp_path / name
     path.write_bytes(data.encode("latin-1") if isinstance(data, str) else data)
@@ -418,7 +418,7 @@ def test_large_texture_coordinates_under_an_image_map_are_warned_of(llvm, tmp_pa
     from PIL import Image
     from mimarble import scene as S
     from mimarble.mitsuba.translate.scene_dict import Float32RangeWarning, to_mitsuba
-    from mimarble.scene.mesh_header import MAX_PRECISE_UV
+    from mimarble.meshes.limits import MAX_PRECISE_UV
     Image.new("RGB", (4, 4), (200, 10, 10)).save(tmp_path / "map.png")
     if kind == "obj":          # Mitsuba stores (u, 1 − v): the extent is u's
         text = f"v 0 0 0\nv 1 0 0\nv 1 1 0\nvt 0 1\nvt {extent!r} 1\nvt 0.5 0.5\n" \

@@ -1,5 +1,5 @@
-"""Mesh files: mimarble.scene.mesh_header (what a file holds, its limits) and the reference
-tracer's reader (mimarble.meshes.arrays), on small files written here.
+"""Mesh files: mimarble.meshes.facts (what a file holds, its limits: meshes.limits) and the
+renderers' reader (mimarble.meshes.arrays), on small files written here.
 
 The same mesh is written in every encoding by hand (struct for the binary PLYs, text for the
 others), so each reader is checked against the triangles it was given, not against another
@@ -15,9 +15,12 @@ import pytest
 
 from mimarble.meshes import arrays as mesh_file
 from mimarble.meshes.arrays import read_mesh
-from mimarble.scene import mesh_header
-from mimarble.scene.limits import MAX_MESH_TRIANGLES
-from mimarble.scene.mesh_header import MeshFileError, mesh_facts
+from mimarble.meshes import facts as meshes_facts
+from mimarble.meshes import limits as mesh_limits
+from mimarble.meshes import obj_lines
+from mimarble.meshes.facts import mesh_facts
+from mimarble.meshes.limits import MeshFileError
+from mimarble.scene.limits import LIMITS, MAX_MESH_TRIANGLES
 
 # A unit square split into a quad and, beside it, a triangle, each corner with its (u, v) = (x, y).
 POSITIONS = [(0.0, 0.0, 0.0), (1.0, 0.0, 0.0), (1.0, 1.0, 0.0), (0.0, 1.0, 0.0), (2.0, 0.5, 0.25)]
@@ -107,7 +110,7 @@ def test_facts_count_the_written_mesh(tmp_path, kind):
             "ply-le": lambda: write_ply_binary(tmp_path / "m.ply", "<", faces=TRIANGLES),
             "ply-be": lambda: write_ply_binary(tmp_path / "m.ply", ">", faces=TRIANGLES),
             "obj": lambda: write_obj(tmp_path / "m.obj", relative=False)}[kind]()
-    assert mesh_facts(str(path)) == mesh_header.MeshFacts(
+    assert mesh_facts(str(path)) == meshes_facts.MeshFacts(
         "obj" if kind == "obj" else "ply", len(POSITIONS), len(FANS), True, POSITION_BOUNDS)
 
 
@@ -326,7 +329,7 @@ def test_malformed_obj_refused_at_its_line(tmp_path, case):
 
 
 def test_obj_triangles_refused_the_line_they_pass_the_limit(tmp_path, monkeypatch):
-    monkeypatch.setattr(mesh_header, "MAX_MESH_TRIANGLES", 4)
+    monkeypatch.setattr(obj_lines, "MAX_MESH_TRIANGLES", 4)
     path = tmp_path / "many.obj"
     # a quad (2) + a triangle (1) = 3, then a quad (2) = 5 > 4 at line 6
     path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3 3\nf 1 2 3\nf 3 2 1 1\nf 1 2 3\n")
@@ -355,7 +358,7 @@ def test_files_that_are_not_meshes(tmp_path, monkeypatch):
         os.mkfifo(tmp_path / "pipe.obj")
         with pytest.raises(MeshFileError, match="FIFO"):
             mesh_facts(str(tmp_path / "pipe.obj"))    # refused unopened: no blocking read
-    monkeypatch.setattr(mesh_header, "MAX_MESH_BYTES", 64)
+    monkeypatch.setattr(mesh_limits, "MAX_MESH_BYTES", 64)
     with pytest.raises(MeshFileError, match="mesh files hold at most 64 bytes"):
         read_mesh(write_obj(tmp_path / "m.obj"))
 
@@ -398,7 +401,7 @@ def test_elements_in_any_order_and_others_skipped(tmp_path, fmt):
         path.write_bytes(head.encode() + body)
     mesh = read_mesh(path)
     np.testing.assert_array_equal(mesh.positions[mesh.triangles], np.array(square)[np.array(faces)])
-    assert mesh_facts(str(path)) == mesh_header.MeshFacts("ply", 4, 2, False,
+    assert mesh_facts(str(path)) == meshes_facts.MeshFacts("ply", 4, 2, False,
                                                           ((0, 0, 0), (1, 1, 0)))
 
 
@@ -449,7 +452,7 @@ def test_an_element_of_no_properties_or_past_the_limit_is_refused_from_the_heade
     for junk, words in [(b"element junk 1000000000000000\n",
                          "the PLY element 'junk' declares 1000000000000000 records of no "
                          "properties"),
-                        (f"element junk {mesh_header.MAX_MESH_VERTICES + 1}\nproperty uchar a\n"
+                        (f"element junk {mesh_limits.MAX_MESH_VERTICES + 1}\nproperty uchar a\n"
                          .encode(), "an element of a mesh file holds at most"),
                         (b"element junk " + b"9" * 5000 + b"\n", "more than a mesh file holds")]:
         data = good.replace(b"element vertex", junk + b"element vertex")
@@ -545,7 +548,7 @@ def test_bounds_are_the_least_and_greatest_coordinates_written(tmp_path, monkeyp
     """Random float32 positions (exact in every encoding), read a chunk at a time (64 bytes
     or words: many chunks), against NumPy's min and max of what was written."""
     if chunk:
-        monkeypatch.setattr(mesh_header, "_CHUNK", chunk)
+        monkeypatch.setattr(mesh_limits, "READ_CHUNK", chunk)
     rng = np.random.default_rng(25)
     positions = rng.normal(0, 100, (500, 3)).astype(np.float32).astype(np.float64)
     faces = rng.integers(0, len(positions), (300, 3))
@@ -565,12 +568,12 @@ def test_bounds_are_the_least_and_greatest_coordinates_written(tmp_path, monkeyp
 def test_mesh_bounds_are_looked_up_again_when_the_file_changes(tmp_path):
     path = tmp_path / "m.obj"
     path.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
-    assert mesh_header.mesh_bounds(str(path)) == ((0, 0, 0), (1, 1, 0))
+    assert meshes_facts.mesh_bounds(str(path)) == ((0, 0, 0), (1, 1, 0))
     path.write_text("v 0 0 0\nv 10 0 0\nv 0 -1 0\nf 1 2 3\n")        # another size
-    assert mesh_header.mesh_bounds(str(path)) == ((0, -1, 0), (10, 0, 0))
+    assert meshes_facts.mesh_bounds(str(path)) == ((0, -1, 0), (10, 0, 0))
     path.write_text("v 0 0 0\n")
-    assert mesh_header.mesh_bounds(str(path)) is None                  # refused: unknown
-    assert mesh_header.mesh_bounds(str(tmp_path / "missing.obj")) is None
+    assert meshes_facts.mesh_bounds(str(path)) is None                  # refused: unknown
+    assert meshes_facts.mesh_bounds(str(tmp_path / "missing.obj")) is None
 
 
 def test_a_meshs_bounding_sphere_is_around_its_transformed_bounds(tmp_path):
@@ -609,3 +612,8 @@ def test_a_planes_disk_reaches_past_a_far_mesh(tmp_path):
     farthest = math.dist((0.0, -1.0, 0.0), (1001.0, 1.0, 0.0))    # from the disk's centre
     assert radius >= geometry.PLANE_REACH * (1 + farthest)
     assert radius <= geometry.PLANE_REACH * (1 + farthest + 2.0)   # the bounding sphere's slack
+
+
+def test_the_facts_of_a_scene_at_the_mesh_limit_are_kept():
+    """mesh_facts keeps the facts of as many files as a scene may name meshes."""
+    assert meshes_facts.FACTS_KEPT == LIMITS["max_meshes"]

@@ -12,8 +12,7 @@ FORBIDDEN = ("mitsuba", "drjit", "mimarble.texture", "mimarble.mitsuba",
              "mimarble.runtime.environment", "mimarble.cli")
 ALLOWED_THIRD_PARTY = ("numpy", "PIL")   # PIL: image maps decoded by Pillow
 ALLOWED_PROJECT = ("mimarble.scene", "mimarble.reference", "mimarble.meshes",
-                   "mimarble.runtime.progress",
-                   "mimarble.contract")       # the numbers both renderers share, not code
+                   "mimarble.runtime.progress", "mimarble.runtime.reading", "mimarble.contract")
 
 
 def imported_modules(path, package):

@@ -10,11 +10,12 @@ from pathlib import Path
 import pytest
 
 from mimarble import scene as S
-from mimarble.scene import mesh_header
+from mimarble.meshes import facts as meshes_facts
 from mimarble.scene import parse
 from mimarble.scene.limits import (MAX_BOXES, MAX_CHANNEL_DEPTH, MAX_MESH_TRIANGLES,
                                    MAX_MESHES, MAX_PLANES, MAX_TEXTURES)
-from mimarble.scene.mesh_header import MeshFacts, MeshFileError
+from mimarble.meshes.facts import MeshFacts
+from mimarble.meshes.limits import MeshFileError
 
 M = 'material "m" { diffuse { color < 1 1 1 > } }\n'
 PNG = str(Path(__file__).resolve().parent.parent / "scenes" / "future-work" / "maps" / "flagstones.png")
@@ -126,7 +127,7 @@ def test_a_box_transform_is_refused_as_a_marbles_is(steps):
 
 @pytest.fixture
 def facts(monkeypatch):
-    """mesh_header.mesh_facts replaced by a stand-in: the facts registered for a path
+    """meshes_facts.mesh_facts replaced by a stand-in: the facts registered for a path
     (by its file name), or a MeshFileError for one registered as a sentence."""
     known: dict[str, object] = {}
 
@@ -136,7 +137,7 @@ def facts(monkeypatch):
             raise MeshFileError(found)
         return found
 
-    monkeypatch.setattr(mesh_header, "mesh_facts", stand_in)
+    monkeypatch.setattr(meshes_facts, "mesh_facts", stand_in)
     return known
 
 
@@ -198,7 +199,7 @@ def test_the_triangles_of_all_meshes_are_limited_at_the_mesh_past_the_limit(tmp_
     assert "Limits" in e.message
 
 
-# A real reader (mesh_header.py, another part of issue 25) of tiny ASCII files written here:
+# A real reader (meshes/facts.py, another part of issue 25) of tiny ASCII files written here:
 # skipped while the module is the stub that refuses every file.
 TRIANGLE_PLY = """ply
 format ascii 1.0
@@ -221,10 +222,10 @@ SQUARE_OBJ = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n"
 
 def real_reader(path) -> None:
     try:
-        mesh_header.mesh_facts(str(path))
+        meshes_facts.mesh_facts(str(path))
     except MeshFileError as e:
         if "stub" in str(e):
-            pytest.skip("mesh_header.mesh_facts is the stub")
+            pytest.skip("meshes_facts.mesh_facts is the stub")
 
 
 def test_a_real_ply_with_uv_takes_an_image_map(tmp_path):
@@ -233,13 +234,13 @@ def test_a_real_ply_with_uv_takes_an_image_map(tmp_path):
     text = IMAGE_MATERIAL + 'mesh { file "tri.ply" material "i" }'
     (mesh,) = parse(text, source=str(tmp_path / "t.scene")).meshes
     assert mesh.location == str(tmp_path / "tri.ply")
-    assert mesh_header.mesh_facts(mesh.location) == MeshFacts("ply", 3, 1, True, ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0)))
+    assert meshes_facts.mesh_facts(mesh.location) == MeshFacts("ply", 3, 1, True, ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0)))
 
 
 def test_a_real_obj_without_uv_refuses_an_image_map(tmp_path):
     (tmp_path / "square.obj").write_text(SQUARE_OBJ)
     real_reader(tmp_path / "square.obj")
-    assert mesh_header.mesh_facts(str(tmp_path / "square.obj")) == MeshFacts("obj", 4, 2, False, ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0)))
+    assert meshes_facts.mesh_facts(str(tmp_path / "square.obj")) == MeshFacts("obj", 4, 2, False, ((0.0, 0.0, 0.0), (1.0, 1.0, 0.0)))
     text = IMAGE_MATERIAL + 'mesh { file "square.obj" material "i" }'
     refused_at(text, 2, 35, "image map", "texture coordinates", source=str(tmp_path / "t.scene"))
 

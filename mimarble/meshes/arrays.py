@@ -1,13 +1,13 @@
-"""The reference tracer's mesh files: PLY (ascii, binary) and OBJ read into float64 arrays.
+"""The renderers' mesh files: PLY (ascii, binary) and OBJ read into float64 NumPy arrays.
 
 ``read_mesh(path)`` -> :class:`MeshData` (positions (V, 3) float64, triangles (T, 3)
-int64, uv (V, 2) float64 or None), or :class:`~mimarble.scene.mesh_header.MeshFileError`
-in one sentence. What a file may hold and every limit are
-mimarble/scene/mesh_header.py's: the PLY header is parsed and checked there
-(:func:`~mimarble.scene.mesh_header.ply_header`: counts within the limits and within the
-file's size before anything is allocated), the OBJ lines are tokenised and checked there
-(:func:`~mimarble.scene.mesh_header.obj_statements`, which refuses the line past a limit);
-the body of a PLY file is read here with NumPy (``numpy.frombuffer`` with the header's
+int64, uv (V, 2) float64 or None), or :class:`~mimarble.meshes.limits.MeshFileError`
+in one sentence. Imported by the renderers only (the parser reads facts.py, without
+NumPy). What a file may hold and every limit are limits.py's; the PLY header is parsed and
+checked by the code the facts use (:func:`~mimarble.meshes.ply_header.ply_header`: counts
+within the limits and within the file's size before anything is allocated), the OBJ lines
+are tokenised and checked by it too (:func:`~mimarble.meshes.obj_lines.obj_statements`,
+which refuses the line past a limit); the body of a PLY file is read here with NumPy (``numpy.frombuffer`` with the header's
 types and byte order; ascii a megabyte at a time, its words converted by NumPy).
 
 Conventions, as Mitsuba 3.9.1 loads the same files (its src/shapes/obj.cpp, ply.cpp and
@@ -18,7 +18,7 @@ ply.h at tag v3.9.1, read for this module):
   past the third. Its PLY reader takes **triangles only**: the list length is a checked
   field of value 3 ("incompatible contents -- is this a triangle mesh?"), so a PLY polygon
   is read here as a fan, but the scene language refuses it
-  (:func:`~mimarble.scene.mesh_header.mesh_facts`), as the tracer's :func:`read_meshes
+  (:func:`~mimarble.meshes.facts.mesh_facts`), as the tracer's :func:`read_meshes
   <mimarble.reference.tracer.read_meshes>` does, for Mitsuba's sake.
 * **OBJ (u, v)**: Mitsuba's ``obj`` plugin has ``flip_tex_coords`` true by default and
   stores (u, 1 − v) for ``vt u v``; so does this reader. A vertex is a distinct
@@ -42,9 +42,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimarble.scene.limits import MAX_MESH_TRIANGLES
-from mimarble.scene.mesh_header import (PLY_TYPES, MeshFileError, PlyHeader, obj_statements, open_mesh,
-    ply_header)
+from .limits import MAX_MESH_TRIANGLES, MeshFileError, open_mesh
+from .obj_lines import obj_statements
+from .ply_header import PLY_TYPES, PlyHeader, ply_header
 
 __all__ = ["MeshData", "MeshFileError", "read_mesh", "fan_triangles"]
 
@@ -63,7 +63,7 @@ class MeshData:
 def read_mesh(path, relative: bool = True) -> MeshData:
     """The mesh file at ``path`` (.ply or .obj, by its name) -> MeshData, or MeshFileError.
     ``relative``: an OBJ's negative indices are read (else refused, as the scene language
-    refuses them for Mitsuba's sake: mesh_header.obj_statements)."""
+    refuses them for Mitsuba's sake: obj_lines.obj_statements)."""
     name = os.fspath(path).lower()
     f, size = open_mesh(path)
     with f:

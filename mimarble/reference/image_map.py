@@ -29,7 +29,7 @@ Pillow read from the file it opened.
 
 Imports NumPy, Pillow, the standard library and the scene language's rule for an image
 map's file (``mimarble.scene.image_header``: a regular file, a complete 8-bit PNG or JPEG
-within the pixel limit; ``mimarble.scene.reading.open_regular``).
+within the pixel limit; ``mimarble.runtime.reading.open_regular``).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import numpy as np
 from PIL import Image
 
 from mimarble.scene.image_header import MAX_IMAGE_MAP_PIXELS, image_file_problem
-from mimarble.scene.reading import open_regular
+from mimarble.runtime.reading import open_regular
 
 __all__ = [
     "SRGB8_TO_LINEAR",

@@ -19,7 +19,8 @@ import numpy as np
 from mimarble.scene import geometry
 from mimarble.scene.errors import SceneError
 from mimarble.scene.limits import MAX_MESH_TRIANGLES
-from mimarble.scene.mesh_header import MeshFileError, mesh_facts
+from mimarble.meshes.facts import mesh_facts
+from mimarble.meshes.limits import MeshFileError
 from mimarble.scene.model import Scene, in_object_space, samples_per_axis
 from mimarble.scene.rules import shortened
 
@@ -119,7 +120,7 @@ def _from_world(shapes) -> np.ndarray:
 
 def read_meshes(scene: Scene) -> tuple:
     """Every mesh file of the scene read (:func:`.mesh_file.read_mesh`), in scene order, as
-    the scene language checks them (mesh_header.mesh_facts: PLY faces triangles, OBJ
+    the scene language checks them (meshes.facts.mesh_facts: PLY faces triangles, OBJ
     indices from 1), each file once. The PLY headers are checked against
     MAX_MESH_TRIANGLES together before any body is read; an OBJ, whose lines are its
     header, is refused the line it passes the limit, and the scene once the files read so

@@ -56,6 +56,8 @@ MOVED = {
     "mimarble.packaged_scenes": "mimarble.runtime.packaged_scenes",
     "mimarble.scene_edits": "mimarble.scene.edits",
     "mimarble.reference.mesh_file": "mimarble.meshes.arrays",
+    "mimarble.scene.mesh_header": "mimarble.scene.mesh_files",
+    "mimarble.scene.reading": "mimarble.runtime.reading",
     "mimarble.compare": "mimarble.tools.compare",
     "mimarble.bake": "mimarble.tools.bake",
     "mimarble.export": "mimarble.tools.export",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import unicodedata
 
 from .limits import MAX_SCENE_BYTES
-from .reading import open_regular
+from mimarble.runtime.reading import open_regular
 
 __all__ = ["SceneError", "TAB_SIZE", "SHOWN_WIDTH", "printable"]
 

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 
-from mimarble.scene import mesh_header
+from mimarble.meshes.facts import mesh_bounds
 from mimarble.scene import transforms
 
 __all__ = ["PLANE_REACH", "plane_frame", "object_to_world", "plane_disk", "sphere_bounds",
@@ -111,10 +111,10 @@ def box_corners(box):
 
 def mesh_corners(mesh):
     """The eight corners, in world space, of the box of a mesh file's vertex positions
-    (mesh_header.mesh_bounds, in file coordinates) placed by the mesh's transform: the
+    (meshes.facts.mesh_bounds, in file coordinates) placed by the mesh's transform: the
     mesh lies within their convex hull. None where the file cannot be read (the parser
     says why at the mesh)."""
-    bounds = mesh_header.mesh_bounds(mesh.location)
+    bounds = mesh_bounds(mesh.location)
     if bounds is None:
         return None
     (x0, y0, z0), (x1, y1, z1) = bounds

@@ -6,7 +6,7 @@ decoding the pixels comes later (the Mitsuba path, the reference tracer). What t
 header says is checked here, the same for both renderers:
 
 * the file is a regular file (a FIFO or a device is refused without being opened for a
-  read that could block: reading.py);
+  read that could block: runtime/reading.py);
 * an 8-bit PNG (its IHDR chunk) or a JPEG (its frame header, SOFn, found by walking the
   markers), not empty, of at most :data:`~mimarble.scene.limits.MAX_IMAGE_MAP_PIXELS`
   pixels — so that a small file that decodes into gigabytes (a "decompression bomb") is
@@ -24,7 +24,7 @@ from __future__ import annotations
 import os
 
 from .limits import MAX_IMAGE_MAP_PIXELS
-from .reading import open_failure, open_regular
+from mimarble.runtime.reading import open_failure, open_regular
 from .rules import shortened
 
 __all__ = ["image_file_problem", "image_file_sentence", "check_image_maps", "png_facts",

@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from mimarble.contract import FLT_MAX, FLT_MIN_NORMAL
+from mimarble.meshes import limits as mesh_limits
 from mimarble.parameters import BY_NAME
 
 __all__ = ["Limit", "RECORDS", "BY_KEY", "IMAGE_SIZE", "markdown_table",
@@ -116,13 +117,13 @@ RECORDS: tuple[Limit, ...] = (
           '256',
           "Each is a file read while parsing and a shape of its own in Mitsuba's scene. Refused at the "
           'first `mesh` too many.'),
-    Limit('max_mesh_triangles', 'mesh triangles', 1 << 20,
+    Limit('max_mesh_triangles', 'mesh triangles', mesh_limits.MAX_MESH_TRIANGLES,
           '2²⁰ = 1 048 576, all the meshes of a scene together (polygons counted as the triangles of their '
           'fans)',
           'The reference tracer holds them in float64 with a bounding-volume hierarchy, about 0.3 GB at the'
           " limit; each file's counts are read from its header, before anything is read past it. Refused at"
           ' the `file` string of the mesh that passes the limit.'),
-    Limit('max_mesh_bytes', 'mesh file size', 1 << 28,
+    Limit('max_mesh_bytes', 'mesh file size', mesh_limits.MAX_MESH_BYTES,
           '256 MiB (268 435 456 bytes)',
           'A million triangles fit in a tenth of it, in any of the PLY or OBJ encodings read; a larger file'
           ' is refused from its size, at its `file` string, before it is read.'),

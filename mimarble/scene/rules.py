@@ -1,7 +1,7 @@
 """The scene's value rules, written once for their two callers: the parser and the model.
 
 Each rule takes a value and says what is wrong with it, in the language's words
-(``radius must be > 0``), or None. The parser (parser.py) raises the sentence as a
+(``radius must be > 0``), or None. The parser (builder.py) raises the sentence as a
 :class:`~mimarble.scene.SceneError` at the token it read, adding ``found`` and the token
 as written; the model's constructors (model.py) raise it as a ValueError, adding the
 value. So a scene built in Python hears the same sentence as one read from a file.
@@ -15,6 +15,7 @@ import math
 import numbers
 
 from mimarble.parameters import single_precision
+from mimarble.runtime.reading import shortened
 from .limits import (FLT_MAX, FLT_MIN_NORMAL, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
                      MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES,
                      MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES, MAX_MESH_TRIANGLES)
@@ -27,13 +28,6 @@ __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "depth_problem", "size_problem", "mean_free_path_problem", "ior_problem", "listed_names", "shortened", "normal_problem",
            "box_problem", "mesh_format_problem", "texture_name_problem",
            "mesh_triangles_problem", "image_map_uv_problem"]
-
-
-def shortened(text: str, most: int = 60) -> str:
-    """``text``, cut to at most ``most`` characters with ``...`` where it was cut: a
-    word or a name quoted in a message (a 4 MB word is not echoed)."""
-    text = str(text)
-    return text if len(text) <= most else text[:most - 3] + "..."
 
 
 def number_problem(value: float) -> str | None:

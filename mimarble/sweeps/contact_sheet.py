@@ -4,7 +4,7 @@ A row for one setting (the paper's figure layout; a grid past :data:`ONE_ROW` va
 grid of rows × columns for two (values along the top and the left), a grid of cells each
 captioned with every value for more; drawn with Pillow (a sheet of 64 frames in a
 fraction of a second). A failed frame is a grey cell. The images are read without
-following links (mimarble/scene/reading.py): the sheet reads nothing but the frames.
+following links (mimarble/runtime/reading.py): the sheet reads nothing but the frames.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import math
 from pathlib import Path
 
 from mimarble.runtime import files
-from mimarble.scene.reading import open_regular
+from mimarble.runtime.reading import open_regular
 from mimarble.sweeps.frames import error_text, file_name
 from mimarble.sweeps.settings import Setting
 

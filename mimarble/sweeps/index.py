@@ -18,7 +18,7 @@ from pathlib import Path
 
 from mimarble.runtime import files
 from mimarble.scene.image_header import png_facts
-from mimarble.scene.reading import NotRegularFile, open_regular
+from mimarble.runtime.reading import NotRegularFile, open_regular
 from mimarble.sweeps.frames import file_name
 from mimarble.sweeps.settings import SweepError
 

@@ -61,7 +61,7 @@ from mimarble.contract import FLOAT32_EPSILON, FLT_MAX, RENDER_MODES, T_MIN_REL,
 from mimarble.scene import geometry, model
 from mimarble.scene.errors import SceneError
 from mimarble.scene.image_header import check_image_maps
-from mimarble.scene.mesh_header import check_mesh_files
+from mimarble.scene.mesh_files import check_mesh_files
 from mimarble.scene.rules import cross, shortened, spp_problem
 
 MODES = RENDER_MODES

@@ -1,10 +1,12 @@
-"""Opening a scene's files for reading: regular files only, never blocking.
+"""Opening the files a user names for reading: regular files only, never blocking; the names
+in sentences, shortened.
 
 A FIFO opened for reading waits for a writer, forever if none comes; a device such as
 ``/dev/zero`` never ends. Scene files and image maps are therefore looked at with
 ``os.stat`` first and refused unless they are regular files, and then opened
 non-blocking and looked at again through the descriptor, so that nothing swapped in
-between is read either. Standard library only.
+between is read either. Scene files, image maps, mesh files and sweeps' frames are
+opened so. Standard library only.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ import errno
 import os
 import stat
 
-__all__ = ["NotRegularFile", "not_regular", "open_regular", "open_failure"]
+__all__ = ["NotRegularFile", "not_regular", "open_regular", "open_failure", "shortened"]
 
 _KINDS = ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character device"),
           (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
@@ -75,3 +77,10 @@ def open_failure(error: OSError, where: str) -> str:
     if isinstance(error, NotRegularFile):
         return f"{error} ({where})"
     return f"cannot read it: {error.strerror or error} ({where})"
+
+
+def shortened(text: str, most: int = 60) -> str:
+    """``text``, cut to at most ``most`` characters with ``...`` where it was cut: a
+    word or a name quoted in a message (a 4 MB word is not echoed)."""
+    text = str(text)
+    return text if len(text) <= most else text[:most - 3] + "..."

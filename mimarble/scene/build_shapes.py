@@ -1,0 +1,101 @@
+"""The scene builder's shapes: ``sphere``, ``plane``, ``box`` and ``mesh`` (its file's facts
+read once per file, meshes/, its triangles counted toward the scene's limit), each built
+with its material's name token and whether it has texture coordinates (u, v).
+"""
+
+from __future__ import annotations
+
+import os
+
+from lark import Token, Tree
+
+from mimarble.meshes import facts as meshes
+from mimarble.meshes.limits import MeshFileError
+from mimarble.scene import rules
+from .build_values import ValueReader, pos_of, unquoted, vector_text
+from .model import MESH_FORMATS, Box, Mesh, Plane, Pos, Sphere
+
+
+class ShapeBuilder(ValueReader):
+    """The shapes. ``folder``: where mesh files are found; ``meshes_read``: each mesh
+    file's facts read in this parse; ``triangles``: the triangles of the meshes so far."""
+
+    folder: str
+    meshes_read: dict
+    triangles: int
+
+    def shape_fields(self, st: Tree) -> tuple[dict[str, Tree], Token]:
+        """A shape block's keys and its material's name token (required)."""
+        kind = str(st.data)
+        f = self.fields(st, f"'{kind}' block")
+        if "material" not in f:
+            raise self.error(st, f"{kind} has no 'material'; add material \"name\"")
+        return f, f["material"].children[0]
+
+    def sphere(self, st: Tree) -> tuple[Sphere, Token, bool]:
+        f, name_tok = self.shape_fields(st)
+        d = Sphere("")
+        center = self.point_of(f, "center", d.center)
+        radius = d.radius
+        if "radius" in f:
+            tok = f["radius"].children[0]
+            radius = self.number(tok)
+            self.refuse(tok, rules.radius_problem(radius))
+        return Sphere(unquoted(name_tok), center, radius, pos=pos_of(st)), name_tok, True
+
+    def plane(self, st: Tree) -> tuple[Plane, Token, bool]:
+        """``plane { point <> normal <> material "m" }``: a zero normal is refused at its
+        vector."""
+        f, name_tok = self.shape_fields(st)
+        d = Plane("")
+        point, normal = self.point_of(f, "point", d.point), self.point_of(f, "normal", d.normal)
+        problem = rules.normal_problem(normal)
+        if problem:
+            raise self.error(f["normal"].children[0], f"{problem}, found {vector_text(normal)}")
+        return Plane(unquoted(name_tok), point, normal, pos=pos_of(st)), name_tok, False
+
+    def box(self, st: Tree) -> tuple[Box, Token, bool]:
+        """``box { min <> max <> transform { … } material "m" }``: corners out of order
+        are refused at ``max`` (else ``min``); the transform is a marble's."""
+        f, name_tok = self.shape_fields(st)
+        d = Box("")
+        lo, hi = self.point_of(f, "min", d.min), self.point_of(f, "max", d.max)
+        problem = rules.box_problem(lo, hi)
+        if problem:
+            raise self.error(f.get("max") or f["min"], f"{problem}, found min "
+                                                       f"{vector_text(lo)} max {vector_text(hi)}")
+        steps = self.transform(f["transform"]) if "transform" in f else ()
+        return Box(unquoted(name_tok), lo, hi, steps, pos=pos_of(st)), name_tok, False
+
+    def mesh(self, st: Tree) -> tuple[Mesh, Token, bool]:
+        """``mesh { file "…" transform { … } material "m" }``: the file, relative to the
+        scene file, is checked at its string — a PLY or OBJ name, then what
+        meshes.facts.mesh_facts says of it (a regular file there, within the size limit,
+        in the image maps' words; its header; each sentence after ``mesh file 'NAME':``)
+        — and its triangles counted toward the scene's limit; the mesh is refused at its
+        file string when they pass it."""
+        f, name_tok = self.shape_fields(st)
+        if "file" not in f:
+            raise self.error(st, "mesh has no 'file'; write mesh { file \"models/vase.ply\" "
+                                 "material \"m\" }")
+        tok = f["file"].children[0]
+        name = unquoted(tok)
+        self.file_name(tok, "a mesh")
+        if not name.lower().endswith(MESH_FORMATS):
+            raise self.error(tok, rules.mesh_format_problem(name))
+        path = os.path.normpath(os.path.join(self.folder, name))
+        facts = self.meshes_read.get(path)       # a file used by several meshes: read once
+        if facts is None:
+            try:
+                facts = self.meshes_read[path] = meshes.mesh_facts(path)
+            except MeshFileError as e:
+                raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': {e}") from None
+        self.triangles += facts.triangles
+        problem = rules.mesh_triangles_problem(self.triangles)
+        if problem:
+            raise self.error(tok, problem)
+        steps = self.transform(f["transform"]) if "transform" in f else ()
+        # Its position is the file string's, where every error about the file points.
+        mesh = Mesh(unquoted(name_tok), name, path, steps, pos=Pos(tok.line, tok.column),
+                    digest=facts.digest)
+        return mesh, name_tok, facts.has_uv
