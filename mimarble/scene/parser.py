@@ -45,7 +45,6 @@ from lark.exceptions import UnexpectedInput
 from mimarble import parameters as marble_parameters
 from mimarble.parameters import (BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter, ParameterError,
     hex_colour, hex_colour_problem)
-from mimarble.scene import mesh_header
 from mimarble.scene import rules, transforms
 from .comments import blanked
 from .errors import SceneError
@@ -984,6 +983,7 @@ class _Builder:
         path = os.path.normpath(os.path.join(self.folder, name))
         facts = self.meshes_read.get(path)       # a file used by several meshes: read once
         if facts is None:
+            from mimarble.scene import mesh_header           # here: only meshes need it
             try:
                 facts = self.meshes_read[path] = mesh_header.mesh_facts(path)
             except mesh_header.MeshFileError as e:
