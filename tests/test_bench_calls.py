@@ -22,7 +22,9 @@ def test_a_call_is_timed_with_the_kernels_it_launches(llvm):
     once = bench_calls.time_call(render, repeats=2)
     assert once["whole_ms"] > 0 and once["kernels_ms"] > 0 and once["launches"] >= 1
     twice = bench_calls.time_call(lambda: (render(), render()), repeats=2)
-    assert twice["launches"] == 2 * once["launches"]          # every launch of the call
+    # Every launch of the call is counted: the second render's too (it may launch fewer
+    # than the first, whose results a render kept can share: under --jit-debug it does).
+    assert once["launches"] < twice["launches"] <= 2 * once["launches"]
     idle = bench_calls.time_call(lambda: None, repeats=2)     # no kernel: no ratio to give
     assert idle["launches"] == 0 and idle["kernels_ms"] == 0 and idle["ratio"] is None
 
