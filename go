@@ -33,7 +33,8 @@ if ! have_llvm; then
     fi
 fi
 
-# 2. The package, editable, with its test tools, in .venv (redone when pyproject.toml changes).
+# 2. The package, editable, with its test tools and every extra (the test extra pulls
+#    dask and matplotlib), in .venv (redone when pyproject.toml changes).
 stamp="$venv/.installed-pyproject"
 if [ ! -x "$venv/bin/python" ] || ! cmp -s "$here/pyproject.toml" "$stamp"; then
     echo "go: setting up $venv" >&2

@@ -50,6 +50,34 @@ def test_a_malformed_scene_is_reported_before_drjit_loads(tmp_path):
     assert not (tmp_path / "out.png").exists()
 
 
+def test_a_malformed_scene_imports_only_what_its_answer_needs(tmp_path):
+    """Issue 39: the answer's process builds only the render command's options, reads no
+    mesh file's header and imports neither extra nor importlib's abstract classes (which
+    bring importlib.resources)."""
+    bad = tmp_path / "bad.scene"
+    bad.write_text("scene {\n")
+    result, names = imported_by("render", bad, "-o", tmp_path / "out.png")
+    assert result.returncode == 2 and f"{bad}:1:1:" in result.stderr
+    assert {"lark", "mimarble.scene.parser"} <= names             # the check sees them
+    unneeded = {"mimarble.meshes.facts", "mimarble.meshes.ply_body", "importlib.abc", "importlib.resources",
+                "matplotlib", "dask", "distributed", "PIL", "tqdm"}
+    assert names & unneeded == set()
+
+
+def test_only_the_command_run_gets_its_options():
+    """The parser of a malformed scene's run knows every command (``--help`` lists them,
+    an unknown one is refused) but only the one it runs has options."""
+    from mimarble.cli.arguments import build_parser, command_named
+    assert command_named(["--variant", "bake", "render", "x.scene"]) == "render"
+    assert command_named(["--help"]) is None and command_named(["nosuch"]) is None
+    full, lean = build_parser(), build_parser("render")
+    assert lean.format_help() == full.format_help()
+    argv = ["render", "x.scene", "--width", "8", "--filter", "prefilter", "-o", "m.png"]
+    assert vars(lean.parse_args(argv)) == vars(full.parse_args(argv))
+    with pytest.raises(SystemExit):
+        lean.parse_args(["bake", "x.scene", "--size", "8"])   # bake has no options here
+
+
 def test_a_usage_error_is_reported_before_drjit_loads(tmp_path):
     scene = tmp_path / "ok.scene"
     scene.write_text("sphere { material \"m\" }\nmaterial \"m\" { diffuse { color < 1 0 0 > } }\n")

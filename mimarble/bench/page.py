@@ -21,7 +21,7 @@ import numpy as np
 
 from mimarble.bench.goals import ADAPTIVE_TARGETS, MARBLE_OVER_CONSTANT, OCTAVE_RATE, OCTAVES_32_OVER_8, RMSE_SPEEDUP
 from mimarble.bench.report import (group_cell, group_name, paper_runs, setting,
-    setting_label)
+    setting_label, best_of_words)
 from mimarble.runtime.files import write_atomically
 
 #: What LLVM's AMD targets are called in AMD's own words.
@@ -176,7 +176,8 @@ def _process_table(results: dict) -> list[str]:
     lines = []
     if p:
         lines += ["", f"**Whole process**, `python -m mimarble …` (medians of {p['repeats']}): "
-                      f"`--help` {p['help_s']:.3f} s; a malformed scene {p['malformed_scene_s']:.3f} s; "
+                      f"`--help` {p['help_s']:.3f} s; a malformed scene {p['malformed_scene_s']:.3f} s"
+                      f"{best_of_words(p)}; "
                       f"render fig11a 500², 1 spp, warm caches {p['render_warm_s']:.2f} s, "
                       f"empty caches {p['render_cold_s']:.2f} s."]
     if pov:

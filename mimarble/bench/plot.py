@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from mimarble.bench.report import paper_runs, setting
+from mimarble.runtime.extras import require_extra
 
 
 def _short(run: dict) -> str:
@@ -27,6 +28,7 @@ def _short(run: dict) -> str:
 def plot_error_against_time(results: dict, path) -> None:
     """Error against run time, one curve per mode (mean over the paper scenes per spp or
     threshold), plain 16 and 64 spp's RMSE levels, Pareto front."""
+    require_extra("bench --plot")
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

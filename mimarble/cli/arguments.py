@@ -30,18 +30,51 @@ class _Parser(argparse.ArgumentParser):
         super().error(printable(message))
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The command line's parser; with ``command`` (one of :func:`command_named`'s), every
+    other command is added by its name and help line only (enough for ``--help`` and for
+    refusing an unknown command): argparse takes ~20 ms to add every option, a fifth of
+    a malformed scene's answer."""
     parser = _Parser(
         prog="mimarble",
         description="The marble solid texture of Park & Park (2004) for Mitsuba 3.")
     parser.add_argument("--variant", help="Mitsuba variant (default: $MIMARBLE_VARIANT, "
                                           "else cuda_ad_rgb, llvm_ad_rgb, scalar_rgb)")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add_command in (_render_command, _reference_command, _compare_command, _bench_command,
-                        _sweep_command, _stress_command, _gallery_command, _scenes_command,
-                        _export_command, _bake_command, _doctor_command):
-        add_command(sub)
+    for name, add_command in _COMMANDS.items():
+        add_command(sub if command in (None, name) else _NamesOnly(sub))
     return parser
+
+
+def command_named(argv) -> str | None:
+    """The command ``argv`` runs (its first word that is not an option or the value of
+    ``--variant``), or None when it names none (``--help``, a mistake)."""
+    words = iter(argv)
+    for word in words:
+        if word == "--variant":
+            next(words, None)
+        elif not word.startswith("-"):
+            return word if word in _COMMANDS else None
+    return None
+
+
+class _NamesOnly:
+    """The subcommands' adder for the commands not run: each is added with its name and
+    help line, and its options are dropped."""
+
+    def __init__(self, sub):
+        self._sub = sub
+
+    def add_parser(self, name, **kwargs):
+        self._sub.add_parser(name, **kwargs)
+        return _Dropped()
+
+
+class _Dropped:
+    """A dropped parser: every call on it (add_argument, groups, set_defaults) does nothing."""
+
+    def __getattr__(self, name):
+        return lambda *args, **kwargs: self
 
 
 def _add_size(p):
@@ -302,6 +335,13 @@ def _doctor_command(sub) -> None:
                         "else the packaged paper figures) once at 1 spp, so that "
                         "their kernels are compiled and cached before the first real render")
     _add_variant(p)
+
+
+#: Every command, in the order ``--help`` lists them: name -> the function that adds it.
+_COMMANDS = {"render": _render_command, "reference": _reference_command,
+             "compare": _compare_command, "bench": _bench_command, "sweep": _sweep_command,
+             "stress": _stress_command, "gallery": _gallery_command, "scenes": _scenes_command,
+             "export": _export_command, "bake": _bake_command, "doctor": _doctor_command}
 
 
 def _edge_spp(text: str) -> int:

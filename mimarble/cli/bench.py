@@ -8,6 +8,7 @@ from pathlib import Path
 
 from mimarble.cli.shared import (UsageError, _check_folder, _check_spp, _check_suffix,
     _checked_name, _say, _scene_list, _start)
+from mimarble.runtime.extras import require_extra
 
 
 def _bench(args) -> int:
@@ -36,6 +37,7 @@ def _bench(args) -> int:
     if args.plot is not None:
         _check_folder(_check_suffix(Path(_checked_name(args.plot, "--plot")),
                                     (".png", ".pdf", ".svg"), "plot"))
+        require_extra("bench --plot")
     if args.page is not None:
         _check_folder(_check_suffix(Path(_checked_name(args.page, "--page")), (".md",), "page"))
     for path in scenes:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from mimarble.cli.shared import (_adaptive_words, _check_adaptive_options, _check_folder,
     _check_suffix, _checked_name, _load_scene, _max_spp, _say, _spp, _start, _write)
+from mimarble.runtime.extras import require_extra
 
 
 def _compare(args) -> int:
@@ -16,6 +17,7 @@ def _compare(args) -> int:
     if args.diff is not None:
         _check_folder(_check_suffix(Path(_checked_name(args.diff, "--diff")), (".png",),
                                     "error map"))
+        require_extra("compare --diff")
     scene = _load_scene(args)
     spp = _spp(args, scene)
     _start(args)

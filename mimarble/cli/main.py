@@ -18,7 +18,7 @@ import importlib
 import os
 import sys
 
-from mimarble.cli.arguments import build_parser
+from mimarble.cli.arguments import build_parser, command_named
 # What tests and scripts call as ``cli.X`` (mimarble/cli/shared.py).
 from mimarble.cli.shared import UsageError, _load_scene, _scene_list, _start
 
@@ -58,9 +58,10 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 def main(argv=None) -> int:
     import warnings
     warnings.showwarning = _show_warning
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    args.argv = list(sys.argv[1:] if argv is None else argv)   # as typed, for provenance
+    typed = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(command_named(typed))        # only the command run gets its options
+    args = parser.parse_args(typed)
+    args.argv = typed                                  # as typed, for provenance
     from mimarble.runtime.environment import EnvironmentProblem
     from mimarble.scene.errors import SceneError, printable
     try:

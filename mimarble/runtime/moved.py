@@ -11,7 +11,6 @@ are") gives the new layout.
 from __future__ import annotations
 
 import importlib
-import importlib.abc
 import importlib.util
 import sys
 import warnings
@@ -76,8 +75,10 @@ MOVED = {
 KEPT = frozenset(("mimarble.noise", "mimarble.marble", "mimarble.packaged_scenes"))
 
 
-class _Alias(importlib.abc.MetaPathFinder, importlib.abc.Loader):
-    """Finds an old module name and loads it as the module at its new place."""
+class _Alias:
+    """Finds an old module name and loads it as the module at its new place (a meta path
+    finder and loader by their methods: importlib.abc's base classes would import
+    importlib.resources, tempfile and more into every start of the command)."""
 
     def find_spec(self, fullname, path=None, target=None):
         if fullname not in MOVED:

@@ -9,7 +9,6 @@ import os
 
 from lark import Token, Tree
 
-from mimarble.meshes import facts as meshes
 from mimarble.meshes.limits import MeshFileError
 from mimarble.scene import rules
 from .build_values import ValueReader, pos_of, unquoted, vector_text
@@ -86,8 +85,9 @@ class ShapeBuilder(ValueReader):
         path = os.path.normpath(os.path.join(self.folder, name))
         facts = self.meshes_read.get(path)       # a file used by several meshes: read once
         if facts is None:
+            from mimarble.meshes.facts import mesh_facts     # here: only meshes need it
             try:
-                facts = self.meshes_read[path] = meshes.mesh_facts(path)
+                facts = self.meshes_read[path] = mesh_facts(path)
             except MeshFileError as e:
                 raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': {e}") from None
         self.triangles += facts.triangles

@@ -16,6 +16,7 @@ import os
 
 import numpy as np
 
+from mimarble.runtime.extras import missing_extra
 from mimarble.sweeps.frames import error_text, render_frame
 from mimarble.sweeps.settings import SweepError
 
@@ -43,6 +44,9 @@ def check_workers(workers) -> int:
         raise SweepError(f"--workers {workers}: at most {most} here ({WORKERS_PER_CORE} per "
                          f"core, {cores} cores): each worker is a process with Mitsuba "
                          f"loaded, and the frames already share every core")
+    problem = missing_extra("sweep --workers")
+    if problem:
+        raise SweepError(problem)
     return int(workers)
 
 
@@ -54,14 +58,13 @@ def check_scheduler(address) -> None:
     import asyncio
     import gc
     import logging
-    try:
-        from distributed.comm import connect
-        from distributed.comm.addressing import parse_address
-        from distributed.comm.registry import get_backend
-        from distributed.security import Security
-    except ImportError:
-        raise SweepError("--scheduler needs Dask distributed: pip install "
-                         "'dask[distributed]'") from None
+    problem = missing_extra("sweep --scheduler")
+    if problem:
+        raise SweepError(problem)
+    from distributed.comm import connect
+    from distributed.comm.addressing import parse_address
+    from distributed.comm.registry import get_backend
+    from distributed.security import Security
     if not isinstance(address, str):
         raise SweepError(f"--scheduler {address!r}: give an address, e.g. tcp://host:8786")
     try:

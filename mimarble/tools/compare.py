@@ -22,6 +22,8 @@ import math
 
 import numpy as np
 
+from mimarble.runtime.extras import require_extra
+
 __all__ = ["image_metrics", "compare_with_reference", "reference_differs", "error_map", "ERROR_MAP_RANGE", "ERROR_MAP_COLORS", "colormap",
            "ROWS_PER_CHUNK", "error_map_legend", "error_map_with_legend", "error_map_scale",
            "LEGEND_HEIGHT", "LEGEND_MIN_WIDTH", "LEGEND_BAR_ROWS", "legend_bar_columns"]
@@ -190,6 +192,7 @@ def error_map_legend(width: int, vmin=None, vmax=None) -> np.ndarray:
     ends, labelled (``1e-6``), and a caption: "max channel |error| per pixel, log scale; NaN is
     white"."""
     lo, hi = _range(vmin, vmax)
+    require_extra("compare --diff")
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

@@ -4,7 +4,7 @@ Heitz, Nowrouzezahrai, Poulin & Neyret, "Filtering Non-Linear Transfer Functions
 Surfaces" (IEEE TVCG 2014), model what a pixel sees of a scalar field as a
 distribution — mean and variance — and filter the transfer function (here the colour
 map f = ramp∘t) against it. This module does that for the marble's phase, beside the
-box of mimarble/texture/prefilter.py, for issue 24 (scripts/phase_distribution_trial.py
+box of mimarble/texture/prefilter.py, for issue 24 (scripts/experiments/phase_distribution_trial.py
 measures it; docs/bench/phase-distribution.json holds the numbers).
 
 The series. In the stripe's normalised phase y = φ/P + y₀ (mimarble/texture/stripes.py) the
@@ -57,7 +57,7 @@ from mimarble.texture.prefilter import PhaseAverage, piece_table
 dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Harmonics of the series: 8 render fig11a and fig09d as 16 and 32 do (interior RMSE
-#: within 1e-5), for less work (scripts/phase_distribution_trial.py).
+#: within 1e-5), for less work (scripts/experiments/phase_distribution_trial.py).
 HARMONICS = 8
 #: The series is used where the first harmonic it leaves out is damped below this: that
 #: term is 2|a_K|·χ ≤ 2·(colour range)/(πK)·ε (a jump: the sawtooth's), ~1e-6 for a
@@ -227,7 +227,7 @@ def _blend(narrow, wide, share):
 
 
 class GaussianPrefilter(Prefilter):
-    """Experimental (not a ``filter`` choice; scripts/phase_distribution_trial.py
+    """Experimental (not a ``filter`` choice; scripts/experiments/phase_distribution_trial.py
     installs it): the prefilter with the Gaussian series where the pixel's distribution
     of phase is wide.
 
@@ -246,7 +246,7 @@ class GaussianPrefilter(Prefilter):
     ``narrow``: ``"box"``, one box of the same variance (width √12·s, as
     :meth:`PhaseGaussian.__call__`); ``"prefilter"``, the prefilter's box and two Gauss
     points, as ``filter prefilter`` renders (twice the box's work, and no better:
-    scripts/phase_distribution_trial.py); blended between
+    scripts/experiments/phase_distribution_trial.py); blended between
     (:meth:`PhaseGaussian._series_share`).
     """
 

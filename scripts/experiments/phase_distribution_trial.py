@@ -4,7 +4,7 @@ For fig11a and fig09d at 256², 1 spp, renders each marble with
 
     none            the colour at the point
     prefilter       the box of mimarble/texture/prefilter.py (filter prefilter)
-    gaussian        GaussianPrefilter() (scripts/phase_gaussian.py): one Gaussian of
+    gaussian        GaussianPrefilter() (scripts/experiments/phase_gaussian.py): one Gaussian of
                     variance (a² + b²)/12 + σ², by its Fourier series, 8 harmonics; one
                     box of the same variance where it is too narrow for them
     parallelogram   GaussianPrefilter(model="parallelogram"): the linear phase's two
@@ -30,7 +30,7 @@ is wrapped so that a marble loaded with ``filter prefilter`` gets a GaussianPref
 passes is left on (each loaded scene records its own); MIMARBLE_FREEZE=0 in the
 environment turns it off for all modes alike.
 
-    ./go python scripts/phase_distribution_trial.py [-o docs/bench/phase-distribution.json]
+    ./go python scripts/experiments/phase_distribution_trial.py [-o docs/bench/phase-distribution.json]
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ import phase_gaussian  # noqa: E402  (this folder's: the experiment, not part of
 
 dr, mi = mimarble.dr, mimarble.mi
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SCENES = ("fig11a", "fig09d")
 SIZE, SPP, CONVERGED_SPP, REPEATS, ROUNDS = 256, 1, 256, 5, 5
 #: The cost measurement: at 1024² a pass has 16× the lanes of 256², so the filters' few
