@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 
 from mimarble.runtime import environment
-from .noise import band_limit, fractal3, fractal_sum, left_out
+from .fbm import band_limit, fractal3, fractal_band, fractal_over_pixel, left_out
 from .prefilter import PhaseAverage
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -102,8 +102,7 @@ class BandLimit(PointSample):
 
     def noise(self, m, point):
         band = band_limit(point.footprint, m.octaves_evaluated, spectrum=m.spectrum)
-        return fractal_sum(point.v, m.octaves_evaluated, m.turbulence, band=band,
-                           spectrum=m.spectrum).value
+        return fractal_band(point.v, m.octaves_evaluated, band, m.turbulence, m.spectrum)
 
 
 class Prefilter(PixelFilter):
@@ -150,7 +149,7 @@ def prefiltered(average: PhaseAverage, m, point):
 
 def prefiltered_and_at_point(average: PhaseAverage, m, point):
     """(the prefilter's colour, the point sample's — every octave, as :class:`PointSample`
-    gives it bit for bit), from one octave loop (``fractal_sum(point=True)``)."""
+    gives it bit for bit), from one octave loop (``fractal_over_pixel(point=True)``)."""
     return _prefiltered(average, m, point, True)
 
 
@@ -160,9 +159,8 @@ def _prefiltered(average, m, point, with_point: bool):
     if m.needs_noise:
         octaves = m.octaves_evaluated
         band = band_limit(point.footprint, octaves, PREFILTER_MARGIN, m.spectrum)
-        F = fractal_sum(v, octaves, m.turbulence, band=band, gradient=True,
-                        differentials=(point.dv_dx, point.dv_dy), spectrum=m.spectrum,
-                        point=with_point)
+        F = fractal_over_pixel(v, octaves, band, (point.dv_dx, point.dv_dy), m.turbulence,
+                               m.spectrum, with_point)
         mean, variance = left_out(band, octaves, m.turbulence, m.spectrum)
         value = (F.value + mean) if m.turbulence else F.value
         phase = m.phase(v, value)

@@ -25,7 +25,8 @@ from mimarble.texture.finite_arithmetic import finite_product
 from mimarble.parameters import (AXES, BY_NAME, COLOURS, INTEGER, MAX_LACUNARITY, PARAMETERS,
     POSITIONS, MarbleParameters, ParameterError, checked, parameter_table, parse_positions,
     parse_ramp, ramp_count_problem)
-from mimarble.texture.noise import Spectrum, fractal_sum, lattice_tables
+from mimarble.texture.fbm import Spectrum, fractal_gradient
+from mimarble.texture.perlin import lattice_tables
 from mimarble.mitsuba.plugins.registration import (Kept, RGBTexture, describe, first_number,
     plugin, transform_matrix)
 from mimarble.texture.ramp import Ramp, positions_storage, ramp_storage
@@ -481,8 +482,7 @@ class Marble(RGBTexture):
             return dr.zeros(mi.Vector2f, dr.width(si.p))
         v = self.mapping.point(si.p)
         if self.needs_noise:
-            F = fractal_sum(v, self.octaves_evaluated, self.turbulence, gradient=True,
-                            spectrum=self.spectrum)
+            F = fractal_gradient(v, self.octaves_evaluated, self.turbulence, self.spectrum)
             phase, grad_phase = self.phase(v, F.value), self.phase_gradient(F.gradient
                                                                             * self.distortion)
         else:
