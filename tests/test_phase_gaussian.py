@@ -158,7 +158,7 @@ def test_ramp_edits_reach_the_coefficients_and_gradients_reach_the_colours(jit_v
     after = ((0.0, 0.2, 1.0), (0.5, 0.5, 0.5), (1.0, 0.0, 0.25))
     texture = mi.load_dict({"type": "marble", "function": function, "filter": "prefilter",
                             "ramp": ", ".join(" ".join(map(str, c)) for c in before)})
-    texture.pixel_filter = phase_gaussian.GaussianPrefilter(texture)
+    texture.pixel_filter = phase_gaussian.GaussianPrefilter(texture.stripe, texture.ramp)
     params = mi.traverse(texture)
     params["ramp"] = mi.Color3f(*zip(*after))
     params.update()                             # the same count: the texture tells its filter
@@ -192,7 +192,7 @@ def render(scene, spp, filter, gaussian=False, **options):
     filter prefilter while it loads, as scripts/phase_distribution_trial.py does."""
     chosen = pixel_filter.choose
     if gaussian:
-        pixel_filter.choose = lambda m, name: phase_gaussian.GaussianPrefilter(m)
+        pixel_filter.choose = lambda name, stripe, ramp: phase_gaussian.GaussianPrefilter(stripe, ramp)
     try:
         loaded = mi.load_dict(to_mitsuba(scene, spp=spp, filter=filter))
     finally:

@@ -21,6 +21,7 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.texture import error_budget, filters as pixel_filter, srgb_model
+from mimarble.texture.filters import Noise, Octaves, Phase
 from mimarble.texture.finite_arithmetic import finite_product
 from mimarble.parameters import (AXES, BY_NAME, COLOURS, INTEGER, MAX_LACUNARITY, PARAMETERS,
     POSITIONS, MarbleParameters, ParameterError, checked, parameter_table, parse_positions,
@@ -214,7 +215,7 @@ class Marble(RGBTexture):
         if self.pixel_filter is not None and self._ramp_size == self.ramp.size:
             self.pixel_filter.changed()
         else:                       # a filter's tables are made for a number of colours
-            self.pixel_filter = pixel_filter.choose(self, self.filter)
+            self.pixel_filter = pixel_filter.choose(self.filter, self.stripe, self.ramp)
         self._ramp_size = self.ramp.size
         # The largest ramp component: what the host holds, else read when max() asks; in
         # JIT variants also on the device (a reduction, no read back) for the kernels that
@@ -396,21 +397,48 @@ class Marble(RGBTexture):
     def eval_3(self, si, active=True):
         """The colour at ``si``; 0 where ``active`` is False, as Mitsuba's ``bitmap``
         gives (every lookup is in bounds by construction, so none needs the mask).
-        ``eval`` is this colour, or in spectral variants its spectrum (RGBTexture.eval)."""
+        ``eval`` is this colour, or in spectral variants its spectrum (RGBTexture.eval).
+        The formula, in order; the filter decides how a pixel differs from a point."""
         if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
             return self._kept_attached(dr.select(active, dr.select(
                 self._defined(True), self.ramp.constant(dr.width(si.p)), dr.nan), 0.0))
+        self._warn_without_footprint(si)
+        point = self.mapping.map(si, self.pixel_filter.needs_footprint)  # v = scale·M⁻¹·p
+        noise = self.pixel_filter.noise(point, self._octaves())           # F(v)
+        phase = self._phase(point.v, noise)                   # φ = period·v_a + distortion·F
+        colour = self.pixel_filter.colour(phase, point)       # ramp(t(φ)), or its pixel mean
+        return self._shown(colour, point, active)
+
+    def _octaves(self) -> Octaves | None:
+        """The octave sum F the filter computes (None: no noise needed)."""
+        return Octaves(self.octaves_evaluated, self.turbulence, self.spectrum) \
+            if self.needs_noise else None
+
+    def _phase(self, v, noise: Noise) -> Phase:
+        """φ from the filter's noise; over the pixel also ∇φ and σ²_φ = distortion²·σ²."""
+        value = self.phase(v, noise.value)
+        if not noise.over_pixel:
+            return Phase(value)
+        if noise.value is None:
+            return Phase(value, self.phase_gradient(), 0.0)
+        return Phase(value, self.phase_gradient(noise.gradient * self.distortion),
+                     dr.square(self.distortion) * noise.spread)
+
+    def _shown(self, colour, point, active):
+        """The colour as eval returns it: NaN at a NaN or infinite point — decided here once
+        rather than left to how each backend's min/max and float→int conversions treat
+        NaN (they differ) — or while a value on the device breaks its rule; 0 where
+        ``active`` is False."""
+        return self._kept_attached(dr.select(active, dr.select(
+            self._defined(point.finite), colour, dr.nan), 0.0))
+
+    def _warn_without_footprint(self, si) -> None:
+        """Once per texture: a filter that needs a footprint, given none."""
         if self.pixel_filter.needs_footprint and not self._quiet_about_footprints.value \
                 and not footprints_omitted():
             self._quiet_about_footprints.value = True
             if without_footprint(si):
-                warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=2)
-        point = self.mapping.map(si, self.pixel_filter.needs_footprint)
-        # A NaN or infinite point gets a NaN colour, decided here once rather than left to
-        # how each backend's min/max and float→int conversions treat NaN (they differ).
-        colour = dr.select(self._defined(point.finite), self.pixel_filter.colour(self, point),
-                           dr.nan)
-        return self._kept_attached(dr.select(active, colour, 0.0))
+                warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=3)
 
     def _kept_attached(self, colour):
         """``colour``, plus 0·p for each in-place parameter p being differentiated: where
@@ -455,9 +483,11 @@ class Marble(RGBTexture):
             colour = self.eval_3(si, active)          # (kept attached there)
             return colour, colour
         point = self.mapping.map(si, True)
-        colour, alternate = self.pixel_filter.colour_and_alternate(self, point)
-        return tuple(self._kept_attached(dr.select(active, dr.select(
-            self._defined(point.finite), c, dr.nan), 0.0)) for c in (colour, alternate))
+        noise, other = self.pixel_filter.noise_and_alternate(point, self._octaves())
+        phase = self._phase(point.v, noise)
+        alternate = None if other is None else self._phase(point.v, other)
+        colour, alternate = self.pixel_filter.colour_and_alternate(phase, alternate, point)
+        return tuple(self._shown(c, point, active) for c in (colour, alternate))
 
     def _no_footprint_message(self) -> str:
         name = f" {self.id()!r}" if self.id() else ""
