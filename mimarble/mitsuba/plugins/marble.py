@@ -218,11 +218,11 @@ class Marble(HeldValues, RGBTexture):
     def phase(self, v, F=None):
         """φ = period·v_a + distortion·F (cosine: v_a + distortion·F); F None: no noise."""
         noise = 0.0 if F is None else finite_product(self.distortion, F)
-        return self.stripe.phase(v[self.axis_index], self.period, noise)
+        return self.stripe.phase(v, self.axis_index, self.period, noise)
 
-    def phase_gradient(self, noise_gradient=None):
+    def phase_gradient(self, v, noise_gradient=None):
         """∇_v φ, given distortion·∇F (None: no noise)."""
-        return self.stripe.phase_gradient(self.axis_index, self.period, noise_gradient)
+        return self.stripe.phase_gradient(v, self.axis_index, self.period, noise_gradient)
 
     def eval_3(self, si, active=True):
         """The colour at ``si``; 0 where ``active`` is False, as Mitsuba's ``bitmap``
@@ -250,8 +250,8 @@ class Marble(HeldValues, RGBTexture):
         if not noise.over_pixel:
             return Phase(value)
         if noise.value is None:
-            return Phase(value, self.phase_gradient(), 0.0)
-        return Phase(value, self.phase_gradient(noise.gradient * self.distortion),
+            return Phase(value, self.phase_gradient(v), 0.0)
+        return Phase(value, self.phase_gradient(v, noise.gradient * self.distortion),
                      dr.square(self.distortion) * noise.spread)
 
     def _shown(self, colour, point, active):
@@ -343,10 +343,10 @@ class Marble(HeldValues, RGBTexture):
         v = self.mapping.point(si.p)
         if self.needs_noise:
             F = fractal_gradient(v, self.octaves_evaluated, self.turbulence, self.spectrum)
-            phase, grad_phase = self.phase(v, F.value), self.phase_gradient(F.gradient
-                                                                            * self.distortion)
+            phase = self.phase(v, F.value)
+            grad_phase = self.phase_gradient(v, F.gradient * self.distortion)
         else:
-            phase, grad_phase = self.phase(v), self.phase_gradient()
+            phase, grad_phase = self.phase(v), self.phase_gradient(v)
         slope = mi.luminance(self.ramp.slope(self.stripe.t(phase)))
         gradient = self.mapping.gradient_to_world(
             (slope * self.stripe.slope(phase) * self.scale) * grad_phase)
