@@ -13,7 +13,7 @@ dr, mi = mimarble.dr, mimarble.mi
 
 
 def band_limited(p, octaves, footprint, turbulence=False):
-    return noise.fractal_sum(p, octaves, turbulence, band=noise.band_limit(footprint, octaves)).value
+    return noise.fractal_band(p, octaves, noise.band_limit(footprint, octaves), turbulence)
 
 
 def points(n=5000, seed=0):

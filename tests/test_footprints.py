@@ -108,7 +108,7 @@ def test_each_ray_gets_its_own_perspective_cameras_eye_and_other_rays_keep_their
         np.testing.assert_array_equal(again, np.broadcast_to(np.array(ray.o_x), again.shape))
 
 
-def footprint_probe(self, m, point):
+def footprint_probe(self, phase, point):
     """In place of the prefilter's colour: the footprint the marble was handed."""
     return mi.Color3f(dr.norm(point.dv_dx), dr.norm(point.dv_dy), 0.0)
 

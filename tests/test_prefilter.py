@@ -35,8 +35,8 @@ def prefilter_sum(p, octaves, footprint, margin, turbulence=False, differentials
     """(F, ∇F, σ²) as the prefilter takes them: the band-limited sum plus the mean and
     the variance of the octaves it leaves out."""
     band = noise.band_limit(footprint, octaves, margin)
-    s = noise.fractal_sum(p, octaves, turbulence, band=band, gradient=True,
-                          differentials=differentials)
+    s = (noise.fractal_gradient(p, octaves, turbulence, band=band) if differentials is None
+         else noise.fractal_over_pixel(p, octaves, band, differentials, turbulence))
     mean, variance = noise.left_out(band, octaves, turbulence)
     return s.value + mean, s.gradient, variance + s.spread
 
@@ -90,7 +90,7 @@ def test_band_limited_gradient_sum_keeps_the_leading_octaves_and_counts_the_rest
     # margin 1 and footprint 2^-3: n = 1 − 1 + 3 = 3 whole octaves and nothing to fade in.
     footprint = dr.full(mi.Float, 2.0 ** -3, dr.width(p))
     F, grad, variance = prefilter_sum(p, 8, footprint, 1.0)
-    F3, grad3 = noise.fractal_sum(p, 3, gradient=True)[:2]
+    F3, grad3 = noise.fractal_gradient(p, 3)[:2]
     np.testing.assert_allclose(np.array(F), np.array(F3), atol=1e-6)
     np.testing.assert_allclose(np.array(grad), np.array(grad3), atol=1e-5)
     left_out = noise.NOISE_VARIANCE * sum(4.0 ** -i for i in range(3, 8))

@@ -85,7 +85,7 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 RGB = tuple[float, float, float]
 # Type hints only: the values are the marble's parameter table's (FUNCTIONS, FILTERS, AXES).
-MarbleFunction = Literal["abs_sine", "sine", "cosine", "triangle", "sawtooth"]
+MarbleFunction = Literal[marble_parameters.FUNCTIONS]   # the one list: parameters.FUNCTIONS
 MarbleFilter = Literal["none", "bandlimit", "prefilter"]
 Axis = Literal["x", "y", "z"]
 

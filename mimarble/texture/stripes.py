@@ -136,14 +136,18 @@ class StripeFunction:
         """S = sup |dt/dφ| = A·ω."""
         return self.amplitude * self.angular_frequency
 
-    def phase(self, along, period, noise):
-        """φ from v_a, the period and ``noise`` = distortion·F (0.0 for none)."""
+    def phase(self, v, axis: int, period, noise):
+        """φ at the texture point ``v`` from its ``axis`` coordinate v_a, the period and
+        ``noise`` = distortion·F (0.0 for none). A function whose phase is not planar
+        (not of v_a alone) overrides this and :meth:`phase_gradient`."""
+        along = v[axis]
         if not self.uses_period:
             return finite_sum(along, noise)
         return finite_sum(finite_product(period, along), noise)
 
-    def phase_gradient(self, axis: int, period, noise_gradient=None):
-        """∇_v φ = frequency·e_axis + ``noise_gradient`` (distortion·∇F; None: none)."""
+    def phase_gradient(self, v, axis: int, period, noise_gradient=None):
+        """∇_v φ at ``v`` = frequency·e_axis + ``noise_gradient`` (distortion·∇F; None:
+        none)."""
         e_axis = mi.Vector3f(*(1.0 if k == axis else 0.0 for k in range(3)))
         along = e_axis * (period if self.uses_period else 1.0)
         return along if noise_gradient is None else along + noise_gradient

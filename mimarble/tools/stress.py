@@ -245,7 +245,7 @@ def _colour_f64(tex, pts64, channel):
     v = p * Float64(channel.scale)
     F = fractal3(v, tex.octaves_evaluated, tex.turbulence) if tex.needs_noise else None
     noise = 0.0 if F is None else finite_product(Float64(channel.distortion), F)
-    phase = tex.stripe.phase(v[tex.axis_index], Float64(channel.period), noise)
+    phase = tex.stripe.phase(v, tex.axis_index, Float64(channel.period), noise)
     return np.array(tex.ramp(tex.stripe.t(phase)), dtype=np.float64).T
 
 

@@ -101,10 +101,10 @@ _original_choose = pixel_filter.choose
 def installing(keywords):
     """``pixel_filter.choose`` that gives ``prefilter`` marbles a GaussianPrefilter made
     with ``keywords`` (None: the library's own choice)."""
-    def choose(marble, name):
-        chosen = _original_choose(marble, name)
+    def choose(name, stripe, ramp):
+        chosen = _original_choose(name, stripe, ramp)
         if keywords is not None and type(chosen) is pixel_filter.Prefilter:
-            return phase_gaussian.GaussianPrefilter(marble, **keywords)
+            return phase_gaussian.GaussianPrefilter(stripe, ramp, **keywords)
         return chosen
     return choose
 

@@ -49,9 +49,8 @@ import math
 import numpy as np
 
 from mimarble.runtime import environment
-from mimarble.texture.noise import band_limit, fractal_sum, left_out
 from mimarble.texture.filters import (GAUSS_NODE, PHASE_SPREAD_WIDENING, PREFILTER_MARGIN,
-    Prefilter, at_point)
+    Prefilter)
 from mimarble.texture.prefilter import PhaseAverage, piece_table
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -252,54 +251,27 @@ class GaussianPrefilter(Prefilter):
 
     DRJIT_STRUCT = {"average": PhaseAverage, "gaussian": PhaseGaussian}
 
-    def __init__(self, marble, model: str = "gaussian", margin: float = PREFILTER_MARGIN,
+    def __init__(self, stripe, ramp, model: str = "gaussian", margin: float = PREFILTER_MARGIN,
                  harmonics: int = HARMONICS, linear_variance_scale: float = 1.0,
                  narrow: str = "box"):
         if model not in ("gaussian", "parallelogram"):
             raise ValueError(f"model={model!r}: gaussian or parallelogram")
         if narrow not in ("prefilter", "box"):
             raise ValueError(f"narrow={narrow!r}: prefilter or box")
-        super().__init__(marble)
+        super().__init__(stripe, ramp)
         self.model, self.margin, self.narrow = model, margin, narrow
         self.linear_variance_scale = linear_variance_scale
-        self.gaussian = PhaseGaussian(marble.stripe, marble.ramp, harmonics, box=self.average)
+        self.gaussian = PhaseGaussian(stripe, ramp, harmonics, box=self.average)
 
     def changed(self) -> None:
         self.average.update()
         self.gaussian.update(box=False)
 
-    def colour(self, m, point):
-        return self._colour(m, point, False)[0]
-
-    def colour_and_alternate(self, m, point):
-        """The Gaussian-filtered colour, and the colour at the point (every octave, from
-        the same octave loop), as :meth:`Prefilter.colour_and_alternate` gives them for
-        adaptive sampling; without noise the colour twice."""
-        if not m.needs_noise:
-            colour = self.colour(m, point)
-            return colour, colour
-        return self._colour(m, point, True)
-
-    def _colour(self, m, point, with_point: bool):
-        """(colour, the colour at the point or None): the phase as the prefilter's
-        (mimarble/texture/filters.py, ``_prefiltered``), with this filter's margin."""
-        v = point.v
-        noise_at_point = None
-        if m.needs_noise:
-            octaves = m.octaves_evaluated
-            band = band_limit(point.footprint, octaves, self.margin, m.spectrum)
-            F = fractal_sum(v, octaves, m.turbulence, band=band, gradient=True,
-                            differentials=(point.dv_dx, point.dv_dy), spectrum=m.spectrum,
-                            point=with_point)
-            mean, variance = left_out(band, octaves, m.turbulence, m.spectrum)
-            value = (F.value + mean) if m.turbulence else F.value
-            phase = m.phase(v, value)
-            grad_phase = m.phase_gradient(F.gradient * m.distortion)
-            spread = dr.square(m.distortion) * (variance + F.spread)
-            noise_at_point = F.point
-        else:
-            phase, grad_phase, spread = m.phase(v, None), m.phase_gradient(None), 0.0
-        colour_at_point = at_point(m, point, noise_at_point) if with_point else None
+    def colour(self, phase, point):
+        """The Gaussian-filtered colour; the phase as the prefilter's
+        (mimarble/texture/filters.py), with this filter's margin (:attr:`margin`)."""
+        grad_phase, spread = phase.gradient, phase.spread
+        phase = phase.value
         a, b = dr.abs(dr.dot(grad_phase, point.dv_dx)), dr.abs(dr.dot(grad_phase, point.dv_dy))
         linear_variance = (dr.square(a) + dr.square(b)) * (1.0 / 12.0)
         if self.model == "gaussian":
@@ -308,7 +280,7 @@ class GaussianPrefilter(Prefilter):
         else:
             variance = linear_variance + spread
             wide, share = self.gaussian.series(phase, spread, (a, b))
-        colour_at_mean_phase = m.ramp(m.stripe.t(phase))
+        colour_at_mean_phase = self.ramp(self.stripe.t(phase))
         if self.narrow == "box":
             box, defined = self.average(phase, dr.sqrt(12.0 * variance))
             narrow = dr.select(defined, box, colour_at_mean_phase)
@@ -319,4 +291,4 @@ class GaussianPrefilter(Prefilter):
             above, above_defined = self.average(phase + GAUSS_NODE * short, width)
             narrow = dr.select(below_defined & above_defined, 0.5 * (below + above),
                                colour_at_mean_phase)
-        return _blend(narrow, wide, share), colour_at_point
+        return _blend(narrow, wide, share)

@@ -21,14 +21,16 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.texture import error_budget, filters as pixel_filter, srgb_model
+from mimarble.texture.filters import Noise, Octaves, Phase
 from mimarble.texture.finite_arithmetic import finite_product
-from mimarble.parameters import (AXES, BY_NAME, COLOURS, INTEGER, MAX_LACUNARITY, PARAMETERS,
-    POSITIONS, MarbleParameters, ParameterError, checked, parameter_table, parse_positions,
-    parse_ramp, ramp_count_problem)
-from mimarble.texture.noise import Spectrum, fractal_sum, lattice_tables
+from mimarble.parameters import (AXES, BY_NAME, COLOURS, PARAMETERS, MarbleParameters,
+    ParameterError, parameter_table)
+from mimarble.texture.fbm import Spectrum, fractal_gradient
+from mimarble.texture.perlin import lattice_tables
 from mimarble.mitsuba.plugins.registration import (Kept, RGBTexture, describe, first_number,
-    plugin, transform_matrix)
-from mimarble.texture.ramp import Ramp, positions_storage, ramp_storage
+    plugin)
+from mimarble.texture.ramp import Ramp
+from mimarble.mitsuba.plugins.marble_values import HeldValues, editable_storage, host_matrix
 from mimarble.texture.stripes import STRIPES
 from mimarble.texture.mapping import (NoFootprintWarning, TextureMapping, footprints_omitted,
     without_footprint)
@@ -37,7 +39,7 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 
 @plugin("texture", "marble")
-class Marble(RGBTexture):
+class Marble(HeldValues, RGBTexture):
     __doc__ = ("Marble solid texture (Park & Park 2004): see mimarble/mitsuba/plugins/marble.py.\n\n"
                + parameter_table() + "\n\nAlso ``to_world`` (transform, identity): places the "
                "texture in the world; must be invertible; always in ``mi.traverse``, not "
@@ -59,7 +61,7 @@ class Marble(RGBTexture):
         self.stripe, self.axis_index = STRIPES[self.function], AXES.index(self.axis)
         # What mi.traverse edits in place: the table's traversed rows and to_world.
         # (ramp_positions only when given: having them is structural.)
-        self.editable = {p.name: _editable(p, getattr(params, p.name))
+        self.editable = {p.name: editable_storage(p, getattr(params, p.name))
                          for p in PARAMETERS if p.is_traversed
                          and getattr(params, p.name) is not None}
         self.ramp = Ramp(self.editable["ramp"], self.editable.get("ramp_positions"))
@@ -78,7 +80,7 @@ class Marble(RGBTexture):
         # to_world's matrix (literals, read without waiting).
         self._held = Kept({name: getattr(params, name) for name in self.editable
                            if name in BY_NAME})
-        self._held.value["to_world"] = _matrix(self.mapping.to_world)
+        self._held.value["to_world"] = host_matrix(self.mapping.to_world)
         # The host's values told of (hold), and those the host read or was given, by the
         # Dr.Jit variable they are the value of (see _host_value).
         self._told, self._pending = Kept({}), Kept({})
@@ -91,36 +93,6 @@ class Marble(RGBTexture):
             differentiable = name in BY_NAME and BY_NAME[name].in_place
             cb.put(name, value, mi.ParamFlags.Differentiable if differentiable
                    else mi.ParamFlags.NonDifferentiable)
-
-    def hold(self, name: str, value) -> None:
-        """Tell the texture the value of traversed ``name`` that was just written through
-        ``mi.traverse`` (call it after writing, before ``params.update()``), as the host
-        holds it: a number, the ramp's colours (RGB triples or its string), the positions,
-        to_world (a transform or a 4×4 matrix). A value written as a Dr.Jit array (a ramp's
-        ``Color3f``, positions) is never a literal, so without this it counts as on the
-        device and decisions that need it take the value-independent choice (every octave);
-        told, it is taken as the host's, as a fresh load takes it: the same bits as a
-        texture loaded with that value. Remembered with the Dr.Jit variable now in place,
-        so a later edit of the same key (a new variable) is not taken for it. Only a value
-        the host truly holds; it is checked at the update as a literal edit is. (The
-        loaded-scene cache tells each value it writes, mimarble/mitsuba/rendering/loaded_scenes.py.)"""
-        if name not in self.editable:
-            raise ParameterError(f"marble: {name!r} is not a traversed parameter "
-                                 f"({', '.join(self.editable)})")
-        if not dr.is_jit_v(mi.Float):    # the scalar variant reads every value anyway
-            return
-        if name == "to_world":
-            matrix = transform_matrix(value) if hasattr(value, "matrix") else value
-            host = np.array(matrix, dtype=np.float64).reshape(4, 4)
-        elif BY_NAME[name].kind == COLOURS:
-            host = parse_ramp(value, name)
-        elif BY_NAME[name].kind == POSITIONS:
-            host = parse_positions(value, name)
-        else:
-            host = value if isinstance(value, (bool, int, float)) else float(value)
-        # Until the update: should it refuse the value, the last valid one put back is
-        # still the one told of before.
-        self._pending.value[name] = _told(self.editable[name], host)
 
     def parameters_changed(self, keys=[]):
         """Check the values as ``mi.traverse`` left them, and decide what the kernel
@@ -141,41 +113,7 @@ class Marble(RGBTexture):
 
     def _changed(self, keys: set) -> None:
         jit = dr.is_jit_v(mi.Float)
-        held = dict(self._held.value)
-        for name in keys & set(self.editable):
-            held[name] = self._host_value(name)
-        if jit:
-            # Opaque, next: a new value reuses the compiled kernel, a recording of it
-            # (dr.freeze) takes every one as an input, copies too.
-            dr.make_opaque(*self.editable.values())
-        try:
-            for name in keys:
-                if held.get(name) is not None and name in BY_NAME:
-                    held[name] = checked(BY_NAME[name], held[name])
-            self._check_counts()
-            if held["to_world"] is not None:
-                self.mapping.check(held["to_world"])
-        except ParameterError:
-            self._pending = Kept({})
-            for name, value in getattr(self, "_last_valid", Kept({})).value.items():
-                # In place: mi.traverse holds these very objects.
-                mi.set_property(self.editable[name], value)
-            raise
-        self._last_valid = Kept({name: type(value)(value) for name, value in self.editable.items()})
-        self._held = Kept(held)
-        if jit:
-            # What the host holds, by the variable now in place (make_opaque gave a literal
-            # edit a new one): read again at a later update that names the key (a full
-            # update names every key) while that variable stays; none for a value on the
-            # device. A key not named keeps its entry: its variable is as it was.
-            told = dict(self._told.value)
-            for name in (keys or set(self.editable)) & set(self.editable):
-                if held.get(name) is not None:
-                    told[name] = _told(self.editable[name], held[name])
-                else:
-                    told.pop(name, None)
-            self._told, self._pending = Kept(told), Kept({})
-        values = held
+        values = self._take_edit(keys)
         on_device = {name for name, value in values.items() if value is None}
         self.ramp.changed()
         if jit:                     # the kernel reads the traversed values themselves
@@ -213,7 +151,7 @@ class Marble(RGBTexture):
         if self.pixel_filter is not None and self._ramp_size == self.ramp.size:
             self.pixel_filter.changed()
         else:                       # a filter's tables are made for a number of colours
-            self.pixel_filter = pixel_filter.choose(self, self.filter)
+            self.pixel_filter = pixel_filter.choose(self.filter, self.stripe, self.ramp)
         self._ramp_size = self.ramp.size
         # The largest ramp component: what the host holds, else read when max() asks; in
         # JIT variants also on the device (a reduction, no read back) for the kernels that
@@ -224,112 +162,6 @@ class Marble(RGBTexture):
             self._held_max = dr.max(dr.maximum(dr.maximum(c[0], c[1]), c[2]))
             dr.make_opaque(self._held_max)
         self.valid = self._kernel_check(on_device) if jit else None
-
-    def _host_value(self, name):
-        """The value of traversed ``name`` as the table holds it, if the host holds it —
-        told (:meth:`hold`, or held since it was read or loaded) for the very variable in
-        place, or a literal — or it is structural (read: it decides the kernel); else None."""
-        value = self.editable[name]
-        if dr.is_jit_v(mi.Float):
-            for told in (self._pending.value.get(name), self._told.value.get(name)):
-                if told is not None and told[0] == _indices(value):
-                    return told[2]
-            if name != "octaves" and not _literal(value):
-                return None
-        if name == "to_world":
-            return _matrix(value)
-        parameter = BY_NAME[name]
-        if parameter.kind == COLOURS:
-            return tuple(map(tuple, self.ramp.numpy().tolist()))
-        if parameter.kind == POSITIONS:
-            return tuple(self.ramp.positions_numpy().tolist())
-        number = first_number(value)
-        return int(number) if parameter.kind == INTEGER and number.is_integer() else number
-
-    def _check_counts(self) -> None:
-        """The rules the host checks on every edit, from the arrays' widths (never a
-        read): the ramp's number of colours, one position for each."""
-        lo, hi = BY_NAME["ramp"].bounds
-        count = dr.width(self.editable["ramp"]) if dr.is_jit_v(mi.Float) \
-            else len(self.ramp.numpy())
-        if not lo <= count <= hi:
-            raise ParameterError(f"marble: ramp has {count} colours; it holds {lo}..{hi}")
-        if "ramp_positions" in self.editable:
-            positions = dr.width(self.editable["ramp_positions"]) \
-                if dr.is_jit_v(mi.Float) else len(self.ramp.positions_numpy())
-            problem = ramp_count_problem(range(count), range(positions))
-            if problem:
-                raise ParameterError(f"marble: {problem}")
-
-    def _kernel_check(self, on_device: set):
-        """The table's rules for the values on the device, as one opaque Dr.Jit Bool the
-        kernel reads (True when the host checked every value: the same kernel either way,
-        so that a first edit on the device compiles nothing new): scale > 0, period and
-        distortion finite, 0 < gain < 1, 1 < lacunarity ≤ MAX_LACUNARITY, every ramp
-        component finite, positions in [0, 1] and non-decreasing, to_world finite and
-        invertible (as texture_mapping.check_invertible). Its reductions run on the
-        device; nothing is read back."""
-        e = {name: dr.detach(value) for name, value in self.editable.items()}
-        rules = []
-        if "scale" in on_device:
-            rules.append((e["scale"] > 0.0) & dr.isfinite(e["scale"]))
-        for name in ("period", "distortion"):
-            if name in on_device:
-                rules.append(dr.isfinite(e[name]))
-        if "gain" in on_device:
-            rules.append((e["gain"] > 0.0) & (e["gain"] < 1.0))
-        if "lacunarity" in on_device:
-            rules.append((e["lacunarity"] > 1.0) & (e["lacunarity"] <= MAX_LACUNARITY))
-        if "ramp" in on_device:
-            c = e["ramp"]
-            rules.append(dr.all(dr.isfinite(c[0]) & dr.isfinite(c[1]) & dr.isfinite(c[2])))
-        if "ramp_positions" in on_device:
-            p = e["ramp_positions"]
-            rules.append(dr.all((p >= 0.0) & (p <= 1.0)))
-            if dr.width(p) > 1:
-                k = dr.arange(mi.UInt32, dr.width(p) - 1)
-                rules.append(dr.all(dr.gather(mi.Float, p, k + 1) >= dr.gather(mi.Float, p, k)))
-        if "to_world" in on_device:
-            m = e["to_world"].matrix
-            finite = mi.Bool(True)
-            for i in range(4):
-                for j in range(4):
-                    finite &= dr.isfinite(m[i][j])
-            linear = mi.Matrix3f(*(m[i][j] for i in range(3) for j in range(3)))
-            largest = dr.max(dr.abs(mi.Vector3f(*(dr.max(dr.abs(mi.Vector3f(
-                m[i][0], m[i][1], m[i][2]))) for i in range(3)))))
-            rules.append(finite & (largest > 0.0)
-                         & (dr.abs(dr.det(linear)) > dr.power(1e-6 * largest, 3)))
-        valid = mi.Bool(True)
-        for rule in rules:
-            valid = valid & rule
-        dr.make_opaque(valid)
-        return valid
-
-    def check_values(self) -> None:
-        """Every traversed value checked on the host with the table's rules, reading back
-        those on the device (a wait): ParameterError naming the first broken rule, as an
-        edit the host holds gets at ``params.update()``. Nothing is changed."""
-        for name in self.editable:
-            if name in BY_NAME:
-                value = self._read_back(BY_NAME[name])
-                checked(BY_NAME[name], value)
-        self._check_counts()
-        if "ramp_positions" in self.editable:
-            problem = ramp_count_problem(self.ramp.numpy(), self.ramp.positions_numpy())
-            if problem:
-                raise ParameterError(f"marble: {problem}")
-        self.mapping.check(_matrix(self.mapping.to_world, read=True))
-
-    def _read_back(self, parameter):
-        """A traversed parameter's value as the table holds it, read back now."""
-        value = self.editable[parameter.name]
-        if parameter.kind == COLOURS:
-            return self.ramp.numpy()
-        if parameter.kind == POSITIONS:
-            return tuple(self.ramp.positions_numpy().tolist())
-        number = first_number(value)
-        return int(number) if parameter.kind == INTEGER and number.is_integer() else number
 
     def recording_key(self) -> tuple:
         """Everything outside Dr.Jit's variables that decides the code ``eval`` traces: a
@@ -386,30 +218,57 @@ class Marble(RGBTexture):
     def phase(self, v, F=None):
         """φ = period·v_a + distortion·F (cosine: v_a + distortion·F); F None: no noise."""
         noise = 0.0 if F is None else finite_product(self.distortion, F)
-        return self.stripe.phase(v[self.axis_index], self.period, noise)
+        return self.stripe.phase(v, self.axis_index, self.period, noise)
 
-    def phase_gradient(self, noise_gradient=None):
+    def phase_gradient(self, v, noise_gradient=None):
         """∇_v φ, given distortion·∇F (None: no noise)."""
-        return self.stripe.phase_gradient(self.axis_index, self.period, noise_gradient)
+        return self.stripe.phase_gradient(v, self.axis_index, self.period, noise_gradient)
 
     def eval_3(self, si, active=True):
         """The colour at ``si``; 0 where ``active`` is False, as Mitsuba's ``bitmap``
         gives (every lookup is in bounds by construction, so none needs the mask).
-        ``eval`` is this colour, or in spectral variants its spectrum (RGBTexture.eval)."""
+        ``eval`` is this colour, or in spectral variants its spectrum (RGBTexture.eval).
+        The formula, in order; the filter decides how a pixel differs from a point."""
         if self.ramp.size == 1:            # a constant: no noise, no ramp interpolation
             return self._kept_attached(dr.select(active, dr.select(
                 self._defined(True), self.ramp.constant(dr.width(si.p)), dr.nan), 0.0))
+        self._warn_without_footprint(si)
+        point = self.mapping.map(si, self.pixel_filter.needs_footprint)  # v = scale·M⁻¹·p
+        noise = self.pixel_filter.noise(point, self._octaves())           # F(v)
+        phase = self._phase(point.v, noise)                   # φ = period·v_a + distortion·F
+        colour = self.pixel_filter.colour(phase, point)       # ramp(t(φ)), or its pixel mean
+        return self._shown(colour, point, active)
+
+    def _octaves(self) -> Octaves | None:
+        """The octave sum F the filter computes (None: no noise needed)."""
+        return Octaves(self.octaves_evaluated, self.turbulence, self.spectrum) \
+            if self.needs_noise else None
+
+    def _phase(self, v, noise: Noise) -> Phase:
+        """φ from the filter's noise; over the pixel also ∇φ and σ²_φ = distortion²·σ²."""
+        value = self.phase(v, noise.value)
+        if not noise.over_pixel:
+            return Phase(value)
+        if noise.value is None:
+            return Phase(value, self.phase_gradient(v), 0.0)
+        return Phase(value, self.phase_gradient(v, noise.gradient * self.distortion),
+                     dr.square(self.distortion) * noise.spread)
+
+    def _shown(self, colour, point, active):
+        """The colour as eval returns it: NaN at a NaN or infinite point — decided here once
+        rather than left to how each backend's min/max and float→int conversions treat
+        NaN (they differ) — or while a value on the device breaks its rule; 0 where
+        ``active`` is False."""
+        return self._kept_attached(dr.select(active, dr.select(
+            self._defined(point.finite), colour, dr.nan), 0.0))
+
+    def _warn_without_footprint(self, si) -> None:
+        """Once per texture: a filter that needs a footprint, given none."""
         if self.pixel_filter.needs_footprint and not self._quiet_about_footprints.value \
                 and not footprints_omitted():
             self._quiet_about_footprints.value = True
             if without_footprint(si):
-                warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=2)
-        point = self.mapping.map(si, self.pixel_filter.needs_footprint)
-        # A NaN or infinite point gets a NaN colour, decided here once rather than left to
-        # how each backend's min/max and float→int conversions treat NaN (they differ).
-        colour = dr.select(self._defined(point.finite), self.pixel_filter.colour(self, point),
-                           dr.nan)
-        return self._kept_attached(dr.select(active, colour, 0.0))
+                warnings.warn(self._no_footprint_message(), NoFootprintWarning, stacklevel=3)
 
     def _kept_attached(self, colour):
         """``colour``, plus 0·p for each in-place parameter p being differentiated: where
@@ -454,9 +313,11 @@ class Marble(RGBTexture):
             colour = self.eval_3(si, active)          # (kept attached there)
             return colour, colour
         point = self.mapping.map(si, True)
-        colour, alternate = self.pixel_filter.colour_and_alternate(self, point)
-        return tuple(self._kept_attached(dr.select(active, dr.select(
-            self._defined(point.finite), c, dr.nan), 0.0)) for c in (colour, alternate))
+        noise, other = self.pixel_filter.noise_and_alternate(point, self._octaves())
+        phase = self._phase(point.v, noise)
+        alternate = None if other is None else self._phase(point.v, other)
+        colour, alternate = self.pixel_filter.colour_and_alternate(phase, alternate, point)
+        return tuple(self._shown(c, point, active) for c in (colour, alternate))
 
     def _no_footprint_message(self) -> str:
         name = f" {self.id()!r}" if self.id() else ""
@@ -481,58 +342,15 @@ class Marble(RGBTexture):
             return dr.zeros(mi.Vector2f, dr.width(si.p))
         v = self.mapping.point(si.p)
         if self.needs_noise:
-            F = fractal_sum(v, self.octaves_evaluated, self.turbulence, gradient=True,
-                            spectrum=self.spectrum)
-            phase, grad_phase = self.phase(v, F.value), self.phase_gradient(F.gradient
-                                                                            * self.distortion)
+            F = fractal_gradient(v, self.octaves_evaluated, self.turbulence, self.spectrum)
+            phase = self.phase(v, F.value)
+            grad_phase = self.phase_gradient(v, F.gradient * self.distortion)
         else:
-            phase, grad_phase = self.phase(v), self.phase_gradient()
+            phase, grad_phase = self.phase(v), self.phase_gradient(v)
         slope = mi.luminance(self.ramp.slope(self.stripe.t(phase)))
         gradient = self.mapping.gradient_to_world(
             (slope * self.stripe.slope(phase) * self.scale) * grad_phase)
         return dr.select(self._defined(True), mi.Vector2f(dr.dot(gradient, si.dp_du),
                                                          dr.dot(gradient, si.dp_dv)), dr.nan)
 
-
-def _literal(value) -> bool:
-    """Whether every component of a JIT value is a literal: a number the host holds (a
-    Python number set through ``mi.traverse`` is one), read without waiting."""
-    if isinstance(value, (mi.Transform4f, mi.ScalarTransform4f)) or hasattr(value, "matrix"):
-        value = value.matrix
-    if dr.depth_v(value) > 1:
-        return all(_literal(value[k]) for k in range(len(value)))
-    return value.state == dr.VarState.Literal
-
-
-def _indices(value) -> tuple:
-    """The Dr.Jit variables (JIT and AD indices) a traversed value is made of."""
-    return tuple(dr.detail.collect_indices(value))
-
-
-def _told(value, host) -> tuple:
-    """(the variables of ``value``, a copy of it holding them — so none is freed and its
-    index reused by another value while this is kept —, the ``host`` value)."""
-    return _indices(value), type(value)(value), host
-
-
-def _matrix(transform, read: bool = False) -> np.ndarray | None:
-    """``transform``'s 4×4 matrix as float64, if its entries are literals (read without
-    waiting) or ``read``; else None (on the device)."""
-    if dr.is_jit_v(mi.Float) and not read and not _literal(transform):
-        return None
-    return transform_matrix(transform) if read or not dr.is_jit_v(mi.Float) else \
-        np.array([[transform.matrix[i][j][0] for j in range(4)] for i in range(4)],
-                 dtype=np.float64)
-
-
-def _editable(parameter, value):
-    """A traversed parameter's value in a container Mitsuba can write into in every
-    variant: ``mi.Float`` in JIT variants; in scalar_rgb, where mi.Float is a Python
-    float, a one-element ``ArrayXf``; the ramp's own (mimarble/texture/ramp.py). An integer is
-    held as a float too, so that an edit to 2.5 is seen and refused, not truncated."""
-    if parameter.kind == COLOURS:
-        return ramp_storage(value)
-    if parameter.kind == POSITIONS:
-        return positions_storage(value)
-    return mi.Float(value) if dr.is_jit_v(mi.Float) else dr.scalar.ArrayXf([value])
 
