@@ -113,6 +113,19 @@ class NoFootprintWarning(UserWarning):
     """A filtered marble was evaluated without ray differentials: its filter did nothing."""
 
 
+def no_footprint_message(texture_id: str, filter: str) -> str:
+    """The warning of a marble (its id, or "") whose ``filter`` needs a pixel footprint
+    and was given none."""
+    name = f" {texture_id!r}" if texture_id else ""
+    return (f"marble{name}: filter={filter!r} has no pixel footprint to filter "
+            f"over: the integrator computed no ray differentials (si.duv_dx, si.duv_dy "
+            f"are 0), so the marble is its colour at the point, as filter='none'. "
+            f"mimarble's 'whitted' provides them; Mitsuba's own integrators ('path', "
+            f"'prb', 'direct', ...) do not (docs/mitsuba-scene.md). Said once per "
+            f"texture; a symbolic call traces every live instance, so this may be a "
+            f"marble of another scene still loaded.")
+
+
 class _Omitted:
     """Set while an integrator traces materials without footprints on purpose (whitted,
     when none of its scene's materials filters, still traces every live material in its

@@ -4,8 +4,9 @@ A marble's parameters are edited in place through ``mi.traverse``. The host know
 edited value when it is a literal (a Python number), or was told it (:meth:`hold`);
 otherwise it is on the device, and the rules the host cannot check there are checked in
 the kernel (:meth:`HeldValues._kernel_check`: NaN everywhere while one is broken).
-:class:`HeldValues` is that bookkeeping, the base of the texture
-(mimarble/mitsuba/plugins/marble.py), which decides from the values what it evaluates.
+:class:`HeldValues` is that bookkeeping, the base of the texture's update path
+(mimarble/mitsuba/plugins/marble_update.py), which decides from the values what the texture
+evaluates.
 """
 
 from __future__ import annotations
