@@ -39,16 +39,14 @@ variables, a number ``weight`` set as a Python number (a literal) is decided aga
 it, and any other edit of a constant turns the shortcut off. Those decisions are used
 only while no operand has changed since the expression was last told: an edit that
 reached only another parent falls back to evaluating everything. Equal operands inside one ``channel_material`` are evaluated once
-(:func:`shared_evaluations`); elsewhere Dr.Jit's common-subexpression elimination
+(:func:`~mimarble.mitsuba.plugins.shared_evaluations.shared_evaluations`); elsewhere Dr.Jit's common-subexpression elimination
 merges identical unrolled code.
 """
 
 from __future__ import annotations
 
-import contextlib
 import functools
 import operator
-import threading
 from typing import NamedTuple
 
 import numpy as np
@@ -57,6 +55,9 @@ from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import (Kept, RGBTexture, describe, held_maximum,
     luminance, numbers, plugin, recording_key)
 from ..properties import numbered_properties
+# Equal operands evaluated once per shading point (re-exported: the material reads them here).
+from .shared_evaluations import (evaluate, evaluate_alternate, evaluate_primary,  # noqa: F401
+    shared_evaluations, textures_within)
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -74,83 +75,6 @@ class OperandState(NamedTuple):
 
 class ChannelExpressionError(ValueError):
     """An invalid ``channel_expression``; the message names the parameter."""
-
-
-# ---------------------------------------------------------------------------
-# Equal operands, evaluated once per shading point
-
-#: The evaluations of the current shading call, per thread: Mitsuba's scalar variant
-#: shades samples on several threads at once, each in its own call.
-_shading = threading.local()
-
-
-@contextlib.contextmanager
-def shared_evaluations(alternates: bool = False):
-    """Within this context :func:`evaluate` evaluates each texture object once (the
-    ``channel_material`` opens one per shading call: its channels share a point).
-    ``alternates``: marbles also give their second estimate (``Marble.eval_and_alternate``),
-    which :func:`evaluate_alternate` then combines."""
-    outer = (getattr(_shading, "evaluations", None), getattr(_shading, "alternates", None),
-             getattr(_shading, "alternate_walk", False))
-    _shading.evaluations, _shading.alternates = {}, ({} if alternates else None)
-    _shading.alternate_walk = False
-    try:
-        yield
-    finally:
-        _shading.evaluations, _shading.alternates, _shading.alternate_walk = outer
-
-
-def evaluate(texture, si, active=True):
-    """``texture.eval(si, active)``, once per texture within :func:`shared_evaluations`
-    (inside :func:`evaluate_alternate`: the texture's second estimate)."""
-    evaluations = getattr(_shading, "evaluations", None)
-    if evaluations is None:
-        return texture.eval(si, active)
-    key = id(texture)
-    alternates = _shading.alternates
-    if _shading.alternate_walk:
-        if key not in alternates:
-            # An expression again, from its operands' second estimates; a marble's was
-            # kept with its colour; any other texture (rgb, bitmap) has one estimate only.
-            if isinstance(texture, ChannelExpression):
-                alternates[key] = texture.eval(si, active)
-            else:
-                alternates.setdefault(key, evaluate_primary(texture, si, active))
-        return alternates[key]
-    return evaluate_primary(texture, si, active)
-
-
-def evaluate_primary(texture, si, active=True):
-    """The texture's colour, once within :func:`shared_evaluations`; a marble's second
-    estimate kept beside it when alternates are asked for."""
-    evaluations, alternates = _shading.evaluations, _shading.alternates
-    key = id(texture)
-    if key not in evaluations:
-        if alternates is not None and hasattr(texture, "eval_and_alternate"):
-            evaluations[key], alternates[key] = texture.eval_and_alternate(si, active)
-        else:
-            evaluations[key] = texture.eval(si, active)
-    return evaluations[key]
-
-
-def evaluate_alternate(texture, si, active=True):
-    """Within ``shared_evaluations(alternates=True)``, after :func:`evaluate` of the same
-    texture: its second estimate — a marble's own, an expression's combined from its
-    operands' (the same arithmetic), any other texture's colour."""
-    _shading.alternate_walk = True
-    try:
-        return evaluate(texture, si, active)
-    finally:
-        _shading.alternate_walk = False
-
-
-def textures_within(texture):
-    """The texture and, for an expression, every texture inside it (None: nothing)."""
-    if texture is None:
-        return
-    yield texture
-    for inner in list(getattr(texture, "operands", ())) + [getattr(texture, "weight", None)]:
-        yield from textures_within(inner)
 
 
 # ---------------------------------------------------------------------------
