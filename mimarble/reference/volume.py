@@ -33,7 +33,7 @@ restricted to what translucent scenes need:
   ray that leaves the scene, except camera rays: ``hide_emitters``); spherical and
   rectangular area lights as emitting shapes (black, they end the path) of the radiance
   that path mode gives them (:func:`area_radiance`, the rule of
-  ``mimarble.mitsuba.translate.scene_dict.area_light_dict`` re-derived from the model): a sphere of
+  ``mimarble.mitsuba.translate.lights.area_light_dict`` re-derived from the model): a sphere of
   radius R emits L = I·d²/R² (d the distance from its centre to the camera's look-at
   point), so that its radiant intensity π·R²·L is the path-mode point light's I·π·d²; a
   rectangle of area S emits L = I·π·d²/(S·cos θ₀) on the side facing the look-at point

@@ -43,7 +43,7 @@ writes the XML itself:
 What XML cannot say: a transform's inverse. ``mi.ScalarTransform4f`` carries the inverse it
 was made with; an XML ``<matrix>`` is inverted in double precision, then rounded to float32
 when the plugin reads it. The translator gives the transforms that are read through their
-inverse (a ``disk``'s, a mesh's, an object-space marble's: mimarble/mitsuba/translate/scene_dict.py,
+inverse (a ``disk``'s, a mesh's, an object-space marble's: mimarble/mitsuba/translate/shapes.py,
 ``_transform``) exactly that inverse, and the sensor, the sphere and the marble read none,
 so every shipped scene renders from its XML as from its dict, bit for bit (tested); a dict
 made elsewhere may differ in the last bit (:func:`xml_transform` makes what XML would). The

@@ -24,7 +24,7 @@ radius, as inputs; the shape and the count are its :meth:`recording_key`.
 
 Under Mitsuba's own integrators it is a set of point lights (``sample_direction``
 picks one sample point at random); the translator's path mode uses Mitsuba's ``area``
-emitters on a ``rectangle`` or ``sphere`` shape instead (translate.py).
+emitters on a ``rectangle`` or ``sphere`` shape instead (translate/lights.py).
 
 .. list-table::
    :header-rows: 1

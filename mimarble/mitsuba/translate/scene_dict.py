@@ -3,7 +3,8 @@ sensor, then the channels' textures (textures.py), the materials' BSDFs (materia
 the shapes (shapes.py) with a translucent material's medium (media.py), the lights
 (lights.py).
 
-Every name this module held before it was split is importable from it still.
+What code, tests and docs imported from this module before it was split is importable
+from it still: ``__all__``, and the private ``_sensor`` (here) and ``_transform``.
 """
 
 from __future__ import annotations
@@ -39,9 +40,6 @@ __all__ = ["AREA_LIGHT_POINT_SIZE", "CALCITE_IOR", "Float32RangeWarning", "LOAD_
 #: a child (a texture under the key ``id`` became the scene's id: "std::bad_cast"). No
 #: top-level entry takes one: a named texture called ``id`` gets the id ``id_2``.
 LOAD_DICT_KEYS = ("type", "id")
-
-
-
 
 
 def _sensor(scene: model.Scene, sampler: dict) -> dict:

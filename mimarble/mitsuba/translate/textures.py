@@ -4,7 +4,7 @@ with its error budget, and the ids of the textures a scene shares.
 Every distinct marble channel becomes one top-level texture referenced by id, so a marble
 used for both ambient and diffuse is one texture, evaluated once; a channel that is one of
 the file's named textures (``Scene.textures``) has its name as the id (made a valid one:
-``white_veins``), the others ``texture_0``, …. Constant channels are plain ``rgb`` textures:
+``white_veins``), the others ``texture_0``, …. Constant channels are plain ``srgb`` textures:
 no noise code is generated for them.
 """
 
