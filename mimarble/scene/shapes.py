@@ -1,10 +1,16 @@
-"""The shapes of a scene: sphere, plane, box and mesh, each checked as the parser checks it."""
+"""The shapes of a scene: sphere, plane, box and mesh, each checked as the parser checks it.
+
+Each answers the shape protocol the renderers and tools read: ``object_to_world()`` (its
+object space, as 4×4 rows: geometry.py's docstring says each kind's), ``corners()`` (its
+eight world corners, None where unbounded or unknown) and ``bounds()`` ((centre, radius)
+of a sphere around it, None where unbounded). Its kind's record is in shape_kinds.py.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from . import rules
+from . import geometry, rules, transforms
 from .channels import _transform_steps
 from .nodes import Pos, Vec3, _number, _pos, _refuse, _shown, _store, _vector
 
@@ -25,6 +31,19 @@ class Sphere:
         radius = _number(self.radius, "radius")
         _refuse(rules.radius_problem(radius), self.radius)
         _store(self, center=_vector(self.center, "center"), radius=radius)
+
+    def object_to_world(self) -> geometry.Matrix:
+        """The unit sphere at the origin, placed by translate(center)·scale(radius)."""
+        r = self.radius
+        return geometry._placed(((r, 0.0, 0.0), (0.0, r, 0.0), (0.0, 0.0, r)), self.center)
+
+    def corners(self) -> list:
+        """The corners of the cube around the sphere, in world space."""
+        return [tuple(c + s * self.radius for c, s in zip(self.center, (x, y, z)))
+                for x in (-1.0, 1.0) for y in (-1.0, 1.0) for z in (-1.0, 1.0)]
+
+    def bounds(self):
+        return self.center, self.radius
 
 
 def _material_name(shape) -> None:
@@ -54,6 +73,16 @@ class Plane:
             raise ValueError(f"{problem}, found {_shown(self.normal)}")
         _store(self, point=_vector(self.point, "point"), normal=normal)
 
+    def object_to_world(self) -> geometry.Matrix:
+        """The plane y = 0, normal +y, placed by geometry.plane_frame then translate(point)."""
+        return geometry._placed(geometry.plane_frame(self.normal), self.point)
+
+    def corners(self) -> None:
+        return None                  # unbounded
+
+    def bounds(self) -> None:
+        return None                  # unbounded
+
 
 @dataclass(frozen=True)
 class Box:
@@ -75,6 +104,16 @@ class Box:
         if problem:
             raise ValueError(f"{problem}, found min {_shown(lo)} max {_shown(hi)}")
         _store(self, min=lo, max=hi, transform=_transform_steps(self.transform, "Box"))
+
+    def object_to_world(self) -> geometry.Matrix:
+        return transforms.compose(self.transform)
+
+    def corners(self) -> list:
+        return geometry.box_corners(self)
+
+    def bounds(self):
+        """Around its eight world corners."""
+        return geometry._around(geometry.box_corners(self))
 
 
 #: The mesh file formats, by file name ending.
@@ -114,6 +153,23 @@ class Mesh:
     def location(self) -> str:
         """The file to read: ``path`` when the parser found it, else ``file``."""
         return self.path or self.file
+
+    def object_to_world(self) -> geometry.Matrix:
+        return transforms.compose(self.transform)
+
+    def corners(self) -> list | None:
+        """geometry.mesh_corners: None where the file cannot be read."""
+        return geometry.mesh_corners(self)
+
+    def bounds(self):
+        """Around its eight world corners; a mesh whose file cannot be read, the
+        translation of its transform, radius 0 (the one point known without it; the
+        parser refuses such a scene)."""
+        corners = geometry.mesh_corners(self)
+        if corners is not None:
+            return geometry._around(corners)
+        m = transforms.compose(self.transform)
+        return (m[0][3], m[1][3], m[2][3]), 0.0
 
 
 #: Every kind of shape, in the order a scene lists them (and Mitsuba's ids number them).
