@@ -49,20 +49,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 import re
 import warnings
 
-import numpy as np
-
 from mimarble.texture import error_budget
 from mimarble.parameters import checked
-from mimarble.contract import FLOAT32_EPSILON, FLT_MAX, RENDER_MODES, T_MIN_REL, VOLPATH_MAX_DEPTH
+from mimarble.contract import FLT_MAX, RENDER_MODES, VOLPATH_MAX_DEPTH
 from mimarble.scene import geometry, model
 from mimarble.scene.errors import SceneError
 from mimarble.scene.image_header import check_image_maps
 from mimarble.scene.mesh_files import check_mesh_files
 from mimarble.scene.rules import cross, shortened, spp_problem
+# Each kind of shape as Mitsuba sees it (shapes.py); the names stay importable from here.
+from .shapes import (_EMBREE_LIMIT, _FACE_LIMIT, _FAR_CLIP_MAX, _LIGHT_DISTANCE_LIMIT,  # noqa: F401
+                     _NEAREST_HIT_REL, Float32RangeWarning, _box_distance, _facing_out, _largest,
+                     _product, _reach_problem, _shape_reach, _transform, _where, clip_planes,
+                     cube_to_world, disk_to_world, float32_range_problems, in_object_space,
+                     is_two_sided, shape_dict)
 
 MODES = RENDER_MODES
 #: The keys ``mi.load_dict`` reads as a dict's own — its plugin type and its id — never as
@@ -154,199 +157,6 @@ def _marble_gains(scene: model.Scene) -> dict:
             for marble in error_budget.marble_gains(channel):
                 gains[marble] = max(gains.get(marble, 1.0), total)
     return gains
-
-
-# The reference tracer accepts hits from t = T_MIN_REL·(1 + max|eye_k|) on.
-_NEAREST_HIT_REL = T_MIN_REL
-
-
-def _box_distance(point, corners) -> float:
-    """The distance from ``point`` to the axis-aligned box around ``corners`` (0 inside)."""
-    gaps = [max(min(c[i] for c in corners) - point[i], 0.0, point[i] - max(c[i] for c in corners))
-            for i in range(3)]
-    return math.sqrt(math.fsum(g * g for g in gaps))
-
-
-def _shape_reach(scene: model.Scene) -> tuple[list[float], list[float]]:
-    """(nearest, farthest): for every shape but the meshes, how near to the eye its surface
-    may come and how far from it it reaches (``clip_planes``)."""
-    eye = scene.camera.eye
-    distances = [math.dist(s.center, eye) for s in scene.spheres]
-    nearest = [abs(d - s.radius) for d, s in zip(distances, scene.spheres)]
-    farthest = [d + s.radius for d, s in zip(distances, scene.spheres)]
-    for plane in scene.planes:
-        centre, radius = geometry.plane_disk(scene, plane)
-        height = math.dist(centre, eye)       # the disk's centre is the eye's foot on it
-        nearest.append(height)
-        farthest.append(math.hypot(height, radius))     # its rim
-    for box in scene.boxes:
-        corners = geometry.box_corners(box)
-        nearest.append(_box_distance(eye, corners))
-        farthest.append(max(math.dist(c, eye) for c in corners))
-    return nearest, farthest
-
-
-def clip_planes(scene: model.Scene) -> tuple[float, float]:
-    """(near_clip, far_clip) that keep every shape in view.
-
-    Mitsuba's defaults (0.01, 10 000) drop geometry the scene language allows.
-    A sphere of centre c and radius r lies between ||c − e| − r| and |c − e| + r
-    of the eye e (inside it too); a plane, rendered as a disk of radius R around the
-    eye's foot on it (``geometry.plane_disk``), between the eye's height h above it and
-    √(h² + R²), its rim; a box between the eye's distance to its world bounding box (0
-    inside) and its farthest corner. So: far just past the farthest of these, near half
-    the nearest — never below the reference tracer's smallest hit distance, so an eye on
-    a surface still sees what the reference sees. A mesh's vertices are in its file, not
-    known before Mitsuba loads it: a scene with meshes gets that floor as its near and
-    the cap below as its far (which costs nothing, see next).
-
-    How ``perspective`` uses them (src/sensors/perspective.cpp): a ray starts on
-    the near plane, o = e + d·near/d_z, with maxt = (far − near)/d_z, and its
-    direction comes from the inverse projection, which Mitsuba writes down in
-    closed form (``Transform::perspective``): a film point maps to
-    (x·tan·near, y·tan·near, near), then normalised, so the ratio far/near costs
-    no precision however large it is. What float32 does not tolerate is an
-    infinite far (> 3.4e38): the inverse's term (near − far)/(far·near) becomes
-    inf/inf = NaN and so does every ray. So far is capped at 2¹²⁵ (4.3e37); only
-    a shape beyond Embree's ±1.8e18 (warned about below) gets near it. Near is
-    at least 1e-6, far at least 2·near, both normal float32 numbers.
-    """
-    eye = scene.camera.eye
-    if not scene.shapes():
-        return 0.01, 1e4   # Mitsuba's defaults: nothing to see either way
-    floor = _NEAREST_HIT_REL * (1.0 + max(map(abs, eye)))
-    if scene.meshes:
-        return floor, _FAR_CLIP_MAX
-    nearest, farthest = _shape_reach(scene)
-    near = max(0.5 * min(nearest), floor)
-    far = min(max(max(farthest) * (1.0 + 1e-3), 2.0 * near), _FAR_CLIP_MAX)
-    return near, far
-
-
-#: The largest far_clip (see clip_planes): finite in float32 with room to spare.
-_FAR_CLIP_MAX = 2.0 ** 125
-
-
-class Float32RangeWarning(UserWarning):
-    """A shape, eye or light beyond what Mitsuba's float32 (and Embree's) arithmetic reaches."""
-
-
-# float32's unit roundoff·2: the scale of Mitsuba's intersection error on a sphere is
-# 2⁻²³·(max|c_k| + r). Measured (docs/rendering-model.md, "Large spheres"): a ground sphere
-# agrees with the reference while that error is up to 1.6× the eye's distance to the
-# surface, and fails from 3.2× on; the warning comes from 1×.
-_FLOAT32_ERROR_SCALE = FLOAT32_EPSILON
-
-# Embree, Mitsuba's ray tracer in the scalar and LLVM variants, takes coordinates only in
-# ±1.844e18 (its FLT_LARGE): a sphere whose bounding box reaches past it is dropped, and a
-# ray from beyond it meets nothing (measured: radius 1.8e18 at the origin is hit, 1.85e18
-# is not). Warned from 1.8e18.
-_EMBREE_LIMIT = 1.8e18
-
-# A point light's weight I/d² is a float32 below 2⁻¹²⁶ (flushed to zero) once d ≥ 2⁶³
-# ≈ 9.2e18: the light then lights nothing (measured: 6.1e18 right, 9.8e18 dark). Warned
-# from 2⁶² (a light's distance to the farthest point of any sphere).
-_LIGHT_DISTANCE_LIMIT = 2.0 ** 62
-
-
-# A triangle's normal is normalize(e₁ × e₂) in float32: its squared length overflows once
-# |e₁ × e₂| (twice the triangle's area) reaches √FLT_MAX ≈ 1.8e19, and the normal is 0.
-_FACE_LIMIT = 2.0 ** 64
-
-
-def _where(scene: model.Scene, node) -> str:
-    return f"{scene.source or '<scene>'}:{node.pos or '?'}"
-
-
-def _reach_problem(where: str, what: str, extent: float, placed: float, error: float,
-                   distance: float | None) -> str | None:
-    """The message of one shape (``what``) reaching ``extent`` from the origin (its
-    coordinates' largest magnitude ``placed``), whose float32 placement error ``error``
-    may reach the eye's distance to it (None: not checked): Embree's range first."""
-    if extent > _EMBREE_LIMIT:
-        return (f"{where}: {what} reaches {extent:g} from the origin, beyond ±{_EMBREE_LIMIT:g}, "
-                f"the coordinates Mitsuba's CPU ray tracer (Embree) accepts: Mitsuba drops it "
-                f"(docs/rendering-model.md)")
-    if distance is not None and error > distance:
-        return (f"{where}: {what} at {placed:g} from the origin is beyond float32's reach from "
-                f"this eye: Mitsuba's intersection error (~{error:.3g}) exceeds the eye's distance "
-                f"to its surface ({distance:.3g}), so the Mitsuba image may be wrong there (the "
-                f"reference tracer is float64; docs/rendering-model.md)")
-    return None
-
-
-def _largest(v) -> float:
-    return max(map(abs, v))
-
-
-def float32_range_problems(scene: model.Scene) -> list[str]:
-    """One message per shape, eye or light that Mitsuba cannot place precisely enough.
-
-    A shape which reaches past Embree's coordinate range — a sphere, a plane's disk
-    (``geometry.plane_disk``), a box's corners, a mesh's (the world corners of its file's
-    bounds, ``geometry.mesh_corners``) — or whose float32 intersection error reaches the
-    eye's distance to it: a sphere's, 2⁻²³·(max|c_k| + r); a plane's, 2⁻²³·max|c_k| of its
-    disk's centre c (where Mitsuba's float32 numbers put the plane), against the eye's
-    height above it; a box's or a mesh's, 2⁻²³ times its largest corner coordinate,
-    against the eye's distance to the axis-aligned box around those corners (a lower
-    bound of its distance to the surface; not checked from inside it), or a box whose
-    faces are so large that Mitsuba's float32 normal of them overflows; an eye past that
-    range; a light so far from the shapes that its float32 1/d² underflows.
-    """
-    problems = []
-    eye = scene.camera.eye
-    if _largest(eye) > _EMBREE_LIMIT:
-        problems.append(
-            f"{_where(scene, scene.camera)}: the eye at {_largest(eye):g} from the origin is "
-            f"beyond ±{_EMBREE_LIMIT:g}, the coordinates Mitsuba's CPU ray tracer (Embree) "
-            f"accepts: its rays meet nothing there (docs/rendering-model.md)")
-    lit = []        # (point, radius) around which each shape lies, for the lights' check
-    for sphere in scene.spheres:
-        extent = _largest(sphere.center) + sphere.radius
-        problems.append(_reach_problem(
-            _where(scene, sphere), f"sphere of radius {sphere.radius:g}", extent,
-            _largest(sphere.center), _FLOAT32_ERROR_SCALE * extent,
-            abs(math.dist(sphere.center, eye) - sphere.radius)))
-        lit.append((sphere.center, sphere.radius))
-    for plane in scene.planes:
-        centre, radius = geometry.plane_disk(scene, plane)
-        problems.append(_reach_problem(
-            _where(scene, plane), f"plane (rendered as a disk of radius {radius:.3g})",
-            _largest(centre) + radius, _largest(centre), _FLOAT32_ERROR_SCALE * _largest(centre),
-            math.dist(centre, eye)))
-        lit.append((centre, 0.0))
-    for shape in scene.boxes + scene.meshes:
-        box = type(shape) is model.Box
-        corners = geometry.box_corners(shape) if box else geometry.mesh_corners(shape)
-        if corners is None:                 # a mesh file unread: its transform's origin
-            corners = [geometry.sphere_bounds(shape)[0]]
-        extent = max(map(_largest, corners))
-        distance = _box_distance(eye, corners) if len(corners) == 8 else 0.0
-        problems.append(_reach_problem(_where(scene, shape), "box" if box else "mesh", extent,
-                                       extent, _FLOAT32_ERROR_SCALE * extent,
-                                       distance if distance > 0 else None))
-        lit += [(corner, 0.0) for corner in corners]
-        if not box:
-            continue
-        edges = [[a - b for a, b in zip(corners[k], corners[0])] for k in (4, 2, 1)]  # x, y, z
-        face = max(math.sqrt(sum(c * c for c in cross(edges[k], edges[k - 1])))
-                   for k in range(3))
-        if face >= _FACE_LIMIT:
-            problems.append(
-                f"{_where(scene, shape)}: box with a face of {face:.3g} square units: Mitsuba's "
-                f"float32 face normal (the cross product of two edges, normalised through its "
-                f"square) overflows from {_FACE_LIMIT:.3g}, so that face is shaded black "
-                f"(docs/rendering-model.md)")
-    problems = [problem for problem in problems if problem]
-    for light in scene.lights:
-        farthest = max((math.dist(light.position, c) + r for c, r in lit), default=0.0)
-        if farthest >= _LIGHT_DISTANCE_LIMIT:
-            problems.append(
-                f"{_where(scene, light)}: light {farthest:.3g} from the farthest shape point it "
-                f"may light: from {2 * _LIGHT_DISTANCE_LIMIT:.3g} on, Mitsuba's float32 point "
-                f"light (intensity/distance²) underflows to zero, so it may light nothing there "
-                f"(docs/rendering-model.md)")
-    return problems
 
 
 def _sensor(scene: model.Scene, sampler: dict) -> dict:
@@ -513,7 +323,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         placement = (shape_id, geometry.object_to_world(shape))
         bsdf = bsdf_of(shape.material, placement)
         subsurface = scene.materials[shape.material].subsurface
-        if mode == "path" and not isinstance(shape, model.Sphere) and subsurface is None:
+        if mode == "path" and is_two_sided(shape) and subsurface is None:
             # Mitsuba's BSDFs reflect on the side their normal points to; planes, boxes
             # and meshes are shaded on either side (whitted flips n to the viewer). A
             # dielectric boundary is two-sided itself (and twosided refuses transmission).
@@ -538,26 +348,6 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     return out
 
 
-in_object_space = model.in_object_space
-
-
-def _product(a, b):
-    """The 4×4 product a·b, in double precision (rows)."""
-    return (np.asarray(a, dtype=np.float64) @ np.asarray(b, dtype=np.float64)).tolist()
-
-
-def _transform(matrix):
-    """A double-precision 4×4 (rows) as Mitsuba's transform: its entries rounded once to
-    float32, and their inverse computed in double precision and rounded once — as Mitsuba's
-    XML parser makes a ``<matrix>`` (src/core/parser.cpp), so an exported scene renders
-    bit for bit as this dict (mimarble/tools/export.py), and a disk R wide, whose float32
-    determinant R² would be far off, keeps an exact inverse."""
-    import mitsuba as mi   # imported here: the module itself stays importable without it
-    single = mi.ScalarMatrix4f([list(map(float, row)) for row in matrix])
-    inverse = mi.ScalarTransform4d(mi.ScalarMatrix4d(single)).inverse_transpose
-    return mi.ScalarTransform4f(single, mi.ScalarMatrix4f(inverse))
-
-
 def _texture_id(name: str) -> str:
     """A named texture's id: its name with every run of characters other than ASCII
     letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), at
@@ -573,56 +363,6 @@ def _unused(candidate: str, taken: set) -> str:
         found, k = f"{candidate}_{k}", k + 1
     taken.add(found)
     return found
-
-
-def disk_to_world(scene: model.Scene, plane: model.Plane):
-    """The ``to_world`` (4×4 rows, double precision) of the Mitsuba ``disk`` that renders
-    ``plane``: the unit disk (z = 0, normal +z) scaled by the radius R in its plane and
-    centred as ``geometry.plane_disk`` says, its x, y, z axes the plane frame's
-    bitangent, tangent and normal (``geometry.plane_frame``; right-handed, as bitangent ×
-    tangent = normal). The normal is not scaled: Mitsuba inverts the matrix in float32,
-    through its determinant, R² here (R³ would overflow from R ≈ 7·10¹², a scene's extent
-    of 7·10⁸), and local z is then the height above the plane in world units."""
-    centre, radius = geometry.plane_disk(scene, plane)
-    tangent, normal, bitangent = geometry.plane_frame(plane.normal)
-    return [[radius * bitangent[i], radius * tangent[i], normal[i], centre[i]]
-            for i in range(3)] + [[0.0, 0.0, 0.0, 1.0]]
-
-
-def cube_to_world(box: model.Box):
-    """The ``to_world`` (4×4 rows, double precision) of the Mitsuba ``cube`` ([−1, 1]³)
-    that renders ``box``: its transform · translate(centre) · scale(half extents)."""
-    centre = [(lo + hi) / 2 for lo, hi in zip(box.min, box.max)]
-    half = [(hi - lo) / 2 for lo, hi in zip(box.min, box.max)]
-    placed = [[half[i] if j == i else 0.0 for j in range(3)] + [centre[i]] for i in range(3)]
-    return _product(geometry.object_to_world(box), placed + [[0.0, 0.0, 0.0, 1.0]])
-
-
-def shape_dict(scene: model.Scene, shape) -> dict:
-    """The Mitsuba shape (without its BSDF) of one shape of ``scene``.
-
-    * sphere → ``sphere`` (centre, radius);
-    * plane → ``disk``, an analytic shape (its hit is the ray's, at the t where it meets
-      the plane, accurate at any radius; ``rectangle`` is a two-triangle mesh whose hit is
-      re-interpolated from its corners, ulp(R) off at radius R), placed by
-      :func:`disk_to_world`;
-    * box → ``cube``, a mesh of 12 triangles, placed by :func:`cube_to_world`;
-    * mesh → ``ply`` or ``obj`` (by the file's ending), placed by its transform, with
-      ``face_normals`` (flat shading, as the reference) and ``flip_tex_coords`` said out
-      loud at Mitsuba's defaults (OBJ: v → 1 − v, so that an OBJ's v = 0 is an image's
-      bottom row; PLY: as written). Mitsuba's loaders change nothing else: positions are
-      the file's through ``to_world`` (rounded to float32), faces as given.
-    """
-    if isinstance(shape, model.Sphere):
-        return {"type": "sphere", "center": list(shape.center), "radius": shape.radius}
-    if isinstance(shape, model.Plane):
-        return {"type": "disk", "to_world": _transform(disk_to_world(scene, shape))}
-    if isinstance(shape, model.Box):
-        return {"type": "cube", "to_world": _transform(cube_to_world(shape))}
-    kind = os.path.splitext(shape.file)[1].lower()[1:]
-    return {"type": kind, "filename": shape.location,
-            "to_world": _transform(geometry.object_to_world(shape)), "face_normals": True,
-            "flip_tex_coords": kind == "obj"}
 
 
 def point_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
@@ -741,25 +481,6 @@ def translucent_materials(scene: model.Scene) -> tuple:
     uses changes no image, and is not asked about)."""
     used = {shape.material for _, shape in scene.shapes()}
     return tuple(m for m in scene.materials.values() if m.subsurface is not None and m.name in used)
-
-
-def _facing_out(shape_out: dict, shape) -> None:
-    """A translucent box's or mesh's normals facing out of it under a transform that
-    mirrors (det < 0). Mitsuba enters a shape's ``interior`` when a ray crosses against its
-    geometric normal, the cross product of a triangle's edges — which a mirror turns
-    inwards: the medium would be outside. A mesh (flat, ``face_normals``) then gets
-    ``flip_normals``; a box, whose ``cube`` carries vertex normals that the inverse
-    transpose keeps outward, gets its cube mirrored back, to_world·diag(−1, 1, 1), the
-    same points ([−1, 1]³ is symmetric) with det > 0. A sphere's and a plane's disk's
-    normals face out (and up) whatever their placement."""
-    if isinstance(shape, (model.Box, model.Mesh)) \
-            and np.linalg.det(np.asarray(geometry.object_to_world(shape), dtype=np.float64)) < 0:
-        if isinstance(shape, model.Box):
-            mirror = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
-                      [0.0, 0.0, 0.0, 1.0]]
-            shape_out["to_world"] = _transform(_product(cube_to_world(shape), mirror))
-        else:
-            shape_out["flip_normals"] = True
 
 
 def subsurface_boundary(subsurface: model.Subsurface) -> dict:
