@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 
-from mimarble.meshes.facts import mesh_bounds
 from mimarble.scene import transforms
 
 __all__ = ["PLANE_REACH", "plane_frame", "object_to_world", "plane_disk", "sphere_bounds",
@@ -110,6 +109,7 @@ def mesh_corners(mesh):
     (meshes.facts.mesh_bounds, in file coordinates) placed by the mesh's transform: the
     mesh lies within their convex hull. None where the file cannot be read (the parser
     says why at the mesh)."""
+    from mimarble.meshes.facts import mesh_bounds   # here: a malformed scene's answer needs none
     bounds = mesh_bounds(mesh.location)
     if bounds is None:
         return None
