@@ -52,14 +52,15 @@ def test_a_malformed_scene_is_reported_before_drjit_loads(tmp_path):
 
 def test_a_malformed_scene_imports_only_what_its_answer_needs(tmp_path):
     """Issue 39: the answer's process builds only the render command's options, reads no
-    mesh file's header and imports neither extra nor importlib's abstract classes (which
-    bring importlib.resources)."""
+    mesh file's header, nor the baker (only `bake`'s options need it), and imports neither
+    extra nor importlib's abstract classes (which bring importlib.resources)."""
     bad = tmp_path / "bad.scene"
     bad.write_text("scene {\n")
     result, names = imported_by("render", bad, "-o", tmp_path / "out.png")
     assert result.returncode == 2 and f"{bad}:1:1:" in result.stderr
     assert {"lark", "mimarble.scene.parser"} <= names             # the check sees them
-    unneeded = {"mimarble.meshes.facts", "mimarble.meshes.ply_body", "importlib.abc", "importlib.resources",
+    unneeded = {"mimarble.meshes.facts", "mimarble.meshes.ply_body", "mimarble.tools.bake",
+                "importlib.abc", "importlib.resources",
                 "matplotlib", "dask", "distributed", "PIL", "tqdm"}
     assert names & unneeded == set()
 

@@ -303,10 +303,12 @@ def _export_command(sub) -> None:
 
 
 def _bake_command(sub) -> None:
-    from mimarble.tools.bake import (CHANNELS, DEFAULT_IMAGE_SIZE, DEFAULT_VOLUME_SIZE,
-        MAX_IMAGE_SIZE, MAX_VOLUME_SIZE)
     p = sub.add_parser("bake", help="evaluate a shape's channel into an image through its "
                                     "(u, v), or --volume: into a volume grid over its bounds")
+    if isinstance(p, _Dropped):
+        return   # its options need tools.bake, not imported for another command
+    from mimarble.tools.bake import (CHANNELS, DEFAULT_IMAGE_SIZE, DEFAULT_VOLUME_SIZE,
+        MAX_IMAGE_SIZE, MAX_VOLUME_SIZE)
     p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
     p.add_argument("--shape", required=True, metavar="ID",
                    help="the shape: sphere_0, mesh_0, box_0, … (each kind numbered in file "

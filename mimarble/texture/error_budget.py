@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 
-from .noise import MAX_OCTAVES_EVALUATED, NOISE_BOUND, max_octaves_evaluated
+from .noise import NOISE_BOUND, octaves_evaluated
 from .stripes import STRIPES
 
 #: A linear change that moves an 8-bit sRGB value, before quantisation, by at most half a code.
@@ -101,8 +101,7 @@ def colour_change_bound(first: int, last: int, distortion: float, colours, funct
 
 def evaluated(octaves: int, gain: float = 0.5) -> int:
     """K': the octaves float32 evaluates of ``octaves`` at ``gain`` (25 at the paper's)."""
-    return min(int(octaves), MAX_OCTAVES_EVALUATED if gain == 0.5
-               else max_octaves_evaluated(gain))
+    return octaves_evaluated(int(octaves), gain)
 
 
 def colour_bound(first: int, octaves: int, distortion: float, colours, function: str,

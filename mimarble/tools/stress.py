@@ -33,7 +33,8 @@ from mimarble.contract import FLOAT32_INTEGER_LIMIT, FLOAT32_UNIT_ROUNDOFF
 from mimarble.runtime import environment
 from mimarble.texture import error_budget
 from mimarble.texture.finite_arithmetic import finite_product
-from mimarble.texture.noise import MAX_OCTAVES_EVALUATED, NOISE_BOUND, fractal3
+from mimarble.texture.noise import (MAX_OCTAVES_EVALUATED, NOISE_BOUND, SKIPPED_OCTAVES_BOUND,
+                                    fractal3, octaves_evaluated)
 from mimarble.reference import marble as reference_marble
 from mimarble.reference import noise as reference_noise
 from mimarble.scene.model import FIG5_RAMP, MarbleChannel
@@ -87,7 +88,7 @@ def fractal_error_bound(magnitude: float, octaves: int, scale: float = 1.0) -> f
     """Bound on |F₃₂(fl(scale)·fl(p)) − F₆₄(scale·p)| for ‖p‖∞ ≤ ``magnitude``; the same
     for turbulence (| |a| − |b| | ≤ |a − b|).
     """
-    k_eval = min(int(octaves), MAX_OCTAVES_EVALUATED)
+    k_eval = octaves_evaluated(int(octaves))
     if k_eval == 0:
         return 0.0
     v = abs(scale) * magnitude
@@ -98,7 +99,7 @@ def fractal_error_bound(magnitude: float, octaves: int, scale: float = 1.0) -> f
         total += min(LIPSCHITZ_L1 * dv, 2 * NOISE_BOUND * weight) + NOISE_ARITHMETIC_ERROR * weight
     total += (k_eval - 1) * U * 2 * NOISE_BOUND                      # the float32 running sum
     if octaves > MAX_OCTAVES_EVALUATED:
-        total += NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)    # the skipped tail
+        total += SKIPPED_OCTAVES_BOUND                                # the skipped tail
     return total
 
 

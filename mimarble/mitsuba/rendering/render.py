@@ -49,7 +49,7 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     image, in bounded memory, one kernel for every spp); ``tolerance`` and ``filter``,
     which the translator applies, are refused for it in one sentence. ``seed``: the
     sampler seed of path mode, 0..2³²−1 (whitted mode is deterministic). ``width``,
-    ``height``: the image's size in pixels, 1..16384 each, in place of the scene's (as the
+    ``height``: the image's size in pixels (each within ``mimarble.scene.LIMITS``), in place of the scene's (as the
     command line's ``--width``/``--height``: the fov is the full vertical angle, so a new
     height shows the same view at another resolution and a new width crops or extends it
     sideways); a loaded ``mi.Scene`` renders at its film's size, so they are refused for it.
@@ -154,7 +154,7 @@ def _slices(crop):
 
 def _sized(scene, width, height, spp):
     """The scene at ``width`` × ``height`` (None: its own), checked by the scene model's
-    own rules (1..16384 each, within the sample limit at ``spp`` when given, else at the
+    own rules (each within the image-size limit, and within the sample limit at ``spp`` when given, else at the
     scene's samples), as ``--width``/``--height`` are."""
     try:
         return with_image_size(scene, width=width, height=height, spp=spp)

@@ -1,13 +1,16 @@
-"""Each kind of shape as Mitsuba sees it: its shape dict, its reach for the clip planes, its float32 range checks.
+"""Scene shapes → Mitsuba shapes: each kind's shape dict and placement, the clip planes
+that keep every shape in view, and a translucent shape's normals facing out.
 
 :data:`MITSUBA_SHAPES` holds one :class:`MitsubaShape` per kind of
-:data:`~mimarble.scene.shape_kinds.SHAPE_KINDS`, by keyword: a sphere → ``sphere``, a
-plane → ``disk`` (the disk it is rendered as, ``geometry.plane_disk``), a box →
-``cube``, a mesh → ``ply``/``obj`` (:func:`shape_dict`). A bounded kind's reach and
-float32 checks default to those of its eight world corners (``shape.corners()``), so a
-new kind needs its dict alone. :func:`clip_planes` and :func:`float32_range_problems`
-walk the kinds in the scene's order; the translator (scene_dict.py) places each shape
-under the id ``Scene.shapes()`` gives it.
+:data:`~mimarble.scene.shape_kinds.SHAPE_KINDS`, by keyword; a bounded kind's reach
+defaults to its eight world corners' (``shape.corners()``), so a new kind needs its dict
+alone. Shapes (:func:`shape_dict`): a sphere → ``sphere``, a plane → ``disk`` (the disk it is
+rendered as, ``geometry.plane_disk``), a box → ``cube``, a mesh → ``ply``/``obj``, each under
+the id ``Scene.shapes()`` gives it. A material whose channels hold a ``space object`` marble
+becomes one BSDF per shape, its object-space textures placed by the shape's object space
+(``to_world`` = S·M, v = scale·(S·M)⁻¹·p); in path mode planes, boxes and meshes get their
+BSDF wrapped in ``twosided`` (docs/rendering-model.md, "Planes, boxes and meshes";
+docs/mitsuba-scene.md).
 """
 
 from __future__ import annotations
@@ -19,10 +22,30 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mimarble.contract import FLOAT32_EPSILON, T_MIN_REL
+from mimarble.contract import T_MIN_REL
 from mimarble.scene import geometry, model
-from mimarble.scene.rules import cross
 from mimarble.scene.shape_kinds import SHAPE_KINDS, kind_of
+
+
+in_object_space = model.in_object_space
+
+
+def _product(a, b):
+    """The 4×4 product a·b, in double precision (rows)."""
+    return (np.asarray(a, dtype=np.float64) @ np.asarray(b, dtype=np.float64)).tolist()
+
+
+def _transform(matrix):
+    """A double-precision 4×4 (rows) as Mitsuba's transform: its entries rounded once to
+    float32, and their inverse computed in double precision and rounded once — as Mitsuba's
+    XML parser makes a ``<matrix>`` (src/core/parser.cpp), so an exported scene renders
+    bit for bit as this dict (mimarble/tools/export.py), and a disk R wide, whose float32
+    determinant R² would be far off, keeps an exact inverse."""
+    import mitsuba as mi   # imported here: the module itself stays importable without it
+    single = mi.ScalarMatrix4f([list(map(float, row)) for row in matrix])
+    inverse = mi.ScalarTransform4d(mi.ScalarMatrix4d(single)).inverse_transpose
+    return mi.ScalarTransform4f(single, mi.ScalarMatrix4f(inverse))
+
 
 # The reference tracer accepts hits from t = T_MIN_REL·(1 + max|eye_k|) on.
 _NEAREST_HIT_REL = T_MIN_REL
@@ -108,167 +131,6 @@ def clip_planes(scene: model.Scene) -> tuple[float, float]:
 
 #: The largest far_clip (see clip_planes): finite in float32 with room to spare.
 _FAR_CLIP_MAX = 2.0 ** 125
-
-
-class Float32RangeWarning(UserWarning):
-    """A shape, eye or light beyond what Mitsuba's float32 (and Embree's) arithmetic reaches."""
-
-
-# float32's unit roundoff·2: the scale of Mitsuba's intersection error on a sphere is
-# 2⁻²³·(max|c_k| + r). Measured (docs/rendering-model.md, "Large spheres"): a ground sphere
-# agrees with the reference while that error is up to 1.6× the eye's distance to the
-# surface, and fails from 3.2× on; the warning comes from 1×.
-_FLOAT32_ERROR_SCALE = FLOAT32_EPSILON
-
-# Embree, Mitsuba's ray tracer in the scalar and LLVM variants, takes coordinates only in
-# ±1.844e18 (its FLT_LARGE): a sphere whose bounding box reaches past it is dropped, and a
-# ray from beyond it meets nothing (measured: radius 1.8e18 at the origin is hit, 1.85e18
-# is not). Warned from 1.8e18.
-_EMBREE_LIMIT = 1.8e18
-
-# A point light's weight I/d² is a float32 below 2⁻¹²⁶ (flushed to zero) once d ≥ 2⁶³
-# ≈ 9.2e18: the light then lights nothing (measured: 6.1e18 right, 9.8e18 dark). Warned
-# from 2⁶² (a light's distance to the farthest point of any sphere).
-_LIGHT_DISTANCE_LIMIT = 2.0 ** 62
-
-
-# A triangle's normal is normalize(e₁ × e₂) in float32: its squared length overflows once
-# |e₁ × e₂| (twice the triangle's area) reaches √FLT_MAX ≈ 1.8e19, and the normal is 0.
-_FACE_LIMIT = 2.0 ** 64
-
-
-def _where(scene: model.Scene, node) -> str:
-    return f"{scene.source or '<scene>'}:{node.pos or '?'}"
-
-
-def _reach_problem(where: str, what: str, extent: float, placed: float, error: float,
-                   distance: float | None) -> str | None:
-    """The message of one shape (``what``) reaching ``extent`` from the origin (its
-    coordinates' largest magnitude ``placed``), whose float32 placement error ``error``
-    may reach the eye's distance to it (None: not checked): Embree's range first."""
-    if extent > _EMBREE_LIMIT:
-        return (f"{where}: {what} reaches {extent:g} from the origin, beyond ±{_EMBREE_LIMIT:g}, "
-                f"the coordinates Mitsuba's CPU ray tracer (Embree) accepts: Mitsuba drops it "
-                f"(docs/rendering-model.md)")
-    if distance is not None and error > distance:
-        return (f"{where}: {what} at {placed:g} from the origin is beyond float32's reach from "
-                f"this eye: Mitsuba's intersection error (~{error:.3g}) exceeds the eye's distance "
-                f"to its surface ({distance:.3g}), so the Mitsuba image may be wrong there (the "
-                f"reference tracer is float64; docs/rendering-model.md)")
-    return None
-
-
-def _largest(v) -> float:
-    return max(map(abs, v))
-
-
-def _sphere_problems(scene: model.Scene, sphere) -> tuple[list, list]:
-    extent = _largest(sphere.center) + sphere.radius
-    problem = _reach_problem(
-        _where(scene, sphere), f"sphere of radius {sphere.radius:g}", extent,
-        _largest(sphere.center), _FLOAT32_ERROR_SCALE * extent,
-        abs(math.dist(sphere.center, scene.camera.eye) - sphere.radius))
-    return [problem], [(sphere.center, sphere.radius)]
-
-
-def _disk_problems(scene: model.Scene, plane) -> tuple[list, list]:
-    centre, radius = geometry.plane_disk(scene, plane)
-    problem = _reach_problem(
-        _where(scene, plane), f"plane (rendered as a disk of radius {radius:.3g})",
-        _largest(centre) + radius, _largest(centre), _FLOAT32_ERROR_SCALE * _largest(centre),
-        math.dist(centre, scene.camera.eye))
-    return [problem], [(centre, 0.0)]
-
-
-def _corner_problems(scene: model.Scene, shape) -> tuple[list, list]:
-    """A bounded shape by its eight world corners (a mesh file unread: its transform's
-    origin), named by its keyword."""
-    corners = shape.corners()
-    if corners is None:                 # a mesh file unread: its transform's origin
-        corners = [shape.bounds()[0]]
-    extent = max(map(_largest, corners))
-    distance = _box_distance(scene.camera.eye, corners) if len(corners) == 8 else 0.0
-    problem = _reach_problem(_where(scene, shape), kind_of(shape).keyword, extent,
-                             extent, _FLOAT32_ERROR_SCALE * extent,
-                             distance if distance > 0 else None)
-    return [problem], [(corner, 0.0) for corner in corners]
-
-
-def _box_problems(scene: model.Scene, box) -> tuple[list, list]:
-    """Its corners', then a face so large that Mitsuba's float32 normal of it overflows."""
-    problems, lit = _corner_problems(scene, box)
-    corners = [corner for corner, _ in lit]
-    edges = [[a - b for a, b in zip(corners[k], corners[0])] for k in (4, 2, 1)]  # x, y, z
-    face = max(math.sqrt(sum(c * c for c in cross(edges[k], edges[k - 1])))
-               for k in range(3))
-    if face >= _FACE_LIMIT:
-        problems.append(
-            f"{_where(scene, box)}: box with a face of {face:.3g} square units: Mitsuba's "
-            f"float32 face normal (the cross product of two edges, normalised through its "
-            f"square) overflows from {_FACE_LIMIT:.3g}, so that face is shaded black "
-            f"(docs/rendering-model.md)")
-    return problems, lit
-
-
-def float32_range_problems(scene: model.Scene) -> list[str]:
-    """One message per shape, eye or light that Mitsuba cannot place precisely enough.
-
-    A shape which reaches past Embree's coordinate range — a sphere, a plane's disk
-    (``geometry.plane_disk``), a box's corners, a mesh's (the world corners of its file's
-    bounds, ``geometry.mesh_corners``) — or whose float32 intersection error reaches the
-    eye's distance to it: a sphere's, 2⁻²³·(max|c_k| + r); a plane's, 2⁻²³·max|c_k| of its
-    disk's centre c (where Mitsuba's float32 numbers put the plane), against the eye's
-    height above it; a box's or a mesh's, 2⁻²³ times its largest corner coordinate,
-    against the eye's distance to the axis-aligned box around those corners (a lower
-    bound of its distance to the surface; not checked from inside it), or a box whose
-    faces are so large that Mitsuba's float32 normal of them overflows; an eye past that
-    range; a light so far from the shapes that its float32 1/d² underflows.
-    """
-    problems = []
-    problems = []
-    eye = scene.camera.eye
-    if _largest(eye) > _EMBREE_LIMIT:
-        problems.append(
-            f"{_where(scene, scene.camera)}: the eye at {_largest(eye):g} from the origin is "
-            f"beyond ±{_EMBREE_LIMIT:g}, the coordinates Mitsuba's CPU ray tracer (Embree) "
-            f"accepts: its rays meet nothing there (docs/rendering-model.md)")
-    lit = []        # (point, radius) around which each shape lies, for the lights' check
-    for kind in SHAPE_KINDS:            # kind by kind, each in the file's order
-        check = MITSUBA_SHAPES[kind.keyword].range_problems
-        for shape in getattr(scene, kind.plural):
-            found, around = check(scene, shape)
-            problems += found
-            lit += around
-    problems = [problem for problem in problems if problem]
-    for light in scene.lights:
-        farthest = max((math.dist(light.position, c) + r for c, r in lit), default=0.0)
-        if farthest >= _LIGHT_DISTANCE_LIMIT:
-            problems.append(
-                f"{_where(scene, light)}: light {farthest:.3g} from the farthest shape point it "
-                f"may light: from {2 * _LIGHT_DISTANCE_LIMIT:.3g} on, Mitsuba's float32 point "
-                f"light (intensity/distance²) underflows to zero, so it may light nothing there "
-                f"(docs/rendering-model.md)")
-    return problems
-
-
-in_object_space = model.in_object_space
-
-
-def _product(a, b):
-    """The 4×4 product a·b, in double precision (rows)."""
-    return (np.asarray(a, dtype=np.float64) @ np.asarray(b, dtype=np.float64)).tolist()
-
-
-def _transform(matrix):
-    """A double-precision 4×4 (rows) as Mitsuba's transform: its entries rounded once to
-    float32, and their inverse computed in double precision and rounded once — as Mitsuba's
-    XML parser makes a ``<matrix>`` (src/core/parser.cpp), so an exported scene renders
-    bit for bit as this dict (mimarble/tools/export.py), and a disk R wide, whose float32
-    determinant R² would be far off, keeps an exact inverse."""
-    import mitsuba as mi   # imported here: the module itself stays importable without it
-    single = mi.ScalarMatrix4f([list(map(float, row)) for row in matrix])
-    inverse = mi.ScalarTransform4d(mi.ScalarMatrix4d(single)).inverse_transpose
-    return mi.ScalarTransform4f(single, mi.ScalarMatrix4f(inverse))
 
 
 def disk_to_world(scene: model.Scene, plane: model.Plane):
@@ -363,25 +225,22 @@ class MitsubaShape:
     BSDFs reflect on the side their normal points to; whitted flips n to the viewer;
     a sphere is seen from outside); ``reach`` (scene, shape) -> (nearest, farthest) from
     the eye (:func:`clip_planes`), None where unknown before Mitsuba loads it (a mesh's
-    file); ``range_problems`` (scene, shape) -> (messages or None, (point, radius) around
-    which it lies) (:func:`float32_range_problems`); ``mirrored`` (shape dict, shape):
+    file; by default a bounded kind's eight world corners); ``mirrored`` (shape dict, shape):
     what turns a translucent shape's normals back out under a mirroring transform
     (:func:`_facing_out`), None where they face out whatever the placement."""
 
     shape_dict: Callable
     two_sided: bool = True
     reach: Callable | None = _corner_reach
-    range_problems: Callable = _corner_problems
     mirrored: Callable | None = None
 
 
 #: Each kind of shape, by keyword (shape_kinds.SHAPE_KINDS; tests/test_shape_kinds.py checks
 #: that every kind has its entry).
 MITSUBA_SHAPES: dict[str, MitsubaShape] = {
-    "sphere": MitsubaShape(_sphere_dict, two_sided=False, reach=_sphere_reach,
-                           range_problems=_sphere_problems),
-    "plane": MitsubaShape(_disk_dict, reach=_disk_reach, range_problems=_disk_problems),
-    "box": MitsubaShape(_cube_dict, range_problems=_box_problems, mirrored=_mirror_cube),
+    "sphere": MitsubaShape(_sphere_dict, two_sided=False, reach=_sphere_reach),
+    "plane": MitsubaShape(_disk_dict, reach=_disk_reach),
+    "box": MitsubaShape(_cube_dict, mirrored=_mirror_cube),
     "mesh": MitsubaShape(_file_mesh_dict, reach=None, mirrored=_flip_normals),
 }
 

@@ -1,0 +1,59 @@
+"""Translucent materials → Mitsuba: the smooth dielectric boundary and the ``marble_medium``
+interior of a material with a ``subsurface``."""
+
+from __future__ import annotations
+
+from mimarble.contract import FLT_MAX
+from mimarble.scene import model
+from mimarble.texture import error_budget
+
+from .modes import ModeError
+from .textures import texture_dict
+
+
+def translucent_materials(scene: model.Scene) -> tuple:
+    """The materials with a subsurface that some shape of ``scene`` uses, in file order:
+    a scene with one renders in path mode only, under ``volpath`` (a material no shape
+    uses changes no image, and is not asked about)."""
+    used = {shape.material for _, shape in scene.shapes()}
+    return tuple(m for m in scene.materials.values() if m.subsurface is not None and m.name in used)
+
+
+def subsurface_boundary(subsurface: model.Subsurface) -> dict:
+    """The BSDF of a translucent material's surface: a smooth ``dielectric`` of relative
+    index ``ior`` (int_ior = ior, ext_ior = 1; it reflects and refracts by Fresnel's
+    equations, and is two-sided) — at ior 1 too, where it bends and reflects nothing: a
+    ``null`` BSDF would let point lights in, but volpath would then neither count the
+    crossing as a vertex nor show the sky through it to camera rays (hide_emitters), unlike
+    every other ior and the reference random walk (docs/rendering-model.md, "Translucent
+    materials")."""
+    return {"type": "dielectric", "int_ior": subsurface.ior, "ext_ior": 1.0}
+
+
+def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> dict:
+    """The ``marble_medium`` (mimarble/mitsuba/plugins/marble_medium.py) of a subsurface: the
+    textures of its albedo and density channels (``ref(channel)``: a texture or a reference
+    to one; default: :func:`texture_dict`), ``scale`` = 1/mean_free_path, so that
+    σ_t(p) = scale·d(p), and ``density_bound`` ≥ every d(p) (the majorant is
+    scale·density_bound): ``error_budget.mean_bound`` of the density channel (d is the mean
+    of its components, at least 0), 1 without one (d = 1). Behind the smooth dielectric
+    no shadow ray from inside can reach an emitter, so the medium samples none
+    (``sample_emitters`` false: the paths that leave find them; unbiased, and up to half the
+    render time saved). A majorant past
+    float32's range is refused (ModeError at the ``subsurface`` keyword): Mitsuba's
+    arithmetic is single precision."""
+    ref = texture_dict if ref is None else ref
+    density = subsurface.density
+    scale = 1.0 / subsurface.mean_free_path
+    bound = 1.0 if density is None else max(0.0, error_budget.mean_bound(density))
+    if not scale * bound <= FLT_MAX:
+        raise ModeError.in_file(
+            scene.source, subsurface.pos,
+            f"mean_free_path {subsurface.mean_free_path:g} with a density up to {bound:g} is "
+            f"an extinction of up to {scale * bound!r} per scene unit, past float32's "
+            f"{FLT_MAX!r}, the most Mitsuba's single precision holds")
+    out = {"type": "marble_medium", "albedo": ref(subsurface.albedo)}
+    if density is not None:
+        out["density"] = ref(density)
+    out.update(scale=scale, density_bound=bound, sample_emitters=False)
+    return out

@@ -1,0 +1,62 @@
+"""The two rendering modes: the integrator and sampler each renders with, and the error
+for a scene that a mode cannot render.
+
+``whitted``: the paper's model exactly — ``channel_material`` BSDFs, ``point`` lights, the
+``whitted`` integrator, a non-jittered ``stratified`` sampler and a ``box`` filter, so every
+pixel is the mean of its n×n stratum centres.
+
+``path``: physically based — the marble drives Mitsuba's own BSDFs under the ``path``
+integrator (``volpath`` when a material has a ``subsurface``, max_depth
+:data:`VOLPATH_MAX_DEPTH`; whitted mode refuses one: :class:`ModeError`, at its
+``subsurface`` keyword). docs/rendering-model.md says how the paper's quantities map.
+"""
+
+from __future__ import annotations
+
+from mimarble.contract import RENDER_MODES, VOLPATH_MAX_DEPTH
+from mimarble.scene.errors import SceneError
+from mimarble.scene.rules import shortened
+
+
+MODES = RENDER_MODES
+
+
+class ModeError(SceneError, ValueError):
+    """A scene that the mode asked cannot render (a translucent material in whitted mode),
+    in one sentence at the node's FILE:LINE:COL: a SceneError (the command line prints it,
+    exit status 2, no traceback) that is a ValueError to Python."""
+
+    def __reduce__(self):
+        return (_mode_error, (self.message, self.filename, self.line, self.column,
+                              self.source_line))
+
+
+def _mode_error(message, filename, line, column, source_line):
+    return ModeError(message, filename=filename, line=line, column=column,
+                     source_line=source_line)
+
+
+def refuse_translucent(scene, mode: str, translucent: tuple) -> None:
+    """Whitted mode cannot render a ``subsurface``: ModeError at the first one's keyword."""
+    if mode == "whitted" and translucent:
+        material = translucent[0]
+        raise ModeError.in_file(
+            scene.source, material.subsurface.pos,
+            f"material \"{shortened(material.name)}\" has a subsurface, a "
+            f"scattering volume that whitted mode (the paper's surface shading) cannot render: "
+            f"render the scene with --mode path (mode=\"path\")")
+
+
+def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple) -> tuple[dict, dict]:
+    """The mode's integrator and sampler: whitted with the scene's ambient and background
+    over n×n stratum centres; path (volpath with translucent materials: light scattered
+    inside media, docs/rendering-model.md) over independent samples."""
+    if mode == "whitted":
+        return ({"type": "whitted", "ambient": list(scene.ambient),
+                 "background": list(scene.image.background)},
+                {"type": "stratified", "sample_count": spp, "jitter": False})
+    if translucent:
+        return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH, "hide_emitters": True},
+                {"type": "independent", "sample_count": spp})
+    return ({"type": "path", "max_depth": 4, "hide_emitters": True},
+            {"type": "independent", "sample_count": spp})
