@@ -16,7 +16,7 @@ from . import rules
 from .limits import BY_KEY, Limit
 from .shapes import Box, Mesh, Plane, Sphere
 
-__all__ = ["ShapeKey", "ShapeKind", "SHAPE_KINDS", "BY_KEYWORD", "kind_of", "count_problem",
+__all__ = ["ShapeKey", "ShapeKind", "SHAPE_KINDS", "SHAPE_TYPES", "BY_KEYWORD", "kind_of", "count_problem",
            "SPHERE", "PLANE", "BOX", "MESH"]
 
 
@@ -92,6 +92,9 @@ MESH = ShapeKind(
 
 #: Every kind, in the order of a scene's ids, its fields and the language's statements.
 SHAPE_KINDS: tuple[ShapeKind, ...] = (SPHERE, PLANE, BOX, MESH)
+
+#: Every kind's class, in the same order.
+SHAPE_TYPES: tuple[type, ...] = tuple(kind.cls for kind in SHAPE_KINDS)
 
 #: The kinds by keyword.
 BY_KEYWORD: dict[str, ShapeKind] = {kind.keyword: kind for kind in SHAPE_KINDS}

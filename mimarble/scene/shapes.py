@@ -170,7 +170,3 @@ class Mesh:
             return geometry._around(corners)
         m = transforms.compose(self.transform)
         return (m[0][3], m[1][3], m[2][3]), 0.0
-
-
-#: Every kind of shape, in the order a scene lists them (and Mitsuba's ids number them).
-SHAPE_TYPES = (Sphere, Plane, Box, Mesh)
