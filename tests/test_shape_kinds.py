@@ -1,4 +1,4 @@
-"""Every kind of shape is one record (mimarble/scene/shape_kinds.py) that every list of
+"""Every kind of shape is one record (mimarble/scene/shapes.py) that every list of
 kinds reads: the language, the model, the limits and both renderers' tables — and each
 kind renders alike in Mitsuba and in the float64 reference."""
 
@@ -17,7 +17,7 @@ from mimarble.mitsuba.translate.shapes import MITSUBA_SHAPES
 from mimarble.reference.shapes import REFERENCE_SHAPES
 from mimarble.scene import geometry
 from mimarble.scene.grammar import grammar_text
-from mimarble.scene.shape_kinds import BY_KEYWORD, SHAPE_KINDS, kind_of
+from mimarble.scene.shapes import BY_KEYWORD, SHAPE_KINDS, kind_of
 from mimarble.tools.compare import image_metrics
 
 ROOT = Path(__file__).resolve().parent.parent

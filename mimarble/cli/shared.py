@@ -172,7 +172,7 @@ def _load_scene(args):
     except ValueError as e:
         raise UsageError(f"{args.scene}: {e}") from None
     if not scene.shapes():
-        from mimarble.scene.shape_kinds import SHAPE_KINDS
+        from mimarble.scene.shapes import SHAPE_KINDS
         plurals = [kind.plural for kind in SHAPE_KINDS]
         warnings.warn(f"{args.scene}: the scene has no shapes (no {', '.join(plurals[:-1])} or "
                       f"{plurals[-1]}): the image is the background")

@@ -23,7 +23,7 @@ from mimarble.meshes.facts import mesh_facts
 from mimarble.meshes.limits import MeshFileError
 from mimarble.scene.model import Scene, in_object_space, samples_per_axis
 from mimarble.scene.rules import shortened
-from mimarble.scene.shape_kinds import SHAPE_KINDS, kind_of
+from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 from .channels import needs_uv
 from mimarble.meshes.arrays import read_mesh

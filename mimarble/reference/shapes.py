@@ -1,7 +1,7 @@
 """Each kind of shape as the reference tracer sees it: its arrays, its closest hit, its normal.
 
 :data:`REFERENCE_SHAPES` holds one :class:`ReferenceShape` per kind of
-:data:`~mimarble.scene.shape_kinds.SHAPE_KINDS`, by keyword. Planes (within the disks
+:data:`~mimarble.scene.shapes.SHAPE_KINDS`, by keyword. Planes (within the disks
 they are rendered as) and boxes (the slab test in object space) are intersected here;
 spheres (:mod:`.intersection`: the paper's stable quadratic, its fast path) and meshes
 (one triangle hierarchy over all of them, :mod:`.triangles`) are the tracer's own, their
@@ -152,7 +152,7 @@ class ReferenceShape:
     normal: Callable | None = None
 
 
-#: Each kind of shape, by keyword (tests/test_shape_kinds.py checks every kind has its entry).
+#: Each kind of shape, by keyword (tests/test_shapes.py checks every kind has its entry).
 REFERENCE_SHAPES: dict[str, ReferenceShape] = {
     "sphere": ReferenceShape(),            # intersection.intersect_spheres, the fast path
     "plane": ReferenceShape(_plane_arrays, _plane_closest, _plane_normal),

@@ -26,7 +26,7 @@ from mimarble.scene.model import (
     SphereArea,
     in_object_space,
 )
-from mimarble.scene.shape_kinds import SHAPE_KINDS
+from mimarble.scene.shapes import SHAPE_KINDS
 
 from .channels import channel_color
 

@@ -53,7 +53,7 @@ from .model import (
     walk,
 )
 from .parser import LIMITS, load, parse
-from .shape_kinds import SHAPE_KINDS, ShapeKind
+from .shapes import SHAPE_KINDS, ShapeKind
 
 __all__ = [
     "load",

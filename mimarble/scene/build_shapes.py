@@ -1,6 +1,6 @@
 """The scene builder's shapes, each built with its material's name token and whether it has texture coordinates (u, v).
 
-A kind's block is read from its record's keys (shape_kinds.py: vectors and numbers, each
+A kind's block is read from its record's keys (shapes.py: vectors and numbers, each
 refused at its value by its rule); ``box`` (its corners checked together) and ``mesh``
 (its file's facts read once per file, meshes/, its triangles counted toward the
 scene's limit) have readers of their own.
@@ -16,7 +16,7 @@ from mimarble.meshes.limits import MeshFileError
 from mimarble.scene import rules
 from .build_values import ValueReader, pos_of, unquoted, vector_text
 from .model import MESH_FORMATS, Box, Mesh, Pos
-from .shape_kinds import ShapeKind
+from .shapes import ShapeKind
 
 
 class ShapeBuilder(ValueReader):

@@ -22,7 +22,7 @@ from .build_shapes import ShapeBuilder
 from .build_values import keyword_of, unquoted
 from .build_view import ViewBuilder
 from .model import Camera, FrozenMap, Image, ImageChannel, Light, Material, Scene, SphereArea, walk
-from .shape_kinds import BY_KEYWORD, SHAPE_KINDS, kind_of
+from .shapes import BY_KEYWORD, SHAPE_KINDS, kind_of
 
 __all__ = ["SceneBuilder", "image_maps_of"]
 

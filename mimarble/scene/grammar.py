@@ -15,7 +15,7 @@ from pathlib import Path
 from mimarble import parameters as marble_parameters
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
 from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
-from .shape_kinds import SHAPE_KINDS
+from .shapes import SHAPE_KINDS
 
 __all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "LANGUAGE_MARBLE_KEYS", "marble_rules", "shape_rules",
            "grammar_text"]
@@ -58,15 +58,15 @@ def marble_rules() -> str:
     return "\n".join(rules) + "\n"
 
 
-#: How a shape key's value is written, by its syntax (shape_kinds.ShapeKey).
+#: How a shape key's value is written, by its syntax (shapes.ShapeKey).
 _SHAPE_KEY_SYNTAX = {"vector": "vector", "number": "NUMBER"}
 
 
 def shape_rules(text: str) -> str:
-    """The shapes' rules (shape_kinds.SHAPE_KINDS): ``_shape``, the statement of each kind,
+    """The shapes' rules (shapes.SHAPE_KINDS): ``_shape``, the statement of each kind,
     each kind's block and its keys (``material`` last), and a rule for each key that
     ``text`` (the hand-written grammar) does not define."""
-    rules = ["// The shapes, written from mimarble/scene/shape_kinds.py by",
+    rules = ["// The shapes, written from mimarble/scene/shapes.py by",
              "// mimarble/scene/grammar.py (each value's rule: after parsing).",
              "_shape: " + " | ".join(kind.keyword for kind in SHAPE_KINDS)]
     defined = set()

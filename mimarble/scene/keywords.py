@@ -13,7 +13,7 @@ from __future__ import annotations
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
 from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
 from .grammar import LANGUAGE_MARBLE_KEYS
-from .shape_kinds import SHAPE_KINDS
+from .shapes import SHAPE_KINDS
 
 __all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BARE_CHANNEL_KEYS", "BLOCK_KEYS"]
 

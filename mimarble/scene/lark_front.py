@@ -28,7 +28,7 @@ from .errors import SceneError
 from .grammar import grammar_text
 from .keywords import CHANNEL_KEYWORDS
 from .limits import MAX_SCENE_BYTES
-from .shape_kinds import SHAPE_KINDS, count_problem
+from .shapes import SHAPE_KINDS, count_problem
 from .syntax_errors import povray_hint, syntax_error
 
 __all__ = ["scene_tree", "oversized"]
@@ -36,7 +36,7 @@ __all__ = ["scene_tree", "oversized"]
 #: How the language writes a linear colour, in the sentences about ``#rrggbb``.
 _LINEAR_COLOUR = "< r g b >"
 
-#: The statements whose count is limited (shape_kinds.count_problem), counted as the tokens
+#: The statements whose count is limited (shapes.count_problem), counted as the tokens
 #: are fed. ``texture`` is counted where it starts a statement (a definition, outside every
 #: block), not where it names a channel.
 _COUNTED = ("light", *(kind.keyword for kind in SHAPE_KINDS), "texture")

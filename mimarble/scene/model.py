@@ -42,8 +42,7 @@ from .channels import (CHANNEL_TYPES, EXPRESSIONS, SPACES, Add, Channel, ColorCh
 from .limits import MAX_IMAGE_SAMPLES
 from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis, FrozenMap, MarbleFunction,
                     Pos, Vec3, _colour, _instances, _integer, _number, _pos, _refuse, _shown, _store, _vector)
-from .shape_kinds import SHAPE_KINDS, SHAPE_TYPES
-from .shapes import MESH_FORMATS, Box, Mesh, Plane, Sphere
+from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
 
 __all__ = [
     "Vec3",

@@ -241,7 +241,7 @@ _COUNTS = {"light": (MAX_LIGHTS, "the whitted integrator unrolls its loop over t
 
 def count_problem(kind: str, count: int) -> str | None:
     """Lights and named textures per scene, within their limits (``kind``: light,
-    texture; a shape's count is its kind's, shape_kinds.py)."""
+    texture; a shape's count is its kind's, shapes.py)."""
     most, why = _COUNTS[kind]
     return too_many(f"{kind}s", count, most, why)
 

@@ -118,7 +118,7 @@ def chosen(scene, shape_id: str, channel: str | None = None, volume: bool = Fals
         shape = scene.shape(shape_id)
     except KeyError as e:
         raise BakeError(e.args[0]) from None
-    from mimarble.scene.shape_kinds import kind_of
+    from mimarble.scene.shapes import kind_of
     kind = kind_of(shape)
     if not kind.bounded:
         raise BakeError(f"{shape_id} is a {kind.keyword}: it has no (u, v) to bake an image "
@@ -358,7 +358,7 @@ def bake_image(scene, shape_id: str, size: int = DEFAULT_IMAGE_SIZE, channel: st
     from mimarble.runtime.progress import report
     update = report(progress, f"bake {shape_id}", unit="texel")
     out = np.zeros((size, size, 3), dtype=np.float32)
-    from mimarble.scene.shape_kinds import kind_of
+    from mimarble.scene.shapes import kind_of
     _TEXELS[kind_of(shape).keyword](shape_id, shape, size, value, out, update)
     update(size * size, size * size)
     return out

@@ -26,7 +26,7 @@ import time
 from pathlib import Path
 
 from mimarble.scene import model
-from mimarble.scene.shape_kinds import SHAPE_KINDS
+from mimarble.scene.shapes import SHAPE_KINDS
 
 
 def _vec(v, mirror_z=True) -> str:

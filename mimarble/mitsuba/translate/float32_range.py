@@ -9,7 +9,7 @@ from mimarble.contract import FLOAT32_EPSILON
 from mimarble.scene import geometry, model
 from mimarble.scene.rules import cross
 
-from mimarble.scene.shape_kinds import SHAPE_KINDS, kind_of
+from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 from .shapes import _box_distance
 

@@ -2,7 +2,7 @@
 that keep every shape in view, and a translucent shape's normals facing out.
 
 :data:`MITSUBA_SHAPES` holds one :class:`MitsubaShape` per kind of
-:data:`~mimarble.scene.shape_kinds.SHAPE_KINDS`, by keyword; a bounded kind's reach
+:data:`~mimarble.scene.shapes.SHAPE_KINDS`, by keyword; a bounded kind's reach
 defaults to its eight world corners' (``shape.corners()``), so a new kind needs its dict
 alone. Shapes (:func:`shape_dict`): a sphere → ``sphere``, a plane → ``disk`` (the disk it is
 rendered as, ``geometry.plane_disk``), a box → ``cube``, a mesh → ``ply``/``obj``, each under
@@ -24,7 +24,7 @@ import numpy as np
 
 from mimarble.contract import T_MIN_REL
 from mimarble.scene import geometry, model
-from mimarble.scene.shape_kinds import SHAPE_KINDS, kind_of
+from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 
 in_object_space = model.in_object_space
@@ -235,7 +235,7 @@ class MitsubaShape:
     mirrored: Callable | None = None
 
 
-#: Each kind of shape, by keyword (shape_kinds.SHAPE_KINDS; tests/test_shape_kinds.py checks
+#: Each kind of shape, by keyword (shapes.SHAPE_KINDS; tests/test_shapes.py checks
 #: that every kind has its entry).
 MITSUBA_SHAPES: dict[str, MitsubaShape] = {
     "sphere": MitsubaShape(_sphere_dict, two_sided=False, reach=_sphere_reach),
