@@ -306,9 +306,9 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
                 parse(texture + f'material "m" {{ diffuse {{ {inner} }} }}')
             continue
         for key in keys:
-            if (block, key) in (("light", "position"), ("sphere", "material"), ("plane", "material"),
-                                ("box", "material"), ("mesh", "material"),
-                                ("subsurface", "albedo"), ("subsurface", "mean_free_path")):
+            if (block, key) in (("light", "position"), ("subsurface", "albedo"),
+                                ("subsurface", "mean_free_path")) \
+                    or (block in S.STATEMENTS and key == "material"):
                 continue  # required keys, already in the wrapper
             if block == "mesh" and key != "file":       # a mesh needs its file too
                 parse(wrap[block].format(f"{key} {samples[key]} file {samples['file']}"))
