@@ -471,8 +471,10 @@ def test_an_unknown_key_in_a_shape_lists_the_blocks_keys_in_order(block, allowed
 
 def test_the_statements_listed_are_the_languages():
     e = refused_at("cone { }", 1, 1, "unknown statement 'cone'")
-    assert e.message.endswith("'material', 'texture', 'sphere', 'plane', 'box' or 'mesh'")
-    assert S.STATEMENTS[-4:] == ("sphere", "plane", "box", "mesh") and "texture" in S.STATEMENTS
+    kinds = [f"'{kind.keyword}'" for kind in S.SHAPE_KINDS]           # the shapes' statements
+    assert e.message.endswith(f"'material', 'texture', {', '.join(kinds[:-1])} or {kinds[-1]}")
+    assert S.STATEMENTS[-len(kinds):] == tuple(kind.keyword for kind in S.SHAPE_KINDS)
+    assert "texture" in S.STATEMENTS
 
 
 def test_a_texture_without_its_name_asks_for_one():

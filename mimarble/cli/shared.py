@@ -172,8 +172,10 @@ def _load_scene(args):
     except ValueError as e:
         raise UsageError(f"{args.scene}: {e}") from None
     if not scene.shapes():
-        warnings.warn(f"{args.scene}: the scene has no shapes (no spheres, planes, boxes or "
-                      f"meshes): the image is the background")
+        from mimarble.scene.shapes import SHAPE_KINDS
+        plurals = [kind.plural for kind in SHAPE_KINDS]
+        warnings.warn(f"{args.scene}: the scene has no shapes (no {', '.join(plurals[:-1])} or "
+                      f"{plurals[-1]}): the image is the background")
     elif not scene.lights and not any(scene.ambient):
         warnings.warn(f"{args.scene}: the scene has no lights and no ambient light: "
                       f"the shapes are black")

@@ -16,7 +16,8 @@ import numpy as np
 from mimarble.contract import T_MIN_REL
 
 from .channels import channel_color, needs_uv, sphere_uv
-from .preparation import SLOTS, BoxArrays, PlaneArrays, PreparedScene, _as_prepared, _normalize
+from .preparation import SLOTS, PreparedScene, _as_prepared, _normalize
+from .shapes import REFERENCE_SHAPES, intersect_boxes, intersect_planes  # noqa: F401  (their home)
 
 
 # ---------------------------------------------------------------------------
@@ -81,74 +82,19 @@ def shadow_hit(centers, radii, o, d, t_max):
     return blocked
 
 
-def intersect_planes(planes: PlaneArrays, o, d, t_lo, t_hi):
-    """Closest plane hit with t_lo < t < t_hi within each plane's disk: (t (N,), plane index
-    (N,)), inf / −1 on a miss. t = n·(p₀ − o)/(n·d) (inf or NaN, so missed, where the ray
-    runs along the plane); kept where |o + t·d − centre| ≤ radius."""
-    d = np.asarray(d, dtype=np.float64)
-    o = np.broadcast_to(np.asarray(o, dtype=np.float64), d.shape)
-    best_t = np.array(np.broadcast_to(t_hi, (d.shape[0],)), dtype=np.float64)
-    best_i = np.full(d.shape[0], -1, dtype=np.int64)
-    for k in range(len(planes.radius)):
-        n = planes.normal[k]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t = ((planes.point[k] - o) @ n) / (d @ n)
-        rel = o + np.where(np.isfinite(t), t, 0.0)[:, None] * d - planes.centre[k]
-        inside = np.einsum("ij,ij->i", rel, rel) <= planes.radius[k] ** 2
-        better = inside & (t > t_lo) & (t < best_t)
-        best_t = np.where(better, t, best_t)
-        best_i = np.where(better, k, best_i)
-    best_t[best_i < 0] = np.inf
-    return best_t, best_i
-
-
-def intersect_boxes(boxes: BoxArrays, o, d, t_lo, t_hi):
-    """Closest box hit with t_lo < t < t_hi: (t (N,), box index (N,), axis (N,) of the face
-    hit in object space), inf / −1 on a miss. In the box's object space, o' = M⁻¹·(o, 1),
-    d' = M⁻¹·(d, 0) (not unit: the same t); per axis the slab (lo_k − o'_k)/d'_k …
-    (hi_k − o'_k)/d'_k, near = the largest entry, far = the smallest exit; the hit is near
-    when it is past t_lo, else far (a ray from inside sees the inside), on the face of the
-    axis that set it."""
-    d = np.asarray(d, dtype=np.float64)
-    o = np.broadcast_to(np.asarray(o, dtype=np.float64), d.shape)
-    best_t = np.array(np.broadcast_to(t_hi, (d.shape[0],)), dtype=np.float64)
-    best_i = np.full(d.shape[0], -1, dtype=np.int64)
-    best_axis = np.zeros(d.shape[0], dtype=np.int64)
-    for k in range(len(boxes.lo)):
-        m = boxes.from_world[k]
-        ob = o @ m[:, :3].T + m[:, 3]
-        db = d @ m[:, :3].T
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t0 = (boxes.lo[k] - ob) / db
-            t1 = (boxes.hi[k] - ob) / db
-        enter, leave = np.minimum(t0, t1), np.maximum(t0, t1)
-        near, far = enter.max(axis=1), leave.min(axis=1)
-        from_near = near > t_lo
-        t = np.where(from_near, near, far)
-        axis = np.where(from_near, enter.argmax(axis=1), leave.argmin(axis=1))
-        better = (near <= far) & (t > t_lo) & (t < best_t)      # NaN compares False
-        best_t = np.where(better, t, best_t)
-        best_i = np.where(better, k, best_i)
-        best_axis = np.where(better, axis, best_axis)
-    best_t[best_i < 0] = np.inf
-    return best_t, best_i, best_axis
-
-
 def occluded(prep: PreparedScene, o, d, t_max):
     """``shadowHit`` over every shape: does any shape meet the ray at t in (0, t_max)?
-    Spheres first (:func:`shadow_hit`), then planes, boxes and the meshes (any hit), each
-    testing only the rays no earlier shape blocked. Returns a bool (N,)."""
+    Spheres first (:func:`shadow_hit`), then the other kinds in the scene's order (planes,
+    boxes: their closest hit in (0, t_max)) and the meshes (any hit), each testing only
+    the rays no earlier shape blocked. Returns a bool (N,)."""
     blocked = shadow_hit(prep.centers, prep.radii, o, d, t_max)
     if prep.spheres_only:
         return blocked
     o, d = np.asarray(o, dtype=np.float64), np.asarray(d, dtype=np.float64)
     t_max = np.asarray(t_max, dtype=np.float64)
     live = np.flatnonzero(~blocked)
-    tests = []
-    if prep.planes is not None:
-        tests.append(lambda oo, dd, tm: intersect_planes(prep.planes, oo, dd, 0.0, tm)[1] >= 0)
-    if prep.boxes is not None:
-        tests.append(lambda oo, dd, tm: intersect_boxes(prep.boxes, oo, dd, 0.0, tm)[1] >= 0)
+    tests = [lambda oo, dd, tm, closest=REFERENCE_SHAPES[keyword].closest, arrays=arrays:
+             closest(arrays, oo, dd, 0.0, tm)[1] >= 0 for keyword, _, _, arrays in prep.kinds]
     if prep.meshes is not None:
         tests.append(prep.meshes.bvh.any_hit)
     for test in tests:
@@ -211,22 +157,19 @@ def closest_hit(prep: PreparedScene, o, d) -> HitRecord:
 
 
 def _closest_of_all(prep: PreparedScene, o, d, t_min, t, s) -> HitRecord:
-    """closest_hit past the spheres (their t, s given): planes, boxes, meshes; the point
-    p = o + t·d and each kind's normal as in the spheres-only path."""
+    """closest_hit past the spheres (their t, s given): the other kinds in the scene's order
+    (planes, boxes: reference/shapes.py), then the meshes; the point p = o + t·d and each
+    kind's normal as in the spheres-only path."""
     n_rays = d.shape[0]
     shape = s.copy()                                  # global index; spheres' are theirs
-    axis = np.zeros(n_rays, dtype=np.int64)
+    extras = []                                       # each kind's extra (a box's face axis)
     tri = np.full(n_rays, -1, dtype=np.int64)
     bary = np.zeros((n_rays, 2))
-    if prep.planes is not None:
-        tp, ip = intersect_planes(prep.planes, o, d, t_min, t)
-        closer = ip >= 0
-        t, shape = np.where(closer, tp, t), np.where(closer, prep.first_plane + ip, shape)
-    if prep.boxes is not None:
-        tb, ib, ab = intersect_boxes(prep.boxes, o, d, t_min, t)
-        closer = ib >= 0
-        t, shape = np.where(closer, tb, t), np.where(closer, prep.first_box + ib, shape)
-        axis = np.where(closer, ab, axis)
+    for keyword, first, _, arrays in prep.kinds:
+        tk, ik, ek = REFERENCE_SHAPES[keyword].closest(arrays, o, d, t_min, t)
+        closer = ik >= 0
+        t, shape = np.where(closer, tk, t), np.where(closer, first + ik, shape)
+        extras.append(None if ek is None else np.where(closer, ek, 0))
     if prep.meshes is not None:
         tm, it, b1, b2 = prep.meshes.bvh.closest(o, d, t_min, t)
         closer = it >= 0
@@ -235,21 +178,18 @@ def _closest_of_all(prep: PreparedScene, o, d, t_min, t, s) -> HitRecord:
         tri = np.where(closer, it, -1)
         bary = np.where(closer[:, None], np.stack([b1, b2], axis=1), 0.0)
     idx = np.nonzero(shape >= 0)[0]
-    t, shape, axis, tri, bary = t[idx], shape[idx], axis[idx], tri[idx], bary[idx]
+    t, shape, tri, bary = t[idx], shape[idx], tri[idx], bary[idx]
     dd = d[idx]
     oo = o[idx] if o.ndim == 2 else o
     p = oo + t[:, None] * dd
     n = np.empty_like(p)
-    sphere = np.where(shape < prep.first_plane, shape, -1)
+    sphere = np.where(shape < len(prep.radii), shape, -1)       # spheres come first
     on = sphere >= 0
     n[on] = (p[on] - prep.centers[sphere[on]]) / prep.radii[sphere[on]][:, None]
-    if prep.planes is not None:
-        on = (shape >= prep.first_plane) & (shape < prep.first_box)
-        n[on] = prep.planes.normal[shape[on] - prep.first_plane]
-    if prep.boxes is not None:
-        on = (shape >= prep.first_box) & (shape < prep.first_box + len(prep.boxes.lo))
-        # The face's object normal ±e_k to the world by (M⁻¹)ᵀ: row k of M⁻¹'s linear part.
-        n[on] = _normalize(prep.boxes.from_world[shape[on] - prep.first_box, axis[on], :3])
+    for (keyword, first, count, arrays), extra in zip(prep.kinds, extras):
+        on = (shape >= first) & (shape < first + count)
+        n[on] = REFERENCE_SHAPES[keyword].normal(
+            arrays, shape[on] - first, None if extra is None else extra[idx][on], p[on])
     on = tri >= 0
     if on.any():
         corners = prep.meshes.positions[prep.meshes.triangles[tri[on]]]     # (k, 3, 3)

@@ -23,9 +23,11 @@ from mimarble.meshes.facts import mesh_facts
 from mimarble.meshes.limits import MeshFileError
 from mimarble.scene.model import Scene, in_object_space, samples_per_axis
 from mimarble.scene.rules import shortened
+from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 from .channels import needs_uv
 from mimarble.meshes.arrays import read_mesh
+from .shapes import REFERENCE_SHAPES, BoxArrays, PlaneArrays, _from_world, _normalize  # noqa: F401
 from .triangles import TriangleBVH
 
 #: The material components, in the order of the shading formula.
@@ -57,43 +59,16 @@ class PreparedScene:
     background: np.ndarray         # (3,)
     light_areas: tuple = ()        # (L,) None, or area_samples' pattern of an area light
     shape_material: np.ndarray | None = None   # (n,) int: every shape's, scene.shapes() order
-    planes: "PlaneArrays | None" = None
-    boxes: "BoxArrays | None" = None
+    # (keyword, first, count, arrays) of each kind present that reference/shapes.py
+    # intersects (planes, boxes), in the scene's order; ``first`` is the global shape
+    # index of its shape 0 (spheres come first, then planes, boxes, meshes: SHAPE_KINDS).
+    kinds: tuple = ()
     meshes: "MeshArrays | None" = None
     from_world: np.ndarray | None = None       # (n, 3, 4): object_to_world⁻¹, when needed
 
     @property
-    def first_plane(self) -> int:
-        """The global shape index of plane 0 (spheres come first, then planes, boxes, meshes)."""
-        return len(self.radii)
-
-    @property
-    def first_box(self) -> int:
-        return self.first_plane + (0 if self.planes is None else len(self.planes.radius))
-
-    @property
     def spheres_only(self) -> bool:
-        return self.planes is None and self.boxes is None and self.meshes is None
-
-
-@dataclass(frozen=True)
-class PlaneArrays:
-    """Planes: a point, the unit normal, and the disk they are rendered as (centre, radius:
-    geometry.plane_disk)."""
-
-    point: np.ndarray              # (P, 3)
-    normal: np.ndarray             # (P, 3)
-    centre: np.ndarray             # (P, 3)
-    radius: np.ndarray             # (P,)
-
-
-@dataclass(frozen=True)
-class BoxArrays:
-    """Boxes: corners in object space, and world → object (M⁻¹, float64: rows 3×4)."""
-
-    lo: np.ndarray                 # (B, 3)
-    hi: np.ndarray                 # (B, 3)
-    from_world: np.ndarray         # (B, 3, 4)
+        return not self.kinds and self.meshes is None
 
 
 @dataclass(frozen=True)
@@ -107,15 +82,6 @@ class MeshArrays:
     triangles: np.ndarray          # (T, 3) int64
     triangle_shape: np.ndarray     # (T,) int64
     uv: np.ndarray | None          # (V, 2), or None when no mesh has texture coordinates
-
-
-def _from_world(shapes) -> np.ndarray:
-    """object_to_world(shape)⁻¹ of each shape (:func:`mimarble.scene.geometry.object_to_world`),
-    inverted in float64, as rows 3×4: (n, 3, 4)."""
-    if not shapes:
-        return np.zeros((0, 3, 4))
-    placed = np.array([geometry.object_to_world(shape) for shape in shapes], dtype=np.float64)
-    return np.linalg.inv(placed)[:, :3, :]
 
 
 def read_meshes(scene: Scene) -> tuple:
@@ -159,25 +125,6 @@ def read_meshes(scene: Scene) -> tuple:
     return tuple(out)
 
 
-def _plane_arrays(scene: Scene) -> PlaneArrays | None:
-    if not scene.planes:
-        return None
-    disks = [geometry.plane_disk(scene, plane) for plane in scene.planes]
-    normal = np.array([pl.normal for pl in scene.planes], dtype=np.float64)
-    return PlaneArrays(point=np.array([pl.point for pl in scene.planes], dtype=np.float64),
-                       normal=_normalize(normal),
-                       centre=np.array([c for c, _ in disks], dtype=np.float64),
-                       radius=np.array([r for _, r in disks], dtype=np.float64))
-
-
-def _box_arrays(scene: Scene) -> BoxArrays | None:
-    if not scene.boxes:
-        return None
-    return BoxArrays(lo=np.array([b.min for b in scene.boxes], dtype=np.float64),
-                     hi=np.array([b.max for b in scene.boxes], dtype=np.float64),
-                     from_world=_from_world(scene.boxes))
-
-
 def _mesh_arrays(scene: Scene, meshes: tuple, first: int) -> MeshArrays | None:
     """The meshes' vertices placed in the world, p_world = M·(p, 1) in float64, and one
     hierarchy over all their triangles; ``first`` is mesh 0's global shape index."""
@@ -208,7 +155,7 @@ def _check_uv(scene: Scene, meshes: tuple) -> None:
     Python hears it here)."""
     has_uv = {f"mesh_{k}": data.uv is not None for k, data in enumerate(meshes)}
     for shape_id, shape in scene.shapes():
-        if shape_id.startswith("sphere_") or has_uv.get(shape_id):
+        if kind_of(shape).without_uv is None or has_uv.get(shape_id):
             continue
         material = scene.material_of(shape)
         if any(needs_uv(c) for c in material.channels().values()):
@@ -260,7 +207,13 @@ def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
     lights = scene.lights
     meshes = read_meshes(scene) if meshes is None else tuple(meshes)
     _check_uv(scene, meshes)
-    first_mesh = len(spheres) + len(scene.planes) + len(scene.boxes)
+    first, kinds, count = {}, [], 0
+    for kind in SHAPE_KINDS:               # each kind's first global index, in the scene's order
+        shapes, arrays = getattr(scene, kind.plural), REFERENCE_SHAPES[kind.keyword].arrays
+        first[kind.keyword] = count
+        if shapes and arrays is not None:
+            kinds.append((kind.keyword, count, len(shapes), arrays(scene, shapes)))
+        count += len(shapes)
     return PreparedScene(
         scene=scene,
         centers=np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3),
@@ -278,9 +231,8 @@ def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
                           for l in lights),
         shape_material=np.array([index[shape.material] for _, shape in scene.shapes()],
                                 dtype=np.int64),
-        planes=_plane_arrays(scene),
-        boxes=_box_arrays(scene),
-        meshes=_mesh_arrays(scene, meshes, first_mesh),
+        kinds=tuple(kinds),
+        meshes=_mesh_arrays(scene, meshes, first["mesh"]),
         from_world=_object_space(scene, tuple(channels)),
     )
 
@@ -291,10 +243,6 @@ def _as_prepared(scene) -> PreparedScene:
 
 # ---------------------------------------------------------------------------
 # Camera and sampling
-
-def _normalize(v):
-    return v / np.linalg.norm(v, axis=-1, keepdims=True)
-
 
 def camera_basis(camera, aspect: float):
     """(eye, f, r, u, tan_half, aspect) of the pinhole camera, float64."""

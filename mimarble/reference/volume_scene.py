@@ -22,9 +22,11 @@ from mimarble.scene.model import (
     Multiply,
     RectangleArea,
     Scene,
+    Sphere,
     SphereArea,
     in_object_space,
 )
+from mimarble.scene.shapes import SHAPE_KINDS
 
 from .channels import channel_color
 
@@ -129,8 +131,8 @@ def _rectangle(light, lookat):
 
 def _problem(scene: Scene) -> str | None:
     """Why the walk cannot render ``scene`` (one sentence), or None."""
-    others = [kind for kind, items in (("planes", scene.planes), ("boxes", scene.boxes),
-                                       ("meshes", scene.meshes)) if items]
+    others = [kind.plural for kind in SHAPE_KINDS if kind.cls is not Sphere
+              and getattr(scene, kind.plural)]
     if others:
         return (f"render_translucent renders translucent spheres only; this scene has "
                 f"{' and '.join(others)}")

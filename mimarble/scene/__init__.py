@@ -53,6 +53,7 @@ from .model import (
     walk,
 )
 from .parser import LIMITS, load, parse
+from .shapes import SHAPE_KINDS, ShapeKind
 
 __all__ = [
     "load",
@@ -82,6 +83,8 @@ __all__ = [
     "Box",
     "Mesh",
     "SHAPE_TYPES",
+    "SHAPE_KINDS",
+    "ShapeKind",
     "SPACES",
     "Pos",
     "FrozenMap",

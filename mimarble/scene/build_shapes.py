@@ -1,6 +1,9 @@
-"""The scene builder's shapes: ``sphere``, ``plane``, ``box`` and ``mesh`` (its file's facts
-read once per file, meshes/, its triangles counted toward the scene's limit), each built
-with its material's name token and whether it has texture coordinates (u, v).
+"""The scene builder's shapes, each built with its material's name token and whether it has texture coordinates (u, v).
+
+A kind's block is read from its record's keys (shapes.py: vectors and numbers, each
+refused at its value by its rule); ``box`` (its corners checked together) and ``mesh``
+(its file's facts read once per file, meshes/, its triangles counted toward the
+scene's limit) have readers of their own.
 """
 
 from __future__ import annotations
@@ -12,7 +15,8 @@ from lark import Token, Tree
 from mimarble.meshes.limits import MeshFileError
 from mimarble.scene import rules
 from .build_values import ValueReader, pos_of, unquoted, vector_text
-from .model import MESH_FORMATS, Box, Mesh, Plane, Pos, Sphere
+from .model import MESH_FORMATS, Box, Mesh, Pos
+from .shapes import ShapeKind
 
 
 class ShapeBuilder(ValueReader):
@@ -31,27 +35,34 @@ class ShapeBuilder(ValueReader):
             raise self.error(st, f"{kind} has no 'material'; add material \"name\"")
         return f, f["material"].children[0]
 
-    def sphere(self, st: Tree) -> tuple[Sphere, Token, bool]:
-        f, name_tok = self.shape_fields(st)
-        d = Sphere("")
-        center = self.point_of(f, "center", d.center)
-        radius = d.radius
-        if "radius" in f:
-            tok = f["radius"].children[0]
-            radius = self.number(tok)
-            self.refuse(tok, rules.radius_problem(radius))
-        return Sphere(unquoted(name_tok), center, radius, pos=pos_of(st)), name_tok, True
+    def read_shape(self, kind: ShapeKind, st: Tree) -> tuple[object, Token, bool]:
+        """A block of ``kind``: by its own reader (box, mesh) or from its keys."""
+        own = _OWN_READERS.get(kind.keyword)
+        return own(self, st) if own else self.shape_of_keys(kind, st)
 
-    def plane(self, st: Tree) -> tuple[Plane, Token, bool]:
-        """``plane { point <> normal <> material "m" }``: a zero normal is refused at its
-        vector."""
+    def shape_of_keys(self, kind: ShapeKind, st: Tree) -> tuple[object, Token, bool]:
+        """A shape whose keys are vectors and numbers, each absent one its class's default:
+        a number's problem is refused at the number as written, a vector's at the vector
+        with its value (a plane's zero normal)."""
         f, name_tok = self.shape_fields(st)
-        d = Plane("")
-        point, normal = self.point_of(f, "point", d.point), self.point_of(f, "normal", d.normal)
-        problem = rules.normal_problem(normal)
-        if problem:
-            raise self.error(f["normal"].children[0], f"{problem}, found {vector_text(normal)}")
-        return Plane(unquoted(name_tok), point, normal, pos=pos_of(st)), name_tok, False
+        default = kind.cls("")
+        values = {}
+        for key in kind.keys:
+            value = getattr(default, key.name)
+            if key.syntax == "vector":
+                value = self.point_of(f, key.name, value)
+                problem = key.problem(value) if key.problem else None
+                if problem:
+                    raise self.error(f[key.name].children[0],
+                                     f"{problem}, found {vector_text(value)}")
+            elif key.syntax == "number" and key.name in f:
+                tok = f[key.name].children[0]
+                value = self.number(tok)
+                if key.problem:
+                    self.refuse(tok, key.problem(value))
+            values[key.name] = value
+        shape = kind.cls(unquoted(name_tok), **values, pos=pos_of(st))
+        return shape, name_tok, kind.without_uv is None
 
     def box(self, st: Tree) -> tuple[Box, Token, bool]:
         """``box { min <> max <> transform { … } material "m" }``: corners out of order
@@ -99,3 +110,7 @@ class ShapeBuilder(ValueReader):
         mesh = Mesh(unquoted(name_tok), name, path, steps, pos=Pos(tok.line, tok.column),
                     digest=facts.digest)
         return mesh, name_tok, facts.has_uv
+
+
+#: The kinds read by a reader of their own, not from their keys alone.
+_OWN_READERS = {"box": ShapeBuilder.box, "mesh": ShapeBuilder.mesh}

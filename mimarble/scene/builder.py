@@ -21,13 +21,10 @@ from .build_materials import MaterialBuilder
 from .build_shapes import ShapeBuilder
 from .build_values import keyword_of, unquoted
 from .build_view import ViewBuilder
-from .model import (Box, Camera, FrozenMap, Image, ImageChannel, Light, Material, Mesh, Plane,
-                    Scene, Sphere, SphereArea, walk)
+from .model import Camera, FrozenMap, Image, ImageChannel, Light, Material, Scene, SphereArea, walk
+from .shapes import BY_KEYWORD, SHAPE_KINDS, kind_of
 
 __all__ = ["SceneBuilder", "image_maps_of"]
-
-#: What each kind of shape lacks for an image map: texture coordinates (u, v).
-_NO_UV = {"plane": "a plane", "box": "a box", "mesh": "this mesh's file"}
 
 
 def image_maps_of(materials) -> tuple:
@@ -85,25 +82,22 @@ class SceneBuilder(ViewBuilder, MaterialBuilder, ShapeBuilder):
                 self.add_material(st, materials)
             elif kind == "texture_definition":
                 self.texture_definition(st)
-            elif kind in ("sphere", "plane", "box", "mesh"):
-                shapes.append(getattr(self, kind)(st))
+            elif kind in BY_KEYWORD:
+                shapes.append(self.read_shape(BY_KEYWORD[kind], st))
             else:  # pragma: no cover - grammar and builder out of step
                 raise self.error(st, f"internal error: unhandled statement {kind}")
         materials = {name: mat for name, (mat, _) in materials.items()}
         self.check_shapes(shapes, materials)
         self.check_area_lights(lights, camera)
-        of = {kind: tuple(s for s, _, _ in shapes if isinstance(s, kind))
-              for kind in (Sphere, Plane, Box, Mesh)}
+        of = {kind.plural: tuple(s for s, _, _ in shapes if isinstance(s, kind.cls))
+              for kind in SHAPE_KINDS}
         return Scene(
             image=image,
             camera=camera,
             ambient=ambient,
             lights=tuple(light for light, _ in lights),
             materials=FrozenMap(materials),
-            spheres=of[Sphere],
-            planes=of[Plane],
-            boxes=of[Box],
-            meshes=of[Mesh],
+            **of,
             textures=FrozenMap((name, self.resolved[name]) for name in self.definitions),
             source=source,
         )
@@ -144,9 +138,8 @@ class SceneBuilder(ViewBuilder, MaterialBuilder, ShapeBuilder):
             if problem:
                 raise self.error(name_tok, problem)
             if not has_uv and shape.material in imaged:
-                kind = type(shape).__name__.lower()
-                raise self.error(name_tok, rules.image_map_uv_problem(shape.material,
-                                                                      _NO_UV[kind]))
+                raise self.error(name_tok, rules.image_map_uv_problem(
+                    shape.material, kind_of(shape).without_uv))
 
     def check_area_lights(self, lights, camera: Camera) -> None:
         """A spherical area light does not enclose the camera (wherever the camera

@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 
-from mimarble.meshes.facts import mesh_bounds
 from mimarble.scene import transforms
 
 __all__ = ["PLANE_REACH", "plane_frame", "object_to_world", "plane_disk", "sphere_bounds",
@@ -79,16 +78,12 @@ def _placed(columns, origin) -> Matrix:
 
 
 def object_to_world(shape) -> Matrix:
-    """The shape's object space to world (module docstring), as 4×4 rows."""
-    kind = type(shape).__name__
-    if kind == "Sphere":
-        r = shape.radius
-        return _placed(((r, 0.0, 0.0), (0.0, r, 0.0), (0.0, 0.0, r)), shape.center)
-    if kind == "Plane":
-        return _placed(plane_frame(shape.normal), shape.point)
-    if kind in ("Box", "Mesh"):
-        return transforms.compose(shape.transform)
-    raise TypeError(f"object_to_world: {shape!r:.60} is not a shape")
+    """The shape's object space to world (module docstring), as 4×4 rows: its own
+    (shapes.py, the shape protocol)."""
+    method = getattr(shape, "object_to_world", None)
+    if method is None:
+        raise TypeError(f"object_to_world: {shape!r:.60} is not a shape")
+    return method()
 
 
 def apply(matrix: Matrix, point):
@@ -114,6 +109,7 @@ def mesh_corners(mesh):
     (meshes.facts.mesh_bounds, in file coordinates) placed by the mesh's transform: the
     mesh lies within their convex hull. None where the file cannot be read (the parser
     says why at the mesh)."""
+    from mimarble.meshes.facts import mesh_bounds   # here: a malformed scene's answer needs none
     bounds = mesh_bounds(mesh.location)
     if bounds is None:
         return None
@@ -129,22 +125,10 @@ def _around(corners):
 
 
 def sphere_bounds(shape):
-    """(centre, radius) of a sphere enclosing the shape in world space, or None for a
-    plane (unbounded): a box's or a mesh's (:func:`mesh_corners`) around its eight world
-    corners; a mesh whose file cannot be read, the translation of its transform, radius 0
-    (the one point known without it; the parser refuses such a scene)."""
-    kind = type(shape).__name__
-    if kind == "Sphere":
-        return shape.center, shape.radius
-    if kind == "Box":
-        return _around(box_corners(shape))
-    if kind == "Mesh":
-        corners = mesh_corners(shape)
-        if corners is not None:
-            return _around(corners)
-        m = transforms.compose(shape.transform)
-        return (m[0][3], m[1][3], m[2][3]), 0.0
-    return None
+    """(centre, radius) of a sphere enclosing the shape in world space, or None for an
+    unbounded kind (a plane): its own ``bounds()`` (shapes.py) — a sphere's own; a
+    box's or a mesh's (:func:`mesh_corners`) around its eight world corners."""
+    return shape.bounds()
 
 
 def plane_disk(scene, plane):

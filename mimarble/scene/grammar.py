@@ -1,5 +1,4 @@
-"""The scene language's grammar: the text of ``scene.lark`` and the marble block's rules,
-written from the marble's parameter table.
+"""The scene language's grammar: the text of ``scene.lark``, the marble block's rules written from the marble's parameter table, the shapes' from their kinds.
 
 The marble's keys and the syntax of their values are facts of the table
 (mimarble/parameters.py): one rule a row, its value written as its kind says. So
@@ -10,13 +9,16 @@ language adds one rule of its own: every colour it writes, ramps' too, is ≥ 0)
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from mimarble import parameters as marble_parameters
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
 from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
+from .shapes import SHAPE_KINDS
 
-__all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "LANGUAGE_MARBLE_KEYS", "marble_rules", "grammar_text"]
+__all__ = ["GRAMMAR_PATH", "VALUE_SYNTAX", "LANGUAGE_MARBLE_KEYS", "marble_rules", "shape_rules",
+           "grammar_text"]
 
 #: The hand-written part of the grammar: everything but the marble block's rules.
 GRAMMAR_PATH = Path(__file__).with_name("scene.lark")
@@ -56,6 +58,31 @@ def marble_rules() -> str:
     return "\n".join(rules) + "\n"
 
 
+#: How a shape key's value is written, by its syntax (shapes.ShapeKey).
+_SHAPE_KEY_SYNTAX = {"vector": "vector", "number": "NUMBER"}
+
+
+def shape_rules(text: str) -> str:
+    """The shapes' rules (shapes.SHAPE_KINDS): ``_shape``, the statement of each kind,
+    each kind's block and its keys (``material`` last), and a rule for each key that
+    ``text`` (the hand-written grammar) does not define."""
+    rules = ["// The shapes, written from mimarble/scene/shapes.py by",
+             "// mimarble/scene/grammar.py (each value's rule: after parsing).",
+             "_shape: " + " | ".join(kind.keyword for kind in SHAPE_KINDS)]
+    defined = set()
+    for kind in SHAPE_KINDS:
+        rules.append(f'{kind.keyword}: "{kind.keyword}" "{{" _{kind.keyword}_key* "}}"')
+        rules.append(f"_{kind.keyword}_key: "
+                     + " | ".join([key.name for key in kind.keys] + ["shape_material"]))
+        for key in kind.keys:
+            if key.name not in defined and not re.search(rf"^{key.name}\s*:", text, re.M):
+                rules.append(f'{key.name}: "{key.name}" {_SHAPE_KEY_SYNTAX[key.syntax]}')
+                defined.add(key.name)
+    return "\n".join(rules) + "\n"
+
+
 def grammar_text() -> str:
-    """The whole grammar: ``scene.lark`` followed by :func:`marble_rules`."""
-    return GRAMMAR_PATH.read_text(encoding="utf-8") + "\n" + marble_rules()
+    """The whole grammar: ``scene.lark`` followed by :func:`marble_rules` and
+    :func:`shape_rules`."""
+    text = GRAMMAR_PATH.read_text(encoding="utf-8")
+    return text + "\n" + marble_rules() + "\n" + shape_rules(text)

@@ -13,12 +13,13 @@ from __future__ import annotations
 # The rows with a key of their own (ramp_positions is written inside the ramp block).
 from mimarble.parameters import KEYWORD_PARAMETERS as PARAMETERS
 from .grammar import LANGUAGE_MARBLE_KEYS
+from .shapes import SHAPE_KINDS
 
 __all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BARE_CHANNEL_KEYS", "BLOCK_KEYS"]
 
 #: Top-level statements, in documentation order.
 STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "material", "texture",
-                               "sphere", "plane", "box", "mesh")
+                               *(kind.keyword for kind in SHAPE_KINDS))
 
 #: The keywords that start a channel (``texture "NAME"``: a named texture's channel).
 CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multiply", "mix",
@@ -50,8 +51,6 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "texture": CHANNEL_KEYWORDS,                     # texture "NAME" { CHANNEL }
     "marble": tuple(p.name for p in PARAMETERS) + LANGUAGE_MARBLE_KEYS,
     "transform": ("translate", "rotate", "scale"),   # marble, box, mesh: transforms.STEPS
-    "sphere": ("center", "radius", "material"),
-    "plane": ("point", "normal", "material"),
-    "box": ("min", "max", "transform", "material"),
-    "mesh": ("file", "transform", "material"),
+    **{kind.keyword: tuple(key.name for key in kind.keys) + ("material",)
+       for kind in SHAPE_KINDS},
 }

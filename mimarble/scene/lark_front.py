@@ -28,6 +28,7 @@ from .errors import SceneError
 from .grammar import grammar_text
 from .keywords import CHANNEL_KEYWORDS
 from .limits import MAX_SCENE_BYTES
+from .shapes import SHAPE_KINDS, count_problem
 from .syntax_errors import povray_hint, syntax_error
 
 __all__ = ["scene_tree", "oversized"]
@@ -35,10 +36,10 @@ __all__ = ["scene_tree", "oversized"]
 #: How the language writes a linear colour, in the sentences about ``#rrggbb``.
 _LINEAR_COLOUR = "< r g b >"
 
-#: The statements whose count is limited (rules.count_problem), counted as the tokens are
-#: fed. ``texture`` is counted where it starts a statement (a definition, outside every
+#: The statements whose count is limited (shapes.count_problem), counted as the tokens
+#: are fed. ``texture`` is counted where it starts a statement (a definition, outside every
 #: block), not where it names a channel.
-_COUNTED = ("light", "sphere", "plane", "box", "mesh", "texture")
+_COUNTED = ("light", *(kind.keyword for kind in SHAPE_KINDS), "texture")
 
 
 def _parser_cache_file(grammar: str) -> str | bool:
@@ -120,7 +121,7 @@ def scene_tree(text: str, filename: str) -> Tree:
             problem = None
             if kind in counted and not braces:
                 counts[counted[kind]] += 1
-                problem = rules.count_problem(counted[kind], counts[counted[kind]])
+                problem = count_problem(counted[kind], counts[counted[kind]])
             elif kind in channels and open_expressions:
                 problem = rules.depth_problem(open_expressions + 1)
             elif kind == "LBRACE":

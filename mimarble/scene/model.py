@@ -42,7 +42,7 @@ from .channels import (CHANNEL_TYPES, EXPRESSIONS, SPACES, Add, Channel, ColorCh
 from .limits import MAX_IMAGE_SAMPLES
 from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis, FrozenMap, MarbleFunction,
                     Pos, Vec3, _colour, _instances, _integer, _number, _pos, _refuse, _shown, _store, _vector)
-from .shapes import MESH_FORMATS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
+from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
 
 __all__ = [
     "Vec3",
@@ -372,13 +372,11 @@ class Scene:
                 raise TypeError(f'texture "{rules.shortened(name)}" must be a channel, found '
                                 f"{_shown(channel)}")
         lights = _instances(self.lights, Light, "lights")
-        spheres = _instances(self.spheres, Sphere, "spheres")
-        planes = _instances(self.planes, Plane, "planes")
-        boxes = _instances(self.boxes, Box, "boxes")
-        meshes = _instances(self.meshes, Mesh, "meshes")
-        for kind, items in (("light", lights), ("sphere", spheres), ("plane", planes),
-                            ("box", boxes), ("mesh", meshes), ("texture", self.textures)):
-            problem = rules.count_problem(kind, len(items))
+        of = {kind.plural: _instances(getattr(self, kind.plural), kind.cls, kind.plural)
+              for kind in SHAPE_KINDS}
+        for problem in (rules.count_problem("light", len(lights)),
+                        *(kind.count_problem(len(of[kind.plural])) for kind in SHAPE_KINDS),
+                        rules.count_problem("texture", len(self.textures))):
             if problem:
                 raise ValueError(problem)
         for name, material in self.materials.items():
@@ -388,7 +386,7 @@ class Scene:
             if name != material.name:
                 raise ValueError(f'materials: the name "{rules.shortened(name)}" holds '
                                  f'material "{rules.shortened(material.name)}"')
-        for shape in spheres + planes + boxes + meshes:
+        for shape in (shape for items in of.values() for shape in items):
             problem = rules.unknown_material(shape.material, self.materials)
             if problem:
                 raise ValueError(problem)
@@ -398,21 +396,19 @@ class Scene:
                     light.position, light.area.radius, self.camera.eye, self.camera.lookat)
                 if problem:
                     raise ValueError(problem)
-        _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, spheres=spheres,
-               planes=planes, boxes=boxes, meshes=meshes)
+        _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, **of)
 
     def shapes(self) -> tuple:
-        """``(id, shape)`` of every shape: spheres, planes, boxes, meshes, each kind in file
-        order, ids ``sphere_0``, ``plane_0``, ``box_0``, ``mesh_0``, … (the Mitsuba
-        scene's ids, ``mimarble bake --shape``'s)."""
-        return tuple((f"{kind}_{k}", shape)
-                     for kind, items in (("sphere", self.spheres), ("plane", self.planes),
-                                         ("box", self.boxes), ("mesh", self.meshes))
-                     for k, shape in enumerate(items))
+        """``(id, shape)`` of every shape: kind by kind (SHAPE_KINDS: spheres, planes,
+        boxes, meshes), each kind in file order, ids ``sphere_0``, ``plane_0``, ``box_0``,
+        ``mesh_0``, … (the Mitsuba scene's ids, ``mimarble bake --shape``'s)."""
+        return tuple((f"{kind.keyword}_{k}", shape) for kind in SHAPE_KINDS
+                     for k, shape in enumerate(getattr(self, kind.plural)))
 
     def bounded_shapes(self) -> tuple:
-        """Every shape but the planes."""
-        return self.spheres + self.boxes + self.meshes
+        """Every shape of a bounded kind (all but the planes), kind by kind."""
+        return tuple(shape for kind in SHAPE_KINDS if kind.bounded
+                     for shape in getattr(self, kind.plural))
 
     def shape(self, shape_id: str):
         """The shape of id ``shape_id`` (:meth:`shapes`); KeyError naming the ids if none."""

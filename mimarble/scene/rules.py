@@ -17,12 +17,12 @@ import numbers
 from mimarble.parameters import single_precision
 from mimarble.runtime.reading import shortened
 from .limits import (FLT_MAX, FLT_MIN_NORMAL, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
-                     MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS, MAX_SPHERES,
-                     MAX_PLANES, MAX_BOXES, MAX_MESHES, MAX_TEXTURES, MAX_MESH_TRIANGLES)
+                     MAX_IMAGE_SAMPLES, MAX_LIGHT_SAMPLES, MAX_LIGHTS,
+                     MAX_TEXTURES, MAX_MESH_TRIANGLES)
 
 __all__ = ["number_problem", "integer_problem", "colour_problem", "fov_problem",
            "view_problem", "up_problem", "image_samples_problem", "radius_problem",
-           "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem",
+           "shininess_problem", "spp_problem", "seed_problem", "material_name_problem", "unknown_material", "count_problem", "too_many",
            "light_samples_problem", "area_axes_problem", "area_radius_problem",
            "area_light_enclosure_problem", "cross",
            "depth_problem", "size_problem", "mean_free_path_problem", "ior_problem", "listed_names", "shortened", "normal_problem",
@@ -236,20 +236,20 @@ def unknown_material(name: str, materials) -> str | None:
 
 
 _COUNTS = {"light": (MAX_LIGHTS, "the whitted integrator unrolls its loop over the lights"),
-           "sphere": (MAX_SPHERES, "the renderers' memory and time grow with them"),
-           "plane": (MAX_PLANES, "every ray is tested against every plane"),
-           "box": (MAX_BOXES, "the renderers' memory and time grow with them"),
-           "mesh": (MAX_MESHES, "each is a file read and a shape of its own"),
            "texture": (MAX_TEXTURES, "each is a channel kept by name")}
 
 
 def count_problem(kind: str, count: int) -> str | None:
-    """Lights, shapes and named textures per scene, within their limits (``kind``: light,
-    sphere, plane, box, mesh, texture)."""
+    """Lights and named textures per scene, within their limits (``kind``: light,
+    texture; a shape's count is its kind's, shapes.py)."""
     most, why = _COUNTS[kind]
+    return too_many(f"{kind}s", count, most, why)
+
+
+def too_many(plural: str, count: int, most: int, why: str) -> str | None:
+    """At most ``most`` of a thing (``plural``) per scene, because ``why``."""
     if count <= most:
         return None
-    plural = "boxes" if kind == "box" else "meshes" if kind == "mesh" else f"{kind}s"
     return f"too many {plural}: a scene holds at most {most} ({why}; docs/scene-language.md, Limits)"
 
 

@@ -118,13 +118,14 @@ def chosen(scene, shape_id: str, channel: str | None = None, volume: bool = Fals
         shape = scene.shape(shape_id)
     except KeyError as e:
         raise BakeError(e.args[0]) from None
-    kind = type(shape).__name__.lower()
-    if kind == "plane":
-        raise BakeError(f"{shape_id} is a plane: it has no (u, v) to bake an image through "
-                        f"and no bounds to bake a volume in")
-    if kind == "box" and not volume:
-        raise BakeError(f"{shape_id} is a box: it has no (u, v) to bake an image through; "
-                        f"bake a volume with --volume")
+    from mimarble.scene.shapes import kind_of
+    kind = kind_of(shape)
+    if not kind.bounded:
+        raise BakeError(f"{shape_id} is a {kind.keyword}: it has no (u, v) to bake an image "
+                        f"through and no bounds to bake a volume in")
+    if kind.keyword not in _TEXELS and not volume:
+        raise BakeError(f"{shape_id} is a {kind.keyword}: it has no (u, v) to bake an image "
+                        f"through; bake a volume with --volume")
     material = scene.material_of(shape)
     present = dict(material.channels())
     inside = material.subsurface.channels() if material.subsurface is not None else {}
@@ -357,27 +358,30 @@ def bake_image(scene, shape_id: str, size: int = DEFAULT_IMAGE_SIZE, channel: st
     from mimarble.runtime.progress import report
     update = report(progress, f"bake {shape_id}", unit="texel")
     out = np.zeros((size, size, 3), dtype=np.float32)
-    if type(shape).__name__ == "Sphere":
-        _sphere_texels(shape, size, value, out, update)
-    else:
-        _mesh_texels(shape_id, shape, size, value, out, update)
+    from mimarble.scene.shapes import kind_of
+    _TEXELS[kind_of(shape).keyword](shape_id, shape, size, value, out, update)
     update(size * size, size * size)
     return out
+
+
+#: The kinds an image is baked through, by keyword: each shape's texels (module docstring).
+_TEXELS = {"sphere": lambda shape_id, shape, *rest: _sphere_texels(shape, *rest),
+           "mesh": _mesh_texels}
 
 
 # ---------------------------------------------------------------------------
 # Volumes
 
 def world_bounds(shape):
-    """(min, max) of the shape's world bounding box, each three floats."""
+    """(min, max) of the shape's world bounding box, each three floats: a sphere's exactly,
+    a mesh's around its world vertices, any other kind's around its world corners."""
     import numpy as np
 
-    from mimarble.scene.geometry import box_corners
-    kind = type(shape).__name__
-    if kind == "Sphere":
+    from mimarble.scene.model import Mesh, Sphere
+    if isinstance(shape, Sphere):
         return (tuple(c - shape.radius for c in shape.center),
                 tuple(c + shape.radius for c in shape.center))
-    corners = np.asarray(box_corners(shape) if kind == "Box" else _mesh_data(shape)[1])
+    corners = np.asarray(_mesh_data(shape)[1] if isinstance(shape, Mesh) else shape.corners())
     return tuple(map(float, corners.min(axis=0))), tuple(map(float, corners.max(axis=0)))
 
 
@@ -414,7 +418,8 @@ def _to_object(shape, points):
     import numpy as np
 
     from mimarble.scene.geometry import object_to_world
-    if type(shape).__name__ == "Sphere":
+    from mimarble.scene.model import Sphere
+    if isinstance(shape, Sphere):
         return (points - np.asarray(shape.center)) / shape.radius
     m = np.array(object_to_world(shape), dtype=np.float64)
     return np.linalg.solve(m[:3, :3], (points - m[:3, 3]).T).T

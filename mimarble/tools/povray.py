@@ -26,6 +26,7 @@ import time
 from pathlib import Path
 
 from mimarble.scene import model
+from mimarble.scene.shapes import SHAPE_KINDS
 
 
 def _vec(v, mirror_z=True) -> str:
@@ -68,8 +69,8 @@ def scene_text(scene: model.Scene, size: int) -> str:
     """The scene in POV-Ray 3.7's language (see the module docstring); a scene with planes,
     boxes or meshes, or a ``space object`` marble, is refused (ValueError, one sentence):
     the comparison is of a marble sphere in world space."""
-    others = [kind for kind, shapes in (("planes", scene.planes), ("boxes", scene.boxes),
-                                        ("meshes", scene.meshes)) if shapes]
+    others = [kind.plural for kind in SHAPE_KINDS if kind.cls is not model.Sphere
+              and getattr(scene, kind.plural)]
     if others:
         raise ValueError(f"POV-Ray export takes spheres only, not {' or '.join(others)} "
                          f"(the benchmark's comparison is a marble sphere, fig11a)")

@@ -9,6 +9,8 @@ from mimarble.contract import FLOAT32_EPSILON
 from mimarble.scene import geometry, model
 from mimarble.scene.rules import cross
 
+from mimarble.scene.shapes import SHAPE_KINDS, kind_of
+
 from .shapes import _box_distance
 
 
@@ -66,6 +68,59 @@ def _largest(v) -> float:
     return max(map(abs, v))
 
 
+def _sphere_problems(scene: model.Scene, sphere) -> tuple[list, list]:
+    extent = _largest(sphere.center) + sphere.radius
+    problem = _reach_problem(
+        _where(scene, sphere), f"sphere of radius {sphere.radius:g}", extent,
+        _largest(sphere.center), _FLOAT32_ERROR_SCALE * extent,
+        abs(math.dist(sphere.center, scene.camera.eye) - sphere.radius))
+    return [problem], [(sphere.center, sphere.radius)]
+
+
+def _disk_problems(scene: model.Scene, plane) -> tuple[list, list]:
+    centre, radius = geometry.plane_disk(scene, plane)
+    problem = _reach_problem(
+        _where(scene, plane), f"plane (rendered as a disk of radius {radius:.3g})",
+        _largest(centre) + radius, _largest(centre), _FLOAT32_ERROR_SCALE * _largest(centre),
+        math.dist(centre, scene.camera.eye))
+    return [problem], [(centre, 0.0)]
+
+
+def _corner_problems(scene: model.Scene, shape) -> tuple[list, list]:
+    """A bounded shape by its eight world corners (a mesh file unread: its transform's
+    origin), named by its keyword."""
+    corners = shape.corners()
+    if corners is None:                 # a mesh file unread: its transform's origin
+        corners = [shape.bounds()[0]]
+    extent = max(map(_largest, corners))
+    distance = _box_distance(scene.camera.eye, corners) if len(corners) == 8 else 0.0
+    problem = _reach_problem(_where(scene, shape), kind_of(shape).keyword, extent,
+                             extent, _FLOAT32_ERROR_SCALE * extent,
+                             distance if distance > 0 else None)
+    return [problem], [(corner, 0.0) for corner in corners]
+
+
+def _box_problems(scene: model.Scene, box) -> tuple[list, list]:
+    """Its corners', then a face so large that Mitsuba's float32 normal of it overflows."""
+    problems, lit = _corner_problems(scene, box)
+    corners = [corner for corner, _ in lit]
+    edges = [[a - b for a, b in zip(corners[k], corners[0])] for k in (4, 2, 1)]  # x, y, z
+    face = max(math.sqrt(sum(c * c for c in cross(edges[k], edges[k - 1])))
+               for k in range(3))
+    if face >= _FACE_LIMIT:
+        problems.append(
+            f"{_where(scene, box)}: box with a face of {face:.3g} square units: Mitsuba's "
+            f"float32 face normal (the cross product of two edges, normalised through its "
+            f"square) overflows from {_FACE_LIMIT:.3g}, so that face is shaded black "
+            f"(docs/rendering-model.md)")
+    return problems, lit
+
+
+#: Each kind's checks, by keyword (:func:`float32_range_problems`); any other kind, a
+#: mesh's among them, is checked by its eight world corners.
+_RANGE_PROBLEMS = {"sphere": _sphere_problems, "plane": _disk_problems, "box": _box_problems}
+
+
 def float32_range_problems(scene: model.Scene) -> list[str]:
     """One message per shape, eye or light that Mitsuba cannot place precisely enough.
 
@@ -88,42 +143,12 @@ def float32_range_problems(scene: model.Scene) -> list[str]:
             f"beyond ±{_EMBREE_LIMIT:g}, the coordinates Mitsuba's CPU ray tracer (Embree) "
             f"accepts: its rays meet nothing there (docs/rendering-model.md)")
     lit = []        # (point, radius) around which each shape lies, for the lights' check
-    for sphere in scene.spheres:
-        extent = _largest(sphere.center) + sphere.radius
-        problems.append(_reach_problem(
-            _where(scene, sphere), f"sphere of radius {sphere.radius:g}", extent,
-            _largest(sphere.center), _FLOAT32_ERROR_SCALE * extent,
-            abs(math.dist(sphere.center, eye) - sphere.radius)))
-        lit.append((sphere.center, sphere.radius))
-    for plane in scene.planes:
-        centre, radius = geometry.plane_disk(scene, plane)
-        problems.append(_reach_problem(
-            _where(scene, plane), f"plane (rendered as a disk of radius {radius:.3g})",
-            _largest(centre) + radius, _largest(centre), _FLOAT32_ERROR_SCALE * _largest(centre),
-            math.dist(centre, eye)))
-        lit.append((centre, 0.0))
-    for shape in scene.boxes + scene.meshes:
-        box = type(shape) is model.Box
-        corners = geometry.box_corners(shape) if box else geometry.mesh_corners(shape)
-        if corners is None:                 # a mesh file unread: its transform's origin
-            corners = [geometry.sphere_bounds(shape)[0]]
-        extent = max(map(_largest, corners))
-        distance = _box_distance(eye, corners) if len(corners) == 8 else 0.0
-        problems.append(_reach_problem(_where(scene, shape), "box" if box else "mesh", extent,
-                                       extent, _FLOAT32_ERROR_SCALE * extent,
-                                       distance if distance > 0 else None))
-        lit += [(corner, 0.0) for corner in corners]
-        if not box:
-            continue
-        edges = [[a - b for a, b in zip(corners[k], corners[0])] for k in (4, 2, 1)]  # x, y, z
-        face = max(math.sqrt(sum(c * c for c in cross(edges[k], edges[k - 1])))
-                   for k in range(3))
-        if face >= _FACE_LIMIT:
-            problems.append(
-                f"{_where(scene, shape)}: box with a face of {face:.3g} square units: Mitsuba's "
-                f"float32 face normal (the cross product of two edges, normalised through its "
-                f"square) overflows from {_FACE_LIMIT:.3g}, so that face is shaded black "
-                f"(docs/rendering-model.md)")
+    for kind in SHAPE_KINDS:            # kind by kind, each in the file's order
+        check = _RANGE_PROBLEMS.get(kind.keyword, _corner_problems)
+        for shape in getattr(scene, kind.plural):
+            found, around = check(scene, shape)
+            problems += found
+            lit += around
     problems = [problem for problem in problems if problem]
     for light in scene.lights:
         farthest = max((math.dist(light.position, c) + r for c, r in lit), default=0.0)

@@ -26,7 +26,7 @@ from .materials import CALCITE_IOR, surface_bsdf
 from .media import medium_dict, subsurface_boundary, translucent_materials
 from .modes import MODES, ModeError, integrator_and_sampler, refuse_translucent
 from .shapes import (_facing_out, _product, _transform, clip_planes, cube_to_world,
-                     disk_to_world, in_object_space, shape_dict)
+                     disk_to_world, in_object_space, is_two_sided, shape_dict)
 from .textures import _marble_gains, _texture_id, _unused, marble_tolerance, texture_dict
 
 __all__ = ["AREA_LIGHT_POINT_SIZE", "CALCITE_IOR", "Float32RangeWarning", "LOAD_DICT_KEYS",
@@ -182,7 +182,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         placement = (shape_id, geometry.object_to_world(shape))
         bsdf = bsdf_of(shape.material, placement)
         subsurface = scene.materials[shape.material].subsurface
-        if mode == "path" and not isinstance(shape, model.Sphere) and subsurface is None:
+        if mode == "path" and is_two_sided(shape) and subsurface is None:
             # Mitsuba's BSDFs reflect on the side their normal points to; planes, boxes
             # and meshes are shaded on either side (whitted flips n to the viewer). A
             # dielectric boundary is two-sided itself (and twosided refuses transmission).

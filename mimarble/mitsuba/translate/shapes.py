@@ -1,7 +1,10 @@
 """Scene shapes → Mitsuba shapes: each kind's shape dict and placement, the clip planes
 that keep every shape in view, and a translucent shape's normals facing out.
 
-Shapes (:func:`shape_dict`): a sphere → ``sphere``, a plane → ``disk`` (the disk it is
+:data:`MITSUBA_SHAPES` holds one :class:`MitsubaShape` per kind of
+:data:`~mimarble.scene.shapes.SHAPE_KINDS`, by keyword; a bounded kind's reach
+defaults to its eight world corners' (``shape.corners()``), so a new kind needs its dict
+alone. Shapes (:func:`shape_dict`): a sphere → ``sphere``, a plane → ``disk`` (the disk it is
 rendered as, ``geometry.plane_disk``), a box → ``cube``, a mesh → ``ply``/``obj``, each under
 the id ``Scene.shapes()`` gives it. A material whose channels hold a ``space object`` marble
 becomes one BSDF per shape, its object-space textures placed by the shape's object space
@@ -14,11 +17,14 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 
 from mimarble.contract import T_MIN_REL
 from mimarble.scene import geometry, model
+from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 
 in_object_space = model.in_object_space
@@ -52,22 +58,36 @@ def _box_distance(point, corners) -> float:
     return math.sqrt(math.fsum(g * g for g in gaps))
 
 
-def _shape_reach(scene: model.Scene) -> tuple[list[float], list[float]]:
-    """(nearest, farthest): for every shape but the meshes, how near to the eye its surface
-    may come and how far from it it reaches (``clip_planes``)."""
+def _sphere_reach(scene: model.Scene, sphere) -> tuple[float, float]:
+    d = math.dist(sphere.center, scene.camera.eye)
+    return abs(d - sphere.radius), d + sphere.radius
+
+
+def _disk_reach(scene: model.Scene, plane) -> tuple[float, float]:
+    centre, radius = geometry.plane_disk(scene, plane)
+    height = math.dist(centre, scene.camera.eye)       # the disk's centre is the eye's foot on it
+    return height, math.hypot(height, radius)          # its rim
+
+
+def _corner_reach(scene: model.Scene, shape) -> tuple[float, float]:
+    """Between the eye's distance to the axis-aligned box around its world corners and its
+    farthest corner."""
     eye = scene.camera.eye
-    distances = [math.dist(s.center, eye) for s in scene.spheres]
-    nearest = [abs(d - s.radius) for d, s in zip(distances, scene.spheres)]
-    farthest = [d + s.radius for d, s in zip(distances, scene.spheres)]
-    for plane in scene.planes:
-        centre, radius = geometry.plane_disk(scene, plane)
-        height = math.dist(centre, eye)       # the disk's centre is the eye's foot on it
-        nearest.append(height)
-        farthest.append(math.hypot(height, radius))     # its rim
-    for box in scene.boxes:
-        corners = geometry.box_corners(box)
-        nearest.append(_box_distance(eye, corners))
-        farthest.append(max(math.dist(c, eye) for c in corners))
+    corners = shape.corners()
+    return _box_distance(eye, corners), max(math.dist(c, eye) for c in corners)
+
+
+def _shape_reach(scene: model.Scene) -> tuple[list[float], list[float]]:
+    """(nearest, farthest): for every shape of a kind whose reach is known before Mitsuba
+    loads it (all but the meshes), how near to the eye its surface may come and how far
+    from it it reaches (``clip_planes``)."""
+    nearest, farthest = [], []
+    for kind in SHAPE_KINDS:
+        reach = MITSUBA_SHAPES[kind.keyword].reach
+        for shape in getattr(scene, kind.plural):
+            near, far = reach(scene, shape)
+            nearest.append(near)
+            farthest.append(far)
     return nearest, farthest
 
 
@@ -100,7 +120,8 @@ def clip_planes(scene: model.Scene) -> tuple[float, float]:
     if not scene.shapes():
         return 0.01, 1e4   # Mitsuba's defaults: nothing to see either way
     floor = _NEAREST_HIT_REL * (1.0 + max(map(abs, eye)))
-    if scene.meshes:
+    if any(MITSUBA_SHAPES[kind.keyword].reach is None and getattr(scene, kind.plural)
+           for kind in SHAPE_KINDS):         # a mesh's reach: unknown before Mitsuba loads it
         return floor, _FAR_CLIP_MAX
     nearest, farthest = _shape_reach(scene)
     near = max(0.5 * min(nearest), floor)
@@ -150,12 +171,22 @@ def shape_dict(scene: model.Scene, shape) -> dict:
       bottom row; PLY: as written). Mitsuba's loaders change nothing else: positions are
       the file's through ``to_world`` (rounded to float32), faces as given.
     """
-    if isinstance(shape, model.Sphere):
-        return {"type": "sphere", "center": list(shape.center), "radius": shape.radius}
-    if isinstance(shape, model.Plane):
-        return {"type": "disk", "to_world": _transform(disk_to_world(scene, shape))}
-    if isinstance(shape, model.Box):
-        return {"type": "cube", "to_world": _transform(cube_to_world(shape))}
+    return MITSUBA_SHAPES[kind_of(shape).keyword].shape_dict(scene, shape)
+
+
+def _sphere_dict(scene: model.Scene, sphere) -> dict:
+    return {"type": "sphere", "center": list(sphere.center), "radius": sphere.radius}
+
+
+def _disk_dict(scene: model.Scene, plane) -> dict:
+    return {"type": "disk", "to_world": _transform(disk_to_world(scene, plane))}
+
+
+def _cube_dict(scene: model.Scene, box) -> dict:
+    return {"type": "cube", "to_world": _transform(cube_to_world(box))}
+
+
+def _file_mesh_dict(scene: model.Scene, shape) -> dict:
     kind = os.path.splitext(shape.file)[1].lower()[1:]
     return {"type": kind, "filename": shape.location,
             "to_world": _transform(geometry.object_to_world(shape)), "face_normals": True,
@@ -171,11 +202,51 @@ def _facing_out(shape_out: dict, shape) -> None:
     transpose keeps outward, gets its cube mirrored back, to_world·diag(−1, 1, 1), the
     same points ([−1, 1]³ is symmetric) with det > 0. A sphere's and a plane's disk's
     normals face out (and up) whatever their placement."""
-    if isinstance(shape, (model.Box, model.Mesh)) \
+    mirrored = MITSUBA_SHAPES[kind_of(shape).keyword].mirrored
+    if mirrored is not None \
             and np.linalg.det(np.asarray(geometry.object_to_world(shape), dtype=np.float64)) < 0:
-        if isinstance(shape, model.Box):
-            mirror = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
-                      [0.0, 0.0, 0.0, 1.0]]
-            shape_out["to_world"] = _transform(_product(cube_to_world(shape), mirror))
-        else:
-            shape_out["flip_normals"] = True
+        mirrored(shape_out, shape)
+
+
+def _mirror_cube(shape_out: dict, box) -> None:
+    mirror = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
+              [0.0, 0.0, 0.0, 1.0]]
+    shape_out["to_world"] = _transform(_product(cube_to_world(box), mirror))
+
+
+def _flip_normals(shape_out: dict, mesh) -> None:
+    shape_out["flip_normals"] = True
+
+
+@dataclass(frozen=True)
+class MitsubaShape:
+    """A kind of shape in Mitsuba's scene: ``shape_dict`` (scene, shape) -> its dict
+    without its BSDF; ``two_sided``: path mode wraps its BSDF in ``twosided`` (Mitsuba's
+    BSDFs reflect on the side their normal points to; whitted flips n to the viewer;
+    a sphere is seen from outside); ``reach`` (scene, shape) -> (nearest, farthest) from
+    the eye (:func:`clip_planes`), None where unknown before Mitsuba loads it (a mesh's
+    file; by default a bounded kind's eight world corners); ``mirrored`` (shape dict, shape):
+    what turns a translucent shape's normals back out under a mirroring transform
+    (:func:`_facing_out`), None where they face out whatever the placement."""
+
+    shape_dict: Callable
+    two_sided: bool = True
+    reach: Callable | None = _corner_reach
+    mirrored: Callable | None = None
+
+
+#: Each kind of shape, by keyword (shapes.SHAPE_KINDS; tests/test_shapes.py checks
+#: that every kind has its entry).
+MITSUBA_SHAPES: dict[str, MitsubaShape] = {
+    "sphere": MitsubaShape(_sphere_dict, two_sided=False, reach=_sphere_reach),
+    "plane": MitsubaShape(_disk_dict, reach=_disk_reach),
+    "box": MitsubaShape(_cube_dict, mirrored=_mirror_cube),
+    "mesh": MitsubaShape(_file_mesh_dict, reach=None, mirrored=_flip_normals),
+}
+
+
+def is_two_sided(shape) -> bool:
+    """Whether path mode wraps the shape's BSDF in ``twosided`` (:class:`MitsubaShape`)."""
+    return MITSUBA_SHAPES[kind_of(shape).keyword].two_sided
+
+
