@@ -152,7 +152,7 @@ class ReferenceShape:
     normal: Callable | None = None
 
 
-#: Each kind of shape, by keyword (tests/test_shapes.py checks every kind has its entry).
+#: Each kind of shape, by keyword (tests/test_shape_kinds.py checks every kind has its entry).
 REFERENCE_SHAPES: dict[str, ReferenceShape] = {
     "sphere": ReferenceShape(),            # intersection.intersect_spheres, the fast path
     "plane": ReferenceShape(_plane_arrays, _plane_closest, _plane_normal),

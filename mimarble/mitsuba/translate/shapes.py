@@ -235,7 +235,7 @@ class MitsubaShape:
     mirrored: Callable | None = None
 
 
-#: Each kind of shape, by keyword (shapes.SHAPE_KINDS; tests/test_shapes.py checks
+#: Each kind of shape, by keyword (shapes.SHAPE_KINDS; tests/test_shape_kinds.py checks
 #: that every kind has its entry).
 MITSUBA_SHAPES: dict[str, MitsubaShape] = {
     "sphere": MitsubaShape(_sphere_dict, two_sided=False, reach=_sphere_reach),
