@@ -17,7 +17,7 @@ from mimarble.contract import T_MIN_REL
 
 from .channels import channel_color, needs_uv, sphere_uv
 from .preparation import SLOTS, PreparedScene, _as_prepared, _normalize
-from .shapes import REFERENCE_SHAPES, intersect_boxes, intersect_planes  # noqa: F401  (their home)
+from .shapes import REFERENCE_SHAPES
 
 
 # ---------------------------------------------------------------------------

@@ -27,7 +27,7 @@ from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 from .channels import needs_uv
 from mimarble.meshes.arrays import read_mesh
-from .shapes import REFERENCE_SHAPES, BoxArrays, PlaneArrays, _from_world, _normalize  # noqa: F401
+from .shapes import REFERENCE_SHAPES, _from_world, _normalize
 from .triangles import TriangleBVH
 
 #: The material components, in the order of the shading formula.

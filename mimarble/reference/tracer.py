@@ -64,12 +64,13 @@ from mimarble.contract import EPS_REL, T_MIN_REL
 from mimarble.scene.model import Scene, samples_per_axis
 
 from .channels import channel_color
-from .intersection import (HitRecord, closest_hit, fill_channels, hit, hit_uv, intersect_boxes, intersect_planes,
-                           intersect_spheres, object_points, occluded, shadow_hit)
-from .preparation import (SLOTS, AreaSamples, BoxArrays, MeshArrays, PlaneArrays, PreparedScene, _as_prepared,
+from .intersection import (HitRecord, closest_hit, fill_channels, hit, hit_uv, intersect_spheres,
+                           object_points, occluded, shadow_hit)
+from .preparation import (SLOTS, AreaSamples, MeshArrays, PreparedScene, _as_prepared,
                           area_sample_points, area_samples, camera_basis, camera_rays, prepare, read_meshes,
                           sample_positions)
 from .shading import shade
+from .shapes import BoxArrays, PlaneArrays, intersect_boxes, intersect_planes
 
 __all__ = [
     "T_MIN_REL",

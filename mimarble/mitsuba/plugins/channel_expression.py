@@ -53,11 +53,9 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import (Kept, RGBTexture, describe, held_maximum,
-    luminance, numbers, plugin, recording_key)
+    numbers, plugin, recording_key)
 from ..properties import numbered_properties
-# Equal operands evaluated once per shading point (re-exported: the material reads them here).
-from .shared_evaluations import (evaluate, evaluate_alternate, evaluate_primary,  # noqa: F401
-    shared_evaluations, textures_within)
+from .shared_evaluations import evaluate
 
 dr, mi = environment.import_drjit_and_mitsuba()
 

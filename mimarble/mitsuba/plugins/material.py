@@ -32,7 +32,7 @@ from __future__ import annotations
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import (Kept, describe, first_number, plugin,
     recording_key)
-from .channel_expression import (evaluate, evaluate_alternate, shared_evaluations,
+from .shared_evaluations import (evaluate, evaluate_alternate, shared_evaluations,
                                  textures_within)
 
 dr, mi = environment.import_drjit_and_mitsuba()
