@@ -1,8 +1,8 @@
-"""mimarble's Mitsuba plugins: the marble texture, expressions, material, integrator, light, medium.
+"""mimarble's Mitsuba plugins: the marble texture, expressions, material, integrator, light, medium, boundary.
 
 Importing the package declares the Python classes (``registration.install`` registers
 them with Mitsuba for every variant).
 """
 
 from mimarble.mitsuba.plugins import (channel_expression, marble_medium,  # noqa: F401
-                                      material, whitted)
+                                      material, subsurface_boundary, whitted)

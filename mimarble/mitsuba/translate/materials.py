@@ -1,6 +1,6 @@
 """Scene materials → Mitsuba BSDFs: the paper's ``channel_material`` in whitted mode; in
 path mode ``diffuse``, or ``roughplastic`` with a specular channel, or a translucent
-material's dielectric boundary.
+material's ``subsurface_boundary``.
 
 Path mode: the diffuse channel kd → ``diffuse`` reflectance; with a specular channel,
 ``roughplastic`` (diffuse_reflectance kd, specular_reflectance ks, Beckmann

@@ -1,4 +1,4 @@
-"""Translucent materials → Mitsuba: the smooth dielectric boundary and the ``marble_medium``
+"""Translucent materials → Mitsuba: the ``subsurface_boundary`` surface and the ``marble_medium``
 interior of a material with a ``subsurface``."""
 
 from __future__ import annotations
@@ -20,14 +20,12 @@ def translucent_materials(scene: model.Scene) -> tuple:
 
 
 def subsurface_boundary(subsurface: model.Subsurface) -> dict:
-    """The BSDF of a translucent material's surface: a smooth ``dielectric`` of relative
-    index ``ior`` (int_ior = ior, ext_ior = 1; it reflects and refracts by Fresnel's
-    equations, and is two-sided) — at ior 1 too, where it bends and reflects nothing: a
-    ``null`` BSDF would let point lights in, but volpath would then neither count the
-    crossing as a vertex nor show the sky through it to camera rays (hide_emitters), unlike
-    every other ior and the reference random walk (docs/rendering-model.md, "Translucent
-    materials")."""
-    return {"type": "dielectric", "int_ior": subsurface.ior, "ext_ior": 1.0}
+    """The BSDF of a translucent material's surface: ``subsurface_boundary``
+    (mimarble/mitsuba/plugins/subsurface_boundary.py) of relative index ``ior`` (int_ior = ior,
+    ext_ior = 1), at every ior, 1 included: a Fresnel-weighted mirror outside, a diffuse
+    entry, and a diffuse exit on which ``volpath`` connects the walk to every light (point
+    lights too: docs/rendering-model.md, "Translucent materials"). It is two-sided itself."""
+    return {"type": "subsurface_boundary", "int_ior": subsurface.ior, "ext_ior": 1.0}
 
 
 def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> dict:

@@ -185,7 +185,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         if mode == "path" and is_two_sided(shape) and subsurface is None:
             # Mitsuba's BSDFs reflect on the side their normal points to; planes, boxes
             # and meshes are shaded on either side (whitted flips n to the viewer). A
-            # dielectric boundary is two-sided itself (and twosided refuses transmission).
+            # subsurface boundary is two-sided itself (and twosided refuses transmission).
             bsdf = two_sided.setdefault(id(bsdf), {"type": "twosided", "bsdf": bsdf})
         # Its medium's textures first: a reference follows what it refers to.
         interior = medium_of(shape.material, placement) \
