@@ -118,6 +118,7 @@ __all__ = [
     "CHUNK_PATHS",
     "render_translucent",
     "fresnel_dielectric",
+    "mean_fresnel_reflectance",
     "channel_interval",
     "density_bound",
     "area_radiance",
@@ -149,11 +150,71 @@ def fresnel_dielectric(cos_i, eta):
     return f, np.where(total, 0.0, cos_t)
 
 
-def _refract(d, n, cos_i, cos_t, eta):
-    """Snell's direction for unit d arriving against the unit normal n (n·d = −cos θᵢ < 0):
-    d/η + (cos θᵢ/η − cos θₜ)·n, renormalised."""
-    out = d / eta[:, None] + (cos_i / eta - cos_t)[:, None] * n
-    return out / np.linalg.norm(out, axis=1, keepdims=True)
+def mean_fresnel_reflectance(eta) -> float:
+    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ = ∫₀¹ F(√x, η) dx (x = μ²), F light's reflectance from
+    outside (:func:`fresnel_dielectric`): composite 16-point Gauss–Legendre over 32 equal
+    panels of x, split at x = 1 − η² where η < 1 (F = 1 below, the critical angle)."""
+    eta = float(eta)
+    if eta == 1.0:
+        return 0.0
+    nodes, weights = np.polynomial.legendre.leggauss(16)
+    cuts = [0.0, 1.0 - eta * eta, 1.0] if eta < 1.0 else [0.0, 1.0]
+    total = 0.0
+    for a, b in zip(cuts[:-1], cuts[1:]):
+        edges = np.linspace(a, b, 33)
+        half = 0.5 * np.diff(edges)[:, None]
+        x = half * nodes + 0.5 * (edges[:-1, None] + edges[1:, None])
+        total += float(np.sum(half * weights * fresnel_dielectric(np.sqrt(x), eta)[0]))
+    return total
+
+
+def _cosine_about(rng, n):
+    """One direction per row of the unit normals n (k, 3), cosine-distributed about it
+    (Malley: a uniform point of the unit disk lifted to the hemisphere), in the frame
+    (t, b, n) of Duff et al.'s branchless orthonormal basis."""
+    k = len(n)
+    radius = np.sqrt(rng.random(k))
+    phi = 2.0 * math.pi * rng.random(k)
+    x, y = radius * np.cos(phi), radius * np.sin(phi)
+    z = np.sqrt(np.maximum(1.0 - x * x - y * y, 0.0))
+    sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (sign + n[:, 2])
+    bb = n[:, 0] * n[:, 1] * a
+    t = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * bb, -sign * n[:, 0]], axis=1)
+    b = np.stack([bb, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
+    return x[:, None] * t + y[:, None] * b + z[:, None] * n
+
+
+def _point_light(spheres, lights, p, n, s, exit_scale):
+    """Next-event estimation at exit points p (k, 3) of spheres s, outward normals n: the
+    point lights' light through the exit lobe, Σ f(l)·cos θ_l·I/r², f = (1 − F(cos θ_l))/
+    ((1 − F̄)π), l the unit direction to a light at distance r, each light unseen where
+    cos θ_l ≤ 0 or a shadow ray meets another sphere or an area light's shape before it
+    (the exit's own sphere is convex: a ray leaving it outwards does not meet it again)."""
+    total = np.zeros((len(p), 3))
+    scale = T_MIN_REL * (1.0 + np.max(np.abs(p), axis=1))
+    for position, intensity in lights.points:
+        to = position - p
+        r = np.linalg.norm(to, axis=1)
+        ell = to / r[:, None]
+        cos_l = np.einsum("ij,ij->i", ell, n)
+        seen = cos_l > 0.0
+        for k in range(len(spheres.radii)):
+            tn, _ = sphere_roots(p, ell, spheres.centers[k], spheres.radii[k])
+            seen &= ~((s != k) & (tn > scale) & (tn < r))           # NaN: a miss
+        for c, radius, _ in lights.spheres:
+            tn, _ = sphere_roots(p, ell, c, radius)
+            seen &= ~((tn > scale) & (tn < r))
+        for c, to_local, normal, _ in lights.rectangles:
+            with np.errstate(invalid="ignore", divide="ignore"):
+                t = ((c - p) @ normal) / (ell @ normal)
+                local = (p + t[:, None] * ell - c) @ to_local.T
+            seen &= ~((t > scale) & (t < r) & (np.abs(local[:, 0]) <= 1.0)
+                      & (np.abs(local[:, 1]) <= 1.0))
+        f, _ = fresnel_dielectric(np.clip(cos_l, 0.0, 1.0), spheres.ior[s])
+        lobe = (1.0 - f) * exit_scale[s] / math.pi * np.maximum(cos_l, 0.0) / (r * r)
+        total += np.where(seen, lobe, 0.0)[:, None] * intensity
+    return total
 
 
 def _uniform_sphere(rng, k):
@@ -256,6 +317,7 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
     left = np.full(n, -1, dtype=np.int64)        # the sphere the path last left outwards
     live = np.arange(n)
     t_min = T_MIN_REL
+    exit_scale = 1.0 / (1.0 - np.array([mean_fresnel_reflectance(e) for e in spheres.ior]))
     while live.size:
         inside = medium[live] >= 0
         ended = np.zeros(live.size, dtype=bool)   # ended by a light, an escape or absorption
@@ -311,10 +373,11 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 normal /= np.linalg.norm(normal, axis=1, keepdims=True)
                 p = spheres.centers[s] + spheres.radii[s, None] * normal     # on the surface
                 cos_i = np.clip(-np.einsum("ij,ij->i", dd[hit], normal), 0.0, 1.0)
-                f, cos_t = fresnel_dielectric(cos_i, spheres.ior[s])
+                # from outside: the mirror with probability F(μᵢ), else in, cosine about −n
+                f, _ = fresnel_dielectric(cos_i, spheres.ior[s])
                 reflect = rng.random(hit.size) < f
                 new = np.where(reflect[:, None], dd[hit] + 2.0 * cos_i[:, None] * normal,
-                               _refract(dd[hit], normal, cos_i, cos_t, spheres.ior[s]))
+                               _cosine_about(rng, -normal))
                 o[j] = p
                 d[j] = new / np.linalg.norm(new, axis=1, keepdims=True)
                 medium[j] = np.where(reflect, -1, s)
@@ -343,16 +406,18 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 outward = (p - c[wall]) / r[wall, None]
                 outward /= np.linalg.norm(outward, axis=1, keepdims=True)
                 p = c[wall] + r[wall, None] * outward
-                cos_i = np.clip(np.einsum("ij,ij->i", dd[wall], outward), 0.0, 1.0)
-                eta = 1.0 / spheres.ior[sw]
-                f, cos_t = fresnel_dielectric(cos_i, eta)
-                reflect = rng.random(wall.size) < f
-                new = np.where(reflect[:, None], dd[wall] - 2.0 * cos_i[:, None] * outward,
-                               _refract(dd[wall], -outward, cos_i, cos_t, eta))
+                # from inside: always out, cosine about n, weight W(μₒ) = (1 − F(μₒ))/(1 − F̄)
+                new = _cosine_about(rng, outward)
+                f, _ = fresnel_dielectric(np.einsum("ij,ij->i", new, outward), spheres.ior[sw])
+                beta[j] *= ((1.0 - f) * exit_scale[sw])[:, None]
+                near = depth[j] + 1 < depth_cap          # volpath: no light at the last vertex
+                if lights.points and near.any():
+                    value[j[near]] += beta[j[near]] * _point_light(
+                        spheres, lights, p[near], outward[near], sw[near], exit_scale)
                 o[j] = p
-                d[j] = new / np.linalg.norm(new, axis=1, keepdims=True)
-                medium[j] = np.where(reflect, sw, -1)
-                left[j] = np.where(reflect, -1, sw)
+                d[j] = new
+                medium[j] = -1
+                left[j] = sw
                 event[ins[wall]] = True
 
             hits = np.flatnonzero(collide)

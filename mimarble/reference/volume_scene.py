@@ -1,8 +1,9 @@
-"""A translucent scene as the reference's random walk reads it: which scenes it renders, its spheres and their majorants, its area lights' radiance.
+"""A translucent scene as the reference's random walk reads it: which scenes it renders, its spheres and their majorants, its lights' radiance and intensity.
 
 The majorant σ̄ of a sphere's medium bounds its density channel from above by interval
 arithmetic (:func:`channel_interval`, :func:`density_bound`); the area lights are
-spheres and rectangles of radiance I/area (:func:`area_radiance`); the walk itself is
+spheres and rectangles of radiance I/area (:func:`area_radiance`), the point lights
+points of intensity I·π·d² (:func:`point_intensity`); the walk itself is
 :mod:`.volume`'s.
 """
 
@@ -30,7 +31,7 @@ from mimarble.scene.shapes import SHAPE_KINDS
 
 from .channels import channel_color
 
-__all__ = ["channel_interval", "density_bound", "area_radiance"]
+__all__ = ["channel_interval", "density_bound", "area_radiance", "point_intensity"]
 
 
 # ---------------------------------------------------------------------------
@@ -112,6 +113,17 @@ def area_radiance(light, lookat) -> np.ndarray:
     return color * math.pi * d2 / (size * facing)
 
 
+def point_intensity(light, lookat) -> np.ndarray:
+    """The radiant intensity (3,) path mode gives a point light of colour I, in W/sr:
+    I·π·d², d = |position − lookat|. Derived from the model: a Lambertian surface of
+    reflectance kd at the look-at point, lit at angle θ, receives the irradiance
+    E = intensity·cos θ/d² and shows the radiance kd·E/π; whitted mode shows kd·I·cos θ
+    there (the paper's unattenuated light), so intensity = I·π·d²."""
+    d2 = float(np.sum((np.array(light.position, dtype=np.float64)
+                       - np.array(lookat, dtype=np.float64)) ** 2))
+    return np.array(light.color, dtype=np.float64) * math.pi * d2
+
+
 def _rectangle(light, lookat):
     """(centre, to_local (3×3: world offset → (s, t, height)), unit normal towards the
     look-at point) of a rectangle light: p = c + s·a₁/2 + t·a₂/2 for s, t ∈ [−1, 1]."""
@@ -153,6 +165,9 @@ def _problem(scene: Scene) -> str | None:
                         f"must lie outside the others")
         for m, light in enumerate(scene.lights):
             if light.area is None:
+                if np.linalg.norm(np.array(light.position, dtype=np.float64) - c) <= r * (1.0 + 1e-9):
+                    return (f"the point light light_{m} is inside (or on) sphere_{k}: each "
+                            f"translucent sphere must lie clear of the lights")
                 continue
             if _light_meets(light, c, r):
                 return (f"the area light light_{m} meets sphere_{k}: each translucent sphere "
@@ -215,8 +230,9 @@ class _Spheres:
 
 
 class _Lights:
-    """Area lights as arrays: spheres (centre, radius, radiance), rectangles (centre,
-    to_local, normal, radiance). Point lights are left out (module docstring)."""
+    """The lights as arrays: point lights (position, intensity: :func:`point_intensity`),
+    area lights' spheres (centre, radius, radiance) and rectangles (centre, to_local,
+    normal, radiance)."""
 
     def __init__(self, scene: Scene):
         lookat = scene.camera.lookat
@@ -225,3 +241,5 @@ class _Lights:
                         for l in scene.lights if isinstance(l.area, SphereArea)]
         self.rectangles = [_rectangle(l, lookat) + (area_radiance(l, lookat),)
                            for l in scene.lights if isinstance(l.area, RectangleArea)]
+        self.points = [(np.array(l.position, dtype=np.float64), point_intensity(l, lookat))
+                       for l in scene.lights if l.area is None]
