@@ -1,21 +1,22 @@
 """A float64 random walk through translucent spheres: the reference for path mode's
-``subsurface`` (Mitsuba's ``volpath`` + ``dielectric`` + a medium), independent of Mitsuba.
+``subsurface`` (Mitsuba's ``volpath`` + ``subsurface_boundary`` + a medium), independent of Mitsuba.
 
 It renders the scene model in **path mode** (docs/rendering-model.md, "Path mode"),
 restricted to what translucent scenes need:
 
 * **Shapes**: spheres whose material has a ``subsurface`` (:class:`mimarble.scene.Subsurface`),
   pairwise disjoint, the eye outside them all; anything else is refused (ValueError).
-* **Boundary**: a smooth dielectric of relative index η = ``ior`` (inside over outside).
-  At a hit with cos θᵢ = |d·n| the exact unpolarised Fresnel reflectance
-  F = (r_s² + r_p²)/2, r_s = (cos θᵢ − η cos θₜ)/(cos θᵢ + η cos θₜ),
-  r_p = (η cos θᵢ − cos θₜ)/(η cos θᵢ + cos θₜ), cos θₜ = √(1 − (1 − cos² θᵢ)/η²)
-  (η the index beyond over the index before: ``ior`` entering, 1/``ior`` leaving; F = 1
-  past the critical angle, total internal reflection). Reflection is chosen with
-  probability F, refraction (Snell) with 1 − F, so the path weight does not change — as
-  Mitsuba's ``dielectric`` samples it. The radiance scale 1/η² of a refraction is left out:
-  every path that reaches a light leaves each sphere as often as it entered it, so the
-  factors cancel.
+* **Boundary** (docs/rendering-model.md, "Translucent materials"): η = ``ior`` (inside over
+  outside); F(μ) the exact unpolarised Fresnel reflectance for light from outside at
+  cosine μ, F = (r_s² + r_p²)/2, r_s = (μ − η μₜ)/(μ + η μₜ), r_p = (η μ − μₜ)/(η μ + μₜ),
+  μₜ = √(1 − (1 − μ²)/η²) (:func:`fresnel_dielectric`); F̄ = ∫₀¹ F(μ) 2μ dμ
+  (:func:`mean_fresnel_reflectance`). A path meeting a sphere from outside reflects in
+  the mirror direction with probability F(μᵢ), else enters in a direction
+  cosine-distributed about the inward normal; both keep the weight. A walk meeting it from
+  inside always leaves, cosine-distributed about the outward normal, its weight times
+  W(μₒ) = (1 − F(μₒ))/(1 − F̄) (mean 1 over the cosine distribution). No refraction, no
+  internal reflection; the radiance scale 1/η² of a crossing is left out, as the walk's
+  entries and exits pair up.
 * **Inside**: σ_t(p) = d(p)/``mean_free_path`` (d the density channel's mean of its three
   components, at least 0; 1 without a density channel), albedo α(p) the albedo channel's
   RGB clamped to [0, 1], isotropic phase function. Sampled by **delta tracking** with the
@@ -40,16 +41,19 @@ restricted to what translucent scenes need:
   only (θ₀ the look-at point's angle from its normal; cos θ₀ = 1 where that is ≤ 0).
   Camera rays pass through area lights (``hide_emitters`` skips them, as Mitsuba's
   ``skip_area_emitters``); later rays that meet one add its radiance on its emitting side
-  and end. **Point lights give nothing**: a smooth dielectric is a delta boundary, so no
-  light can be sampled through it (next-event estimation), and a path that only refracts
-  and scatters never meets a point. Mitsuba's ``volpath`` (v3.9.1 volpath.cpp) agrees: its
-  surface emitter sampling needs a BSDF with a ``Smooth`` component, which ``dielectric``
-  lacks, and its emitter sampling from inside a medium multiplies by the boundary's
-  ``eval_null_transmission``, 0 for a dielectric. They are ignored.
+  and end. **Point lights** (intensity I·π·d², :func:`point_intensity`, the rule of
+  ``point_light_dict``) are reached by next-event estimation where a walk leaves a
+  sphere: the exit lobe's value f = (1 − F(cos θ_l))/((1 − F̄)π) times cos θ_l·intensity/r²
+  towards a light at distance r and angle θ_l from the normal, unless a shadow ray meets
+  another sphere or an area light's shape first (volpath's next-event estimation at the
+  exit, whose point-light part this is; its area-light and sky parts, combined there by
+  MIS, this walk gets by hitting them: the same expectation). A point light inside a
+  sphere is refused.
 * **Path depth**, ``max_depth`` in the meaning of Mitsuba's ``volpath``: every
-  non-null event is one vertex — a reflection or refraction at a boundary, a real
+  non-null event is one vertex — a reflection, an entry or an exit at a boundary, a real
   collision in a medium (a null collision is none) — and a path with k vertices adds its
-  light (the environment it escapes to, the area light it meets) iff k < ``max_depth``;
+  light (the environment it escapes to, the area light it meets, the point lights seen
+  from the exit that is its k-th vertex) iff k < ``max_depth``;
   a path whose real event brings it to k = ``max_depth`` ends there. So 1 renders only
   what the camera sees directly (nothing: emitters are hidden), 2 the mirror reflection
   of the environment, 3 also light straight through a sphere (in, out), 4 single
@@ -60,7 +64,8 @@ restricted to what translucent scenes need:
 * :data:`MAX_DEPTH` = **1024** is this module's default and its recommendation for the
   ``volpath`` of path mode. A marble's albedo is high (0.99–0.999) and its mean free path
   short beside the object, so light leaves after hundreds of collisions. Measured on a
-  unit sphere (η 1.5) under a white sky, the mean of the pixels it covers (24², 64 spp):
+  unit sphere (η 1.5, behind the former smooth dielectric boundary) under a white sky,
+  the mean of the pixels it covers (24², 64 spp):
   albedo 0.99, mean free path 0.05: 0.628 at depth 64, 0.697 at 256, 0.699 at 1024 and
   4096; albedo 0.999, mean free path 0.02: 0.665, 0.828, 0.888, 0.895 (± 0.003). So 64
   loses 10–26 % of the light there, 1024 under 1 %; the tests' spheres (mean free path
@@ -70,13 +75,12 @@ restricted to what translucent scenes need:
   256-spp render (24², llvm_ad_rgb, 2-core AMD EPYC).
 * **Russian roulette** (unbiased): after a real event that leaves a path at depth
   k > ``rr_depth`` (default :data:`ROULETTE_DEPTH` = 5, Mitsuba's ``rr_depth``), the path
-  survives with probability q = min(max_c β_c, q_max) (β its RGB weight, each component
-  ≤ 1) and its weight becomes β/q. With a finite ``max_depth`` q_max = 1: a path keeps
-  full weight until its weight has dropped, and no weight ever exceeds 1, so the variance
-  stays bounded. With ``max_depth`` −1, q_max = :data:`ROULETTE_MAX` = 0.95 (Mitsuba's),
-  which ends every path with probability 1 (a ray trapped by total internal reflection in
-  a part of a sphere of density 0 included) at the price of weights (α/0.95)^k that grow
-  where the albedo α exceeds 0.95: in an optically thick, nearly white medium their
+  survives with probability q = min(max_c β_c, q_max) (β its RGB weight) and its weight
+  becomes β/q. With a finite ``max_depth`` q_max = 1: a path keeps full weight until its
+  weight has dropped below 1, and its weight stays near 1, so the variance stays bounded. With
+  ``max_depth`` −1, q_max = :data:`ROULETTE_MAX` = 0.95 (Mitsuba's), which ends every path
+  with probability 1 (in a part of a sphere of density 0 too) at the price of weights
+  (α/0.95)^k that grow where the albedo α exceeds 0.95: in an optically thick, nearly white medium their
   variance is so large that an image converges very slowly. Mitsuba's volpath has that
   roulette at any ``max_depth`` (q = min(max β·η², 0.95), its β carrying the 1/η² that
   this walk leaves out: the same q): measured on the albedo 0.999 sphere above at
@@ -151,21 +155,24 @@ def fresnel_dielectric(cos_i, eta):
 
 
 def mean_fresnel_reflectance(eta) -> float:
-    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ = ∫₀¹ F(√x, η) dx (x = μ²), F light's reflectance from
-    outside (:func:`fresnel_dielectric`): composite 16-point Gauss–Legendre over 32 equal
-    panels of x, split at x = 1 − η² where η < 1 (F = 1 below, the critical angle)."""
+    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ, F light's reflectance from outside
+    (:func:`fresnel_dielectric`), by composite 16-point Gauss–Legendre over 32 equal panels
+    of a variable s ∈ [0, 1]: s = μ where η > 1 (F is smooth in μ). Where η < 1, in
+    x = μ² (2μ dμ = dx): F = 1 for x < x_c = 1 − η² (past the critical angle), and above
+    x_c F − 1 goes as √(x − x_c): x = x_c + (1 − x_c)·s² makes it smooth in s."""
     eta = float(eta)
     if eta == 1.0:
         return 0.0
     nodes, weights = np.polynomial.legendre.leggauss(16)
-    cuts = [0.0, 1.0 - eta * eta, 1.0] if eta < 1.0 else [0.0, 1.0]
-    total = 0.0
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        edges = np.linspace(a, b, 33)
-        half = 0.5 * np.diff(edges)[:, None]
-        x = half * nodes + 0.5 * (edges[:-1, None] + edges[1:, None])
-        total += float(np.sum(half * weights * fresnel_dielectric(np.sqrt(x), eta)[0]))
-    return total
+    edges = np.linspace(0.0, 1.0, 33)
+    half = 0.5 * np.diff(edges)[:, None]
+    s = half * nodes + 0.5 * (edges[:-1, None] + edges[1:, None])
+    if eta > 1.0:
+        return float(np.sum(half * weights * 2.0 * s * fresnel_dielectric(s, eta)[0]))
+    x_c = 1.0 - eta * eta
+    x = x_c + (1.0 - x_c) * s * s
+    return x_c + float(np.sum(half * weights * 2.0 * (1.0 - x_c) * s
+                              * fresnel_dielectric(np.sqrt(x), eta)[0]))
 
 
 def _cosine_about(rng, n):

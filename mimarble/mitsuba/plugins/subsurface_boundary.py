@@ -58,8 +58,8 @@ dr, mi = environment.import_drjit_and_mitsuba()
 #: Mitsuba's defaults of ``dielectric`` (src/bsdfs/dielectric.cpp: "bk7" inside, "air" outside).
 DEFAULT_INT_IOR = 1.5046
 DEFAULT_EXT_IOR = 1.000277
-#: Gauss–Legendre nodes per piece of F̄'s quadrature (F is smooth on each piece: exact to
-#: float64 rounding well before this many).
+#: Gauss–Legendre nodes of F̄'s quadrature (its integrand is smooth: float64 rounding is
+#: reached well before this many).
 _QUADRATURE_NODES = 64
 
 
@@ -83,17 +83,20 @@ def fresnel_from_outside(mu, eta: float) -> np.ndarray:
 
 
 def mean_fresnel_reflectance(eta: float) -> float:
-    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ, by Gauss–Legendre quadrature on the pieces where F is
-    smooth: [0, 1], split at the critical cosine √(1 − η²) when η < 1 (below it F = 1)."""
+    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ, by Gauss–Legendre quadrature. For η ≥ 1 F is smooth on
+    [0, 1]. For η < 1, F = 1 below the critical cosine μ_c = √(1 − η²) (2μ integrates to
+    1 − η² there) and above it behaves as 1 − c·√(μ − μ_c): the substitution
+    μ = μ_c + (1 − μ_c)·t² makes that piece smooth in t ∈ [0, 1]."""
     if eta == 1.0:
         return 0.0
     nodes, weights = np.polynomial.legendre.leggauss(_QUADRATURE_NODES)
-    cuts = [0.0, math.sqrt(1.0 - eta * eta), 1.0] if eta < 1.0 else [0.0, 1.0]
-    total = 0.0
-    for a, b in zip(cuts[:-1], cuts[1:]):
-        mu = 0.5 * (b - a) * nodes + 0.5 * (a + b)
-        total += 0.5 * (b - a) * float(np.sum(weights * fresnel_from_outside(mu, eta) * 2.0 * mu))
-    return total
+    t, w = 0.5 * (nodes + 1.0), 0.5 * weights
+    if eta > 1.0:
+        return float(np.sum(w * fresnel_from_outside(t, eta) * 2.0 * t))
+    critical = math.sqrt(1.0 - eta * eta)
+    mu = critical + (1.0 - critical) * t * t
+    jacobian = 2.0 * (1.0 - critical) * t
+    return critical * critical + float(np.sum(w * jacobian * fresnel_from_outside(mu, eta) * 2.0 * mu))
 
 
 def _ior(props, name: str, default: float) -> float:
