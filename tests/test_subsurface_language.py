@@ -252,7 +252,8 @@ def test_a_marble_density_is_bounded_by_its_ramp():
 
 def test_a_scene_with_a_translucent_material_renders_under_volpath():
     d = translucent("albedo color < 1 1 1 > mean_free_path 1")
-    assert d["integrator"] == {"type": "volpath", "max_depth": 1024, "hide_emitters": True}
+    assert d["integrator"] == {"type": "volpath", "max_depth": 1024, "rr_depth": 1024,
+                               "hide_emitters": True}
     assert translate.VOLPATH_MAX_DEPTH == 1024
     opaque = to_mitsuba(parse('material "m" { diffuse { color < 1 1 1 > } } sphere { material "m" }'),
                         mode="path")

@@ -76,18 +76,18 @@ restricted to what translucent scenes need:
 * **Russian roulette** (unbiased): after a real event that leaves a path at depth
   k > ``rr_depth`` (default :data:`ROULETTE_DEPTH` = 5, Mitsuba's ``rr_depth``), the path
   survives with probability q = min(max_c β_c, q_max) (β its RGB weight) and its weight
-  becomes β/q. With a finite ``max_depth`` q_max = 1: a path keeps full weight until its
-  weight has dropped below 1, and its weight stays near 1, so the variance stays bounded. With
+  becomes β/q. With a finite ``max_depth`` q_max = 1: a roulette never lifts a weight's
+  largest component above 1 (the exits' W ≤ 1/(1 − F̄) aside), so the variance stays
+  bounded. With
   ``max_depth`` −1, q_max = :data:`ROULETTE_MAX` = 0.95 (Mitsuba's), which ends every path
   with probability 1 (in a part of a sphere of density 0 too) at the price of weights
-  (α/0.95)^k that grow where the albedo α exceeds 0.95: in an optically thick, nearly white medium their
-  variance is so large that an image converges very slowly. Mitsuba's volpath has that
-  roulette at any ``max_depth`` (q = min(max β·η², 0.95), its β carrying the 1/η² that
-  this walk leaves out: the same q): measured on the albedo 0.999 sphere above at
-  ``max_depth`` 256 or 1024, ``rr_depth`` 5, the covered pixels' mean over 8 renders of
-  256 spp is 0.80, their spread 0.03, where without roulette it is 0.891, spread 0.001 (this
-  walk: 0.888 ± 0.003). ``rr_depth=None`` turns the roulette off (then ``max_depth``
-  must be finite).
+  (α/0.95)^k that grow where the albedo α exceeds 0.95: in an optically thick, nearly
+  white medium their variance is so large that an image converges very slowly. Mitsuba's
+  volpath has that roulette at any ``max_depth`` (q = min(max β·η², 0.95); η = 1 with
+  ``subsurface_boundary``), which is why path mode turns it off for translucent scenes
+  (``contract.VOLPATH_RR_DEPTH`` = max_depth; measured in docs/benchmarks.md, "Russian
+  roulette on white marble"). ``rr_depth=None`` turns this walk's roulette off (then
+  ``max_depth`` must be finite).
 * **Pixels**: ``spp`` samples per pixel at uniform random positions in the pixel
   (Mitsuba's ``independent`` sampler with a ``box`` filter), the pixel their plain mean.
   The camera is the model's pinhole (:func:`mimarble.reference.tracer.camera_rays`).

@@ -7,13 +7,13 @@ pixel is the mean of its n×n stratum centres.
 
 ``path``: physically based — the marble drives Mitsuba's own BSDFs under the ``path``
 integrator (``volpath`` when a material has a ``subsurface``, max_depth
-:data:`VOLPATH_MAX_DEPTH`; whitted mode refuses one: :class:`ModeError`, at its
-``subsurface`` keyword). docs/rendering-model.md says how the paper's quantities map.
+:data:`VOLPATH_MAX_DEPTH`, rr_depth :data:`VOLPATH_RR_DEPTH`: no roulette; whitted mode
+refuses one: :class:`ModeError`, at its ``subsurface`` keyword). docs/rendering-model.md says how the paper's quantities map.
 """
 
 from __future__ import annotations
 
-from mimarble.contract import RENDER_MODES, VOLPATH_MAX_DEPTH
+from mimarble.contract import RENDER_MODES, VOLPATH_MAX_DEPTH, VOLPATH_RR_DEPTH
 from mimarble.scene.errors import SceneError
 from mimarble.scene.rules import shortened
 
@@ -56,7 +56,8 @@ def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple) -> tu
                  "background": list(scene.image.background)},
                 {"type": "stratified", "sample_count": spp, "jitter": False})
     if translucent:
-        return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH, "hide_emitters": True},
+        return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH, "rr_depth": VOLPATH_RR_DEPTH,
+                 "hide_emitters": True},
                 {"type": "independent", "sample_count": spp})
     return ({"type": "path", "max_depth": 4, "hide_emitters": True},
             {"type": "independent", "sample_count": spp})
