@@ -238,7 +238,7 @@ class Light:
 @dataclass(frozen=True)
 class Subsurface:
     """``subsurface { albedo CH mean_free_path X density CH ior X }``: the material's inside
-    is a scattering volume behind a smooth dielectric boundary (path mode only).
+    is a scattering volume behind a boundary (path mode only; ``subsurface_boundary``).
 
     At a point p inside: extinction σ_t(p) = d(p) / ``mean_free_path`` (d the ``density``
     channel's mean of its three components, at least 0; 1 everywhere without one), single-
@@ -279,7 +279,7 @@ class Material:
     """``material "name" { ambient {CH} diffuse {CH} specular {CH} shininess N }``.
 
     With ``subsurface`` (a :class:`Subsurface`), the material is a scattering volume behind a
-    dielectric boundary in path mode, and whitted mode refuses it.
+    boundary in path mode, and whitted mode refuses it.
 
     Shading (whitted mode), per light l with visibility V and intensity I_l::
 

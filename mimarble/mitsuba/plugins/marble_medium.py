@@ -61,7 +61,8 @@ the shape whose ``interior`` it is bounds it.
        maximum as it is when the kernel runs (below), not traversed.
    * - ``sample_emitters``
      - bool (default true)
-     - Mitsuba's: shadow rays from inside (useless behind a smooth dielectric).
+     - Mitsuba's: shadow rays from inside (useless behind a boundary that is not ``null``,
+       as ``subsurface_boundary``: they stop at it).
    * - (nested)
      - phase function
      - Mitsuba's: default ``isotropic``; a microflake phase is refused (its σ_t would need

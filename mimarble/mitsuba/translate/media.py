@@ -34,8 +34,8 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
     to one; default: :func:`texture_dict`), ``scale`` = 1/mean_free_path, so that
     σ_t(p) = scale·d(p), and ``density_bound`` ≥ every d(p) (the majorant is
     scale·density_bound): ``error_budget.mean_bound`` of the density channel (d is the mean
-    of its components, at least 0), 1 without one (d = 1). Behind the smooth dielectric
-    no shadow ray from inside can reach an emitter, so the medium samples none
+    of its components, at least 0), 1 without one (d = 1). Behind the boundary (not
+    ``null``) no shadow ray from inside can reach an emitter, so the medium samples none
     (``sample_emitters`` false: the paths that leave find them; unbiased, and up to half the
     render time saved). A majorant past
     float32's range is refused (ModeError at the ``subsurface`` keyword): Mitsuba's
