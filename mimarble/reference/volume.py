@@ -41,19 +41,20 @@ restricted to what translucent scenes need:
   only (θ₀ the look-at point's angle from its normal; cos θ₀ = 1 where that is ≤ 0).
   Camera rays pass through area lights (``hide_emitters`` skips them, as Mitsuba's
   ``skip_area_emitters``); later rays that meet one add its radiance on its emitting side
-  and end. **Point lights** (intensity I·π·d², :func:`point_intensity`, the rule of
-  ``point_light_dict``) are reached by next-event estimation where a walk leaves a
-  sphere: the exit lobe's value f = (1 − F(cos θ_l))/((1 − F̄)π) times cos θ_l·intensity/r²
-  towards a light at distance r and angle θ_l from the normal, unless a shadow ray meets
-  another sphere or an area light's shape first (volpath's next-event estimation at the
-  exit, whose point-light part this is; its area-light and sky parts, combined there by
-  MIS, this walk gets by hitting them: the same expectation). A point light inside a
-  sphere is refused.
+  and end. **Next-event estimation at exits** (:mod:`.volume_lights`): where a walk leaves
+  a sphere, each point light (intensity I·π·d², :func:`point_intensity`, the rule of
+  ``point_light_dict``) and each area light (one sampled direction or point) is reached
+  by a shadow ray, weighed by the exit lobe f = (1 − F(cos θ_l))/((1 − F̄)π) times
+  cos θ_l; a shadow ray stops at another sphere or any area light's shape. An area light
+  that the path leaving an exit then meets counts nothing (it was estimated; it still
+  ends the path); the sky is still reached by meeting it. volpath does the same next-event
+  estimation, combining it with the paths that meet area lights and the sky by MIS: the
+  same expectation. A point light inside a sphere is refused.
 * **Path depth**, ``max_depth`` in the meaning of Mitsuba's ``volpath``: every
   non-null event is one vertex — a reflection, an entry or an exit at a boundary, a real
   collision in a medium (a null collision is none) — and a path with k vertices adds its
-  light (the environment it escapes to, the area light it meets, the point lights seen
-  from the exit that is its k-th vertex) iff k < ``max_depth``;
+  light (the environment it escapes to, the area light it meets, the lights estimated
+  at the exit that is its k-th vertex) iff k < ``max_depth``;
   a path whose real event brings it to k = ``max_depth`` ends there. So 1 renders only
   what the camera sees directly (nothing: emitters are hidden), 2 the mirror reflection
   of the environment, 3 also light straight through a sphere (in, out), 4 single
@@ -96,7 +97,8 @@ Vectorised: the paths of a batch (about :data:`CHUNK_PATHS`, whole pixels) advan
 together, one event each per step (live paths only); Python loops run over steps,
 spheres and lights. Seeded: ``np.random.default_rng(seed)``, batches in order, so one seed
 gives one image. Imports NumPy, the standard library, :mod:`mimarble.scene` and this
-package's channels and tracer (the camera, the roots of a ray and a sphere).
+package's channels, tracer (the camera, the roots of a ray and a sphere) and
+:mod:`.volume_lights`.
 """
 
 from __future__ import annotations
@@ -113,6 +115,7 @@ from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, T_MIN_REL, VOLPATH_M
 
 from .intersection import _roots as sphere_roots    # both roots, the stable quadratic
 from .preparation import camera_rays
+from .volume_lights import _basis, exit_lighting
 from .volume_scene import _Lights, _problem, _Spheres, area_radiance, channel_interval, density_bound
 
 __all__ = [
@@ -175,53 +178,23 @@ def mean_fresnel_reflectance(eta) -> float:
                               * fresnel_dielectric(np.sqrt(x), eta)[0]))
 
 
+def _exit_lobe(cos_l, eta, exit_scale):
+    """The exit lobe's f·cos θ_l = (1 − F(cos θ_l))/((1 − F̄)π)·cos θ_l, 0 where cos θ_l ≤ 0
+    (``exit_scale`` = 1/(1 − F̄))."""
+    cos_l = np.clip(cos_l, 0.0, 1.0)
+    return (1.0 - fresnel_dielectric(cos_l, eta)[0]) * exit_scale / math.pi * cos_l
+
+
 def _cosine_about(rng, n):
     """One direction per row of the unit normals n (k, 3), cosine-distributed about it
-    (Malley: a uniform point of the unit disk lifted to the hemisphere), in the frame
-    (t, b, n) of Duff et al.'s branchless orthonormal basis."""
+    (Malley: a uniform point of the unit disk lifted to the hemisphere)."""
     k = len(n)
     radius = np.sqrt(rng.random(k))
     phi = 2.0 * math.pi * rng.random(k)
     x, y = radius * np.cos(phi), radius * np.sin(phi)
     z = np.sqrt(np.maximum(1.0 - x * x - y * y, 0.0))
-    sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sign + n[:, 2])
-    bb = n[:, 0] * n[:, 1] * a
-    t = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * bb, -sign * n[:, 0]], axis=1)
-    b = np.stack([bb, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
+    t, b = _basis(n)
     return x[:, None] * t + y[:, None] * b + z[:, None] * n
-
-
-def _point_light(spheres, lights, p, n, s, exit_scale):
-    """Next-event estimation at exit points p (k, 3) of spheres s, outward normals n: the
-    point lights' light through the exit lobe, Σ f(l)·cos θ_l·I/r², f = (1 − F(cos θ_l))/
-    ((1 − F̄)π), l the unit direction to a light at distance r, each light unseen where
-    cos θ_l ≤ 0 or a shadow ray meets another sphere or an area light's shape before it
-    (the exit's own sphere is convex: a ray leaving it outwards does not meet it again)."""
-    total = np.zeros((len(p), 3))
-    scale = T_MIN_REL * (1.0 + np.max(np.abs(p), axis=1))
-    for position, intensity in lights.points:
-        to = position - p
-        r = np.linalg.norm(to, axis=1)
-        ell = to / r[:, None]
-        cos_l = np.einsum("ij,ij->i", ell, n)
-        seen = cos_l > 0.0
-        for k in range(len(spheres.radii)):
-            tn, _ = sphere_roots(p, ell, spheres.centers[k], spheres.radii[k])
-            seen &= ~((s != k) & (tn > scale) & (tn < r))           # NaN: a miss
-        for c, radius, _ in lights.spheres:
-            tn, _ = sphere_roots(p, ell, c, radius)
-            seen &= ~((tn > scale) & (tn < r))
-        for c, to_local, normal, _ in lights.rectangles:
-            with np.errstate(invalid="ignore", divide="ignore"):
-                t = ((c - p) @ normal) / (ell @ normal)
-                local = (p + t[:, None] * ell - c) @ to_local.T
-            seen &= ~((t > scale) & (t < r) & (np.abs(local[:, 0]) <= 1.0)
-                      & (np.abs(local[:, 1]) <= 1.0))
-        f, _ = fresnel_dielectric(np.clip(cos_l, 0.0, 1.0), spheres.ior[s])
-        lobe = (1.0 - f) * exit_scale[s] / math.pi * np.maximum(cos_l, 0.0) / (r * r)
-        total += np.where(seen, lobe, 0.0)[:, None] * intensity
-    return total
 
 
 def _uniform_sphere(rng, k):
@@ -325,6 +298,8 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
     live = np.arange(n)
     t_min = T_MIN_REL
     exit_scale = 1.0 / (1.0 - np.array([mean_fresnel_reflectance(e) for e in spheres.ior]))
+    sampled_lights = bool(lights.points or lights.spheres or lights.rectangles)
+    exited = np.zeros(n, dtype=bool)             # the path's last vertex is an exit
     while live.size:
         inside = medium[live] >= 0
         ended = np.zeros(live.size, dtype=bool)   # ended by a light, an escape or absorption
@@ -367,8 +342,11 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                                    emitted)
             escape = which == -1
             value[idx[escape]] += np.where(camera[escape, None], 0.0, beta[idx[escape]] * ambient)
+            # an area light met by a path leaving an exit was estimated there (volume_lights):
+            # it ends the path, black
             lit = which == -2
-            value[idx[lit]] += beta[idx[lit]] * emitted[lit]
+            counted = lit & ~exited[idx]
+            value[idx[counted]] += beta[idx[counted]] * emitted[counted]
             ended[out[escape | lit]] = True
 
             hit = np.flatnonzero(which >= 0)
@@ -389,6 +367,7 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 d[j] = new / np.linalg.norm(new, axis=1, keepdims=True)
                 medium[j] = np.where(reflect, -1, s)
                 left[j] = np.where(reflect, s, -1)
+                exited[j] = False
                 event[out[hit]] = True
 
         # ---- inside a sphere: delta tracking to the next collision or the boundary
@@ -418,9 +397,11 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 f, _ = fresnel_dielectric(np.einsum("ij,ij->i", new, outward), spheres.ior[sw])
                 beta[j] *= ((1.0 - f) * exit_scale[sw])[:, None]
                 near = depth[j] + 1 < depth_cap          # volpath: no light at the last vertex
-                if lights.points and near.any():
-                    value[j[near]] += beta[j[near]] * _point_light(
-                        spheres, lights, p[near], outward[near], sw[near], exit_scale)
+                if sampled_lights and near.any():
+                    value[j[near]] += beta[j[near]] * exit_lighting(
+                        spheres, lights, p[near], outward[near], sw[near],
+                        lambda cos_l, k: _exit_lobe(cos_l, spheres.ior[k], exit_scale[k]), rng)
+                exited[j] = True
                 o[j] = p
                 d[j] = new
                 medium[j] = -1
