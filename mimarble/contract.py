@@ -70,13 +70,15 @@ SKIPPED_OCTAVES_BOUND = NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)
 #: albedo 0.999, mfp 0.02, 0.888 at 1024 against 0.895 at 4096. Russian roulette ends
 #: paths long before the cap wherever the albedo is lower.
 VOLPATH_MAX_DEPTH = 1024
-#: volpath's rr_depth for a scene with a translucent material: max_depth, no Russian
-#: roulette. volpath survives a path with q = min(max β, 0.95), so in a medium of albedo
-#: α > 0.95 the weight grows as (α/0.95)ᵏ while the path survives with 0.95ᵏ: white marble
-#: (α ≈ 0.9995) becomes a few huge fireflies. Measured on a white sphere (α 0.9995, mean
-#: free path 0.05 / 0.02): without roulette 3.8× / 16× the efficiency (1/(variance·time))
-#: of rr_depth 5, which misses the mean by 200 % at 0.02; at α ≤ 0.95 the roulette is
-#: 2.6–4.4× more efficient (docs/benchmarks.md, "Russian roulette on white marble").
+#: volpath's rr_depth where a translucent material's single-scattering albedo may pass
+#: ROULETTE_MAX: max_depth, no Russian roulette (elsewhere ROULETTE_DEPTH;
+#: mimarble/mitsuba/translate/modes.py, roulette_depth). volpath survives a path with
+#: q = min(max β, 0.95), so in a medium of albedo α > 0.95 the weight grows as (α/0.95)ᵏ
+#: while the path survives with 0.95ᵏ: white marble (α ≈ 0.9995) becomes a few huge
+#: fireflies. Measured on a white sphere (α 0.9995, mean free path 0.05 / 0.02): without
+#: roulette 3.8× / 16× the efficiency (1/(variance·time)) of rr_depth 5, which missed the
+#: mean by 145 % at 0.02; at α ≤ 0.95 the roulette is 2.6–4.4× more efficient
+#: (docs/benchmarks.md, "Russian roulette on white marble").
 VOLPATH_RR_DEPTH = VOLPATH_MAX_DEPTH
 #: Russian roulette from this depth on (Mitsuba volpath's default ``rr_depth``; the
 #: reference walk's default).

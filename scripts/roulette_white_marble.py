@@ -1,12 +1,13 @@
 """volpath's Russian roulette on white marble, measured: rr_depth 5 (Mitsuba's default) against rr_depth = max_depth (no roulette) on a small white translucent sphere.
 
     ./go python scripts/roulette_white_marble.py [--size 32] [--spp 16] [--renders 8]
-        [--albedo 0.9995] [--mean-free-path 0.05] [--json OUT]
+        [--albedo 0.9995] [--mean-free-path 0.05] [--scene FILE] [--json OUT]
 
 The scene: a unit sphere of single-scattering albedo ``--albedo`` (0.9995 is what
 ``reflectance`` 0.95 inverts to at ior 1.5), ior 1.5, under a white sky (ambient 1) and one
 point light, path mode's translation (``subsurface_boundary`` around ``marble_medium``,
-``volpath`` max_depth ``contract.VOLPATH_MAX_DEPTH``), llvm_ad_rgb. For each rr_depth:
+``volpath`` max_depth ``contract.VOLPATH_MAX_DEPTH``), llvm_ad_rgb; or ``--scene FILE``
+at size² (e.g. scenes/translucent/fig11a-translucent.scene). For each rr_depth:
 ``--renders`` renders of different seeds after a warm-up, each timed (``dr.sync_thread``
 before the clock); over the pixels the sphere covers: the mean, the relative per-pixel
 standard deviation across the renders (std/mean of each pixel, averaged), the largest
@@ -25,8 +26,9 @@ import numpy as np
 
 import mimarble
 from mimarble import scene as S
-from mimarble.contract import VOLPATH_MAX_DEPTH
+from mimarble.contract import ROULETTE_DEPTH, VOLPATH_MAX_DEPTH
 from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+from mimarble.scene.edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -71,11 +73,16 @@ def main() -> None:
     parser.add_argument("--renders", type=int, default=8)
     parser.add_argument("--albedo", type=float, default=0.9995)
     parser.add_argument("--mean-free-path", type=float, default=0.05)
+    parser.add_argument("--scene", help="a scene file instead of the white sphere")
     parser.add_argument("--json")
     args = parser.parse_args()
     mi.set_variant("llvm_ad_rgb")
-    scene = S.parse(SCENE.format(size=args.size, a=args.albedo, mfp=args.mean_free_path))
-    rows = [measure(scene, args.spp, args.renders, rr) for rr in (5, VOLPATH_MAX_DEPTH)]
+    if args.scene:
+        with open(args.scene) as text:
+            scene = resized(S.parse(text.read(), filename=args.scene), args.size)
+    else:
+        scene = S.parse(SCENE.format(size=args.size, a=args.albedo, mfp=args.mean_free_path))
+    rows = [measure(scene, args.spp, args.renders, rr) for rr in (ROULETTE_DEPTH, VOLPATH_MAX_DEPTH)]
     for row in rows:
         print(f"rr_depth {row['rr_depth']:5d}: {row['seconds']:.2f} s/render, covered mean "
               f"{row['covered_mean']:.4f} ± {row['covered_mean_spread']:.4f} (spread over "

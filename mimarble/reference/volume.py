@@ -85,9 +85,9 @@ restricted to what translucent scenes need:
   (α/0.95)^k that grow where the albedo α exceeds 0.95: in an optically thick, nearly
   white medium their variance is so large that an image converges very slowly. Mitsuba's
   volpath has that roulette at any ``max_depth`` (q = min(max β·η², 0.95); η = 1 with
-  ``subsurface_boundary``), which is why path mode turns it off for translucent scenes
-  (``contract.VOLPATH_RR_DEPTH`` = max_depth; measured in docs/benchmarks.md, "Russian
-  roulette on white marble"). ``rr_depth=None`` turns this walk's roulette off (then
+  ``subsurface_boundary``), which is why path mode turns it off where an albedo may
+  pass 0.95 (``contract.VOLPATH_RR_DEPTH`` = max_depth; measured in docs/benchmarks.md,
+  "Russian roulette on white marble"). ``rr_depth=None`` turns this walk's roulette off (then
   ``max_depth`` must be finite).
 * **Pixels**: ``spp`` samples per pixel at uniform random positions in the pixel
   (Mitsuba's ``independent`` sampler with a ``box`` filter), the pixel their plain mean.
