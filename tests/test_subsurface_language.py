@@ -80,12 +80,14 @@ def test_an_object_space_marble_in_a_subsurface_goes_on_any_shape(shape):
 
 def test_every_key_of_a_subsurface_is_accepted():
     # BLOCK_KEYS lists what the grammar takes, in the order the messages list them.
-    assert S.BLOCK_KEYS["subsurface"] == ("albedo", "mean_free_path", "density", "ior")
+    assert S.BLOCK_KEYS["subsurface"] == ("albedo", "reflectance", "mean_free_path", "density",
+                                          "ior")
     assert S.BLOCK_KEYS["material"][-1] == "subsurface"
     values = {"density": "color < 1 1 1 >", "ior": "1.1"}
     for key in S.BLOCK_KEYS["subsurface"]:
         extra = f" {key} {values[key]}" if key in values else ""
-        parse(material("albedo color < 1 1 1 > mean_free_path 1" + extra))
+        colour = "reflectance" if key == "reflectance" else "albedo"   # one of the two
+        parse(material(f"{colour} color < 1 1 1 > mean_free_path 1" + extra))
 
 
 # --------------------------------------------------------------------------
@@ -158,7 +160,7 @@ def test_an_unknown_key_lists_the_subsurface_keys_in_order():
     text = material("albedo color < 1 1 1 > scattering 2")
     refused_at(text, *where(text, "scattering"),
                "unknown keyword 'scattering' in 'subsurface' block; allowed: 'albedo', "
-               "'mean_free_path', 'density' or 'ior'")
+               "'reflectance', 'mean_free_path', 'density' or 'ior'")
 
 
 def test_a_mistake_inside_an_image_map_there_lists_the_image_maps_keys():
