@@ -231,6 +231,16 @@ def test_both_sides_invert_the_same_colours_to_the_same_albedo(variant, eta):
     np.testing.assert_allclose(got, expected, atol=1e-6, rtol=0)
 
 
+@pytest.mark.parametrize("eta", [1e-30, 3e38])
+def test_an_ior_whose_coat_reflects_all_light_gives_albedo_zero_not_nan(llvm, eta):
+    from mimarble.mitsuba.plugins import subsurface_reflectance as mitsuba_side
+    c = np.array([0.0, 0.5, 1.0])
+    fresnel = mitsuba_side.diffuse_fresnel_reflectance(eta)
+    assert fresnel == reference.diffuse_fresnel_reflectance(eta) == 1.0
+    got = np.array(mitsuba_side.single_scattering_albedo(mi.Float(c), fresnel))
+    assert np.all(got == 0) and np.all(reference.single_scattering_albedo(c, fresnel) == 0)
+
+
 def test_the_medium_scatters_with_the_inverted_albedo(variant):
     """marble_medium with a ``reflectance`` and an ``ior``: σ_s/σ_t at a point is the
     reference's α of the colour."""

@@ -21,6 +21,7 @@ from decimal import Decimal, localcontext
 
 import numpy as np
 
+from mimarble.contract import FLT_MIN_NORMAL
 from mimarble.contract import SPHERICAL_ALBEDO_FIT_B as FIT_B, SPHERICAL_ALBEDO_FIT_C as FIT_C
 
 __all__ = ["diffuse_fresnel_reflectance", "single_scattering_albedo"]
@@ -61,9 +62,10 @@ def diffuse_fresnel_reflectance(eta: float) -> float:
 
 def single_scattering_albedo(reflectance, fresnel_mean: float) -> np.ndarray:
     """α (same shape as ``reflectance``, float64) of each reflectance component, for a
-    boundary of F̄ = ``fresnel_mean`` < 1 (module docstring)."""
+    boundary of F̄ = ``fresnel_mean`` (module docstring); 0 everywhere where F̄ rounds to 1
+    (the coat reflects all even light)."""
     c = np.clip(np.asarray(reflectance, dtype=np.float64), 0.0, 1.0)
-    a = np.clip((c - fresnel_mean) / (1.0 - fresnel_mean), 0.0, 1.0)
+    a = np.clip((c - fresnel_mean) / max(1.0 - fresnel_mean, FLT_MIN_NORMAL), 0.0, 1.0)
     b = 1.0 + FIT_B + FIT_C * a
     s = (b - np.sqrt(b * b - 4.0 * FIT_B * (1.0 - a))) / (2.0 * FIT_B)
     return 1.0 - s * s

@@ -136,7 +136,7 @@ def _held(value: float):
 
 @plugin("medium", "marble_medium")
 class MarbleMedium:
-    """Heterogeneous medium with texture albedo and density: see
+    """Heterogeneous medium with texture albedo (or reflectance) and density: see
     mimarble/mitsuba/plugins/marble_medium.py for the parameters and the math."""
 
     def __init__(self, props):

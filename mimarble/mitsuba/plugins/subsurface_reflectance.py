@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from mimarble.runtime import environment
+from mimarble.contract import FLT_MIN_NORMAL
 from mimarble.contract import SPHERICAL_ALBEDO_FIT_B as FIT_B, SPHERICAL_ALBEDO_FIT_C as FIT_C
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -50,6 +51,8 @@ def diffuse_fresnel_reflectance(eta: float, nodes: int = QUADRATURE_NODES) -> fl
     2μ dμ = 2(1 − μ_c²)·t dt and cos θₜ ∝ t, so that the integrand is smooth in t:
     F̄ = μ_c² + (1 − μ_c²)·∫₀¹ F(μ(t)) 2t dt, by Gauss–Legendre (μ_c = 0 for η ≥ 1)."""
     mu_c2 = max(0.0, 1.0 - eta * eta)
+    if mu_c2 == 1.0:          # η < 10⁻⁸: every direction from outside is wholly reflected
+        return 1.0
     x, w = np.polynomial.legendre.leggauss(nodes)
     t, w = (x + 1.0) / 2.0, w / 2.0
     mu = np.sqrt(mu_c2 + (1.0 - mu_c2) * t * t)
@@ -58,10 +61,12 @@ def diffuse_fresnel_reflectance(eta: float, nodes: int = QUADRATURE_NODES) -> fl
 
 def single_scattering_albedo(reflectance, fresnel_mean: float):
     """α per component of ``reflectance`` (any Dr.Jit colour, spectrum or number) for a
-    boundary of mean reflectance F̄ = ``fresnel_mean`` < 1 (module docstring): in [0, 1],
-    1 where the reflectance is 1, 0 where it is at most F̄."""
+    boundary of mean reflectance F̄ = ``fresnel_mean`` (module docstring): in [0, 1], 1
+    where the reflectance is 1, 0 where it is at most F̄ — everywhere once F̄ rounds to 1
+    (an ior past 10¹⁶ or below 10⁻⁸: the coat reflects all even light)."""
     c = dr.clip(reflectance, 0.0, 1.0)
-    a = dr.clip((c - fresnel_mean) / (1.0 - fresnel_mean), 0.0, 1.0)
+    transmitted = max(1.0 - fresnel_mean, FLT_MIN_NORMAL)     # 1 − F̄, never 0
+    a = dr.clip((c - fresnel_mean) / transmitted, 0.0, 1.0)
     b = (1.0 + FIT_B) + FIT_C * a
     s = 2.0 * (1.0 - a) / (b + dr.sqrt(b * b - 4.0 * FIT_B * (1.0 - a)))
     return 1.0 - s * s
