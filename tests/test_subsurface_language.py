@@ -78,14 +78,34 @@ def test_an_object_space_marble_in_a_subsurface_goes_on_any_shape(shape):
     assert parse(text).materials["m"].subsurface.albedo.space == "object"
 
 
+def test_a_reflectance_stands_in_for_the_albedo():
+    text = material("reflectance marble { period 2 } mean_free_path 0.2 ior 1.3")
+    sub = parse(text).materials["m"].subsurface
+    assert sub == S.Subsurface(reflectance=S.MarbleChannel(period=2.0), mean_free_path=0.2, ior=1.3)
+    assert sub.albedo is None and sub.reflectance.pos == where(text, "marble")
+    assert sub.channels() == {"reflectance": S.MarbleChannel(period=2.0)}
+    textured = parse('texture "veins" { marble { period 1.3 } }\n'
+                     + material('reflectance texture "veins" mean_free_path 1'))
+    assert textured.materials["m"].subsurface.reflectance == S.MarbleChannel(period=1.3)
+
+
+@pytest.mark.parametrize("given", [{}, {"albedo": S.ColorChannel((1, 1, 1)),
+                                        "reflectance": S.ColorChannel((1, 1, 1))}])
+def test_the_model_takes_exactly_one_of_albedo_and_reflectance(given):
+    with pytest.raises(ValueError, match="exactly one of albedo"):
+        S.Subsurface(mean_free_path=1.0, **given)
+
+
 def test_every_key_of_a_subsurface_is_accepted():
     # BLOCK_KEYS lists what the grammar takes, in the order the messages list them.
-    assert S.BLOCK_KEYS["subsurface"] == ("albedo", "mean_free_path", "density", "ior")
+    assert S.BLOCK_KEYS["subsurface"] == ("albedo", "reflectance", "mean_free_path", "density",
+                                          "ior")
     assert S.BLOCK_KEYS["material"][-1] == "subsurface"
     values = {"density": "color < 1 1 1 >", "ior": "1.1"}
     for key in S.BLOCK_KEYS["subsurface"]:
         extra = f" {key} {values[key]}" if key in values else ""
-        parse(material("albedo color < 1 1 1 > mean_free_path 1" + extra))
+        colour = "reflectance" if key == "reflectance" else "albedo"   # one of the two
+        parse(material(f"{colour} color < 1 1 1 > mean_free_path 1" + extra))
 
 
 # --------------------------------------------------------------------------
@@ -102,8 +122,23 @@ def test_a_missing_required_key_is_refused_at_the_subsurface_keyword(inside, mis
                "mean_free_path 0.2")
 
 
+def test_neither_albedo_nor_reflectance_is_refused_at_the_subsurface_keyword():
+    text = material("mean_free_path 1 density color < 1 1 1 >")
+    refused_at(text, *where(text, "subsurface"), "subsurface has no 'albedo' or 'reflectance'",
+               "reflectance color < 0.9 0.9 0.9 > mean_free_path 0.2", "the colour seen")
+
+
+@pytest.mark.parametrize("first, second", [("albedo", "reflectance"), ("reflectance", "albedo")])
+def test_both_albedo_and_reflectance_are_refused_at_the_second(first, second):
+    text = material(f"{first} color < 1 1 1 > mean_free_path 1\n  {second} marble {{ }}")
+    line, column = where(text, first)
+    refused_at(text, *where(text, second), f"subsurface has both '{first}' (at {line}:{column}) "
+               f"and '{second}'; give one")
+
+
 @pytest.mark.parametrize("key, value", [("albedo", "color < 1 1 1 >"), ("mean_free_path", "2"),
-                                        ("density", "color < 1 1 1 >"), ("ior", "1.2")])
+                                        ("density", "color < 1 1 1 >"), ("ior", "1.2"),
+                                        ("reflectance", "color < 1 1 1 >")])
 def test_a_key_given_twice_is_refused_at_the_second(key, value):
     required = {"albedo": "color < 1 1 1 >", "mean_free_path": "1"}
     others = " ".join(f"{k} {v}" for k, v in required.items() if k != key)
@@ -158,7 +193,7 @@ def test_an_unknown_key_lists_the_subsurface_keys_in_order():
     text = material("albedo color < 1 1 1 > scattering 2")
     refused_at(text, *where(text, "scattering"),
                "unknown keyword 'scattering' in 'subsurface' block; allowed: 'albedo', "
-               "'mean_free_path', 'density' or 'ior'")
+               "'reflectance', 'mean_free_path', 'density' or 'ior'")
 
 
 def test_a_mistake_inside_an_image_map_there_lists_the_image_maps_keys():
@@ -235,6 +270,16 @@ def test_path_mode_makes_a_subsurface_boundary_around_a_marble_medium():
     assert medium["density_bound"] == pytest.approx(1.0 + 2.5 / 3)   # means: 1 + (0.5+2+0)/3
     assert medium["albedo"]["color"] == [0.9, 0.8, 0.7]
     assert d[medium["density"]["id"]]["type"] == "channel_expression"
+
+
+def test_a_reflectance_goes_to_the_medium_with_the_boundarys_ior():
+    d = translucent('reflectance marble { ramp { < 0.9 0.9 0.9 > < 0.3 0.2 0.1 > } } '
+                    'mean_free_path 0.05 ior 1.3')
+    medium = d["sphere_0"]["interior"]
+    assert medium["type"] == "marble_medium" and "albedo" not in medium
+    assert medium["ior"] == 1.3 and medium["scale"] == 20.0
+    assert d[medium["reflectance"]["id"]]["type"] == "marble"
+    assert "ior" not in translucent("albedo color < 1 1 1 > mean_free_path 1")["sphere_0"]["interior"]
 
 
 def test_without_a_density_the_medium_has_none_and_a_bound_of_one():

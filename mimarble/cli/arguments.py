@@ -321,7 +321,7 @@ def _bake_command(sub) -> None:
                         f"(default {DEFAULT_VOLUME_SIZE}, at most {MAX_VOLUME_SIZE})")
     p.add_argument("--channel", choices=CHANNELS,
                    help="the material's channel (default: diffuse, else the first it has; "
-                        "albedo and density: a subsurface's, with --volume)")
+                        "albedo, reflectance and density: a subsurface's, with --volume)")
     p.add_argument("--volume", action="store_true",
                    help="bake the channel on an N×N×N grid over the shape's world bounding box, "
                         "as a Mitsuba volume grid (.vol: gridvolume); spheres, boxes, meshes")

@@ -10,8 +10,8 @@ restricted to what translucent scenes need:
   outside); F(μ) the exact unpolarised Fresnel reflectance for light from outside at
   cosine μ, F = (r_s² + r_p²)/2, r_s = (μ − η μₜ)/(μ + η μₜ), r_p = (η μ − μₜ)/(η μ + μₜ),
   μₜ = √(1 − (1 − μ²)/η²) (:func:`fresnel_dielectric`); F̄ = ∫₀¹ F(μ) 2μ dμ
-  (:func:`mean_fresnel_reflectance`). A path meeting a sphere from outside reflects in
-  the mirror direction with probability F(μᵢ), else enters in a direction
+  (:func:`~mimarble.reference.subsurface_reflectance.diffuse_fresnel_reflectance`). A path
+  meeting a sphere from outside reflects in the mirror direction with probability F(μᵢ), else enters in a direction
   cosine-distributed about the inward normal; both keep the weight. A walk meeting it from
   inside always leaves, cosine-distributed about the outward normal, its weight times
   W(μₒ) = (1 − F(μₒ))/(1 − F̄) (mean 1 over the cosine distribution). No refraction, no
@@ -115,6 +115,7 @@ from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, T_MIN_REL, VOLPATH_M
 
 from .intersection import _roots as sphere_roots    # both roots, the stable quadratic
 from .preparation import camera_rays
+from .subsurface_reflectance import diffuse_fresnel_reflectance
 from .volume_lights import _basis, exit_lighting
 from .volume_scene import _Lights, _problem, _Spheres, area_radiance, channel_interval, density_bound
 
@@ -125,7 +126,6 @@ __all__ = [
     "CHUNK_PATHS",
     "render_translucent",
     "fresnel_dielectric",
-    "mean_fresnel_reflectance",
     "channel_interval",
     "density_bound",
     "area_radiance",
@@ -155,27 +155,6 @@ def fresnel_dielectric(cos_i, eta):
     # 0/0 only at grazing incidence with cos θₜ = 0 too: everything is reflected.
     f = np.where(total | ~np.isfinite(f), 1.0, f)
     return f, np.where(total, 0.0, cos_t)
-
-
-def mean_fresnel_reflectance(eta) -> float:
-    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ, F light's reflectance from outside
-    (:func:`fresnel_dielectric`), by composite 16-point Gauss–Legendre over 32 equal panels
-    of a variable s ∈ [0, 1]: s = μ where η > 1 (F is smooth in μ). Where η < 1, in
-    x = μ² (2μ dμ = dx): F = 1 for x < x_c = 1 − η² (past the critical angle), and above
-    x_c F − 1 goes as √(x − x_c): x = x_c + (1 − x_c)·s² makes it smooth in s."""
-    eta = float(eta)
-    if eta == 1.0:
-        return 0.0
-    nodes, weights = np.polynomial.legendre.leggauss(16)
-    edges = np.linspace(0.0, 1.0, 33)
-    half = 0.5 * np.diff(edges)[:, None]
-    s = half * nodes + 0.5 * (edges[:-1, None] + edges[1:, None])
-    if eta > 1.0:
-        return float(np.sum(half * weights * 2.0 * s * fresnel_dielectric(s, eta)[0]))
-    x_c = 1.0 - eta * eta
-    x = x_c + (1.0 - x_c) * s * s
-    return x_c + float(np.sum(half * weights * 2.0 * (1.0 - x_c) * s
-                              * fresnel_dielectric(np.sqrt(x), eta)[0]))
 
 
 def _exit_lobe(cos_l, eta, exit_scale):
@@ -297,7 +276,7 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
     left = np.full(n, -1, dtype=np.int64)        # the sphere the path last left outwards
     live = np.arange(n)
     t_min = T_MIN_REL
-    exit_scale = 1.0 / (1.0 - np.array([mean_fresnel_reflectance(e) for e in spheres.ior]))
+    exit_scale = 1.0 / (1.0 - np.array([diffuse_fresnel_reflectance(e) for e in spheres.ior]))
     sampled_lights = bool(lights.points or lights.spheres or lights.rectangles)
     exited = np.zeros(n, dtype=bool)             # the path's last vertex is an exit
     while live.size:

@@ -30,6 +30,7 @@ from mimarble.scene.model import (
 from mimarble.scene.shapes import SHAPE_KINDS
 
 from .channels import channel_color
+from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scattering_albedo
 
 __all__ = ["channel_interval", "density_bound", "area_radiance", "point_intensity"]
 
@@ -207,6 +208,9 @@ class _Spheres:
         self.mfp = np.array([s.mean_free_path for s in subs], dtype=np.float64)
         self.majorant = np.array([density_bound(s) for s in subs]) / self.mfp
         self.albedo = [s.albedo for s in subs]
+        self.reflectance = [s.reflectance for s in subs]      # (else None: the albedo's)
+        self.fresnel_mean = [None if s.reflectance is None else diffuse_fresnel_reflectance(s.ior)
+                             for s in subs]
         self.density = [s.density for s in subs]
         self.object_space = [any(in_object_space(ch) for ch in s.channels().values())
                              for s in subs]
@@ -214,12 +218,18 @@ class _Spheres:
                                                  dtype=np.float64).reshape(-1, 4, 4))[:, :3, :]
 
     def coefficients(self, s: int, p: np.ndarray):
-        """(σ_t/σ̄ (k,), albedo (k, 3)) of sphere s's medium at world points p (k, 3)."""
+        """(σ_t/σ̄ (k,), albedo (k, 3)) of sphere s's medium at world points p (k, 3): the
+        albedo channel clamped to [0, 1], or the reflectance channel's inversion
+        (:mod:`.subsurface_reflectance`)."""
         obj = None
         if self.object_space[s]:
             m = self.from_world[s]
             obj = p @ m[:, :3].T + m[:, 3]
-        albedo = np.clip(channel_color(self.albedo[s], p, object_points=obj), 0.0, 1.0)
+        if self.reflectance[s] is not None:
+            albedo = single_scattering_albedo(
+                channel_color(self.reflectance[s], p, object_points=obj), self.fresnel_mean[s])
+        else:
+            albedo = np.clip(channel_color(self.albedo[s], p, object_points=obj), 0.0, 1.0)
         if self.density[s] is None:
             ratio = np.ones(len(p))
         else:

@@ -121,20 +121,30 @@ class MaterialBuilder(ValueReader):
                         **channels)
 
     def subsurface(self, st: Tree, block: str) -> Subsurface:
-        """``subsurface { albedo CH mean_free_path X density CH ior X }``: albedo and
-        mean_free_path required (refused at the ``subsurface`` keyword without them), each
-        key at most once; the numbers by their rules (rules.py) at the number, the
-        channels read as any channel is (depth, size, named textures) but with no image
-        map in them, directly or through a texture (:meth:`volume_channel`); the keys
-        checked in the order written."""
+        """``subsurface { reflectance CH | albedo CH  mean_free_path X density CH ior X }``:
+        mean_free_path and exactly one of albedo / reflectance required (neither, or both,
+        refused at the ``subsurface`` keyword), each key at most once; the numbers by their
+        rules (rules.py) at the number, the channels read as any channel is (depth, size,
+        named textures) but with no image map in them, directly or through a texture
+        (:meth:`volume_channel`); the keys checked in the order written."""
         f = self.fields(st, "'subsurface' block")
-        for key in ("albedo", "mean_free_path"):
-            if key not in f:
-                raise self.error(st, f"subsurface has no '{key}'; write subsurface {{ albedo "
-                                     f"color < 0.9 0.9 0.9 > mean_free_path 0.2 }}")
+        example = "write subsurface { reflectance color < 0.9 0.9 0.9 > mean_free_path 0.2 }"
+        if "albedo" not in f and "reflectance" not in f:
+            raise self.error(st, f"subsurface has no 'albedo' or 'reflectance'; {example} "
+                                 f"(reflectance: the colour seen; albedo: the single-"
+                                 f"scattering albedo)")
+        if "albedo" in f and "reflectance" in f:      # refused at the second written
+            first, second = (key for key in f if key in ("albedo", "reflectance"))
+            at = f[first].meta
+            raise self.error(f[second], f"subsurface has both '{first}' (at {at.line}:"
+                                        f"{at.column}) and '{second}'; give one: reflectance, "
+                                        f"the colour seen, or albedo, the single-scattering "
+                                        f"albedo")
+        if "mean_free_path" not in f:
+            raise self.error(st, f"subsurface has no 'mean_free_path'; {example}")
         values = {}             # ior absent: the model's default
         for key, tree in f.items():
-            if key in ("albedo", "density"):
+            if key in ("albedo", "reflectance", "density"):
                 values[key] = self.volume_channel(tree, f"{key} of the subsurface of {block}")
                 continue
             tok = tree.children[0]
@@ -145,7 +155,7 @@ class MaterialBuilder(ValueReader):
         return Subsurface(pos=pos_of(st), **values)
 
     def volume_channel(self, key: Tree, what: str):
-        """The channel after a subsurface's ``albedo`` or ``density`` (written bare). A
+        """The channel after a subsurface's ``albedo``, ``reflectance`` or ``density`` (bare). A
         volume's points have no texture coordinates (u, v): an image map written in it is
         refused at its ``image`` keyword before its file is read, one brought in by a
         named texture at that texture's use."""

@@ -29,8 +29,8 @@ CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multipl
 CHANNEL_BLOCKS: tuple[str, ...] = ("ambient", "diffuse", "specular", "add", "multiply", "mix",
                                    "texture")
 #: The keys followed by one channel written bare, without braces (a subsurface's:
-#: ``albedo marble { … }``, ``density texture "veins"``).
-BARE_CHANNEL_KEYS: tuple[str, ...] = ("albedo", "density")
+#: ``albedo marble { … }``, ``reflectance color < 0.9 0.9 0.9 >``, ``density texture "veins"``).
+BARE_CHANNEL_KEYS: tuple[str, ...] = ("albedo", "reflectance", "density")
 
 #: The keywords allowed in each kind of block (keyed by the block's rule name: an image
 #: map is ``image_map``, written ``image { file "…" }`` like the image statement).
@@ -40,7 +40,7 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "light": ("position", "color", "area"),
     "area": ("axis1", "axis2", "radius", "samples"),
     "material": ("ambient", "diffuse", "specular", "shininess", "subsurface"),
-    "subsurface": ("albedo", "mean_free_path", "density", "ior"),   # albedo, density: a channel
+    "subsurface": ("albedo", "reflectance", "mean_free_path", "density", "ior"),  # BARE_CHANNEL_KEYS: a channel
     "ambient": CHANNEL_KEYWORDS,
     "diffuse": CHANNEL_KEYWORDS,
     "specular": CHANNEL_KEYWORDS,

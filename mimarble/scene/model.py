@@ -237,27 +237,39 @@ class Light:
 
 @dataclass(frozen=True)
 class Subsurface:
-    """``subsurface { albedo CH mean_free_path X density CH ior X }``: the material's inside
-    is a scattering volume behind a boundary (path mode only; ``subsurface_boundary``).
+    """``subsurface { reflectance CH | albedo CH  mean_free_path X density CH ior X }``: the
+    material's inside is a scattering volume behind a boundary (path mode only;
+    ``subsurface_boundary``).
 
     At a point p inside: extinction σ_t(p) = d(p) / ``mean_free_path`` (d the ``density``
     channel's mean of its three components, at least 0; 1 everywhere without one), single-
-    scattering albedo α(p) = the ``albedo`` channel's colour clamped to [0, 1]; σ_s = α·σ_t,
-    σ_a = (1 − α)·σ_t; isotropic phase function. The boundary has relative index of
-    refraction ``ior`` (inside over outside). Channels are evaluated at the world point (or
-    in the shape's object space, for ``space object`` marbles), as on surfaces.
+    scattering albedo α(p) = the ``albedo`` channel's colour clamped to [0, 1] — or, given
+    ``reflectance`` instead (exactly one of the two), the α whose thick slab shows that
+    colour C(p) under even light (the multiple-scattering albedo, inverted per point for the
+    boundary's ``ior``: docs/rendering-model.md, "The colour you see: reflectance");
+    σ_s = α·σ_t, σ_a = (1 − α)·σ_t; isotropic phase function. The boundary has relative
+    index of refraction ``ior`` (inside over outside). Channels are evaluated at the world
+    point (or in the shape's object space, for ``space object`` marbles), as on surfaces.
+
+    ``mean_free_path`` is required; its default (None) only lets ``albedo`` default to
+    None, so that ``Subsurface(reflectance=C, mean_free_path=0.2)`` reads as the block does.
     """
 
-    albedo: Channel
-    mean_free_path: float
+    albedo: Channel | None = None
+    mean_free_path: float = None
     ior: float = 1.5
     density: Channel | None = None
+    reflectance: Channel | None = None
     pos: Pos | None = _pos()
 
     def __post_init__(self) -> None:
-        for name in ("albedo", "density"):
+        if (self.albedo is None) == (self.reflectance is None):
+            raise ValueError("a subsurface takes exactly one of albedo (single-scattering) "
+                             "and reflectance (the colour seen), found "
+                             + ("both" if self.albedo is not None else "neither"))
+        for name in ("albedo", "reflectance", "density"):
             channel = getattr(self, name)
-            if (channel is not None or name == "albedo") and not isinstance(channel, CHANNEL_TYPES):
+            if channel is not None and not isinstance(channel, CHANNEL_TYPES):
                 raise TypeError(f"a subsurface's {name} must be a channel, found {_shown(channel)}")
             if channel is not None and any(isinstance(c, ImageChannel) for c in walk(channel)):
                 raise ValueError(f"a subsurface's {name} cannot hold an image map: a volume "
@@ -269,8 +281,9 @@ class Subsurface:
         _store(self, mean_free_path=mfp, ior=ior)
 
     def channels(self) -> dict:
-        """The channels present, by name (albedo, density)."""
-        return {k: c for k, c in (("albedo", self.albedo), ("density", self.density))
+        """The channels present, by name (albedo or reflectance, density)."""
+        return {k: c for k, c in (("albedo", self.albedo), ("reflectance", self.reflectance),
+                                  ("density", self.density))
                 if c is not None}
 
 

@@ -365,7 +365,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(line, col, f"unexpected {found} at top level; a statement is one of {allowed}")
         opener, name = blocks[-1]
         if isinstance(prev, Token) and prev.type in keywords and str(prev) in BARE_CHANNEL_KEYS:
-            # albedo / density: one channel, written bare (a component block's braces are
+            # albedo / reflectance / density: one channel, written bare (a component block's braces are
             # the likely habit)
             bare = (f"; a subsurface's {prev} takes its channel without braces: {prev} "
                     f"color < 1 1 1 >") if tok.type == "LBRACE" else ""
@@ -387,7 +387,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(line, col, f"unknown keyword '{shortened(tok)}' in {name}{_renamed_note(str(tok))}; "
                                  f"allowed: {allowed}")
         if tok.type in keywords:
-            one = (" (albedo and density take exactly one channel each)"
+            one = (" (albedo, reflectance and density take exactly one channel each)"
                    if opener == "subsurface" and str(tok) in CHANNEL_KEYWORDS else "")
             return at(line, col, f"keyword '{tok}' is not allowed in {name}; allowed: "
                                  f"{allowed}{one}{_unclosed_note(tok, blocks)}")

@@ -76,7 +76,7 @@ IMAGE_SUFFIXES = (".png", ".exr")
 VOLUME_SUFFIXES = (".vol",)
 
 #: A material's channels, in the order a default is looked for after ``diffuse``.
-CHANNELS = ("ambient", "diffuse", "specular", "albedo", "density")
+CHANNELS = ("ambient", "diffuse", "specular", "albedo", "reflectance", "density")
 
 #: How many texels deep the covered texels of a mesh's image are extended (bilinear
 #: lookup reads the texel beside the nearest: one is enough, two leave a margin).

@@ -5,7 +5,8 @@ At a point p inside (mimarble/scene/model.py, ``Subsurface``)::
 
     d(p)   = clamp(mean(density(p)), 0, density_bound)   (1 everywhere without a density)
     σ_t(p) = scale · d(p)                                 (scale = 1 / mean_free_path)
-    α(p)   = clamp(albedo(p), 0, 1)  componentwise
+    α(p)   = clamp(albedo(p), 0, 1)  componentwise, or, given a reflectance instead,
+    α(p)   = inversion(clamp(reflectance(p), 0, 1), F̄(ior))   (subsurface_reflectance.py)
     σ_s    = α · σ_t,    σ_n = σ̄ − σ_t,    σ̄ = scale · density_bound   (the majorant)
 
 Mitsuba samples a tentative collision at rate σ̄ (``Medium::sample_interaction``) and keeps
@@ -14,7 +15,16 @@ that unbiased, hence the clamp of d to the bound — a bound below the density r
 clipped medium rather than negative null probabilities. The same σ̄ in every channel and
 ``has_spectral_extinction`` False (one scalar density) let ``volpath`` weigh a real
 collision by σ_s/σ_t = α alone. A constant density at its bound has σ_n = 0: no null
-collisions, the homogeneous medium's random walk exactly.
+collisions, the homogeneous medium's random walk exactly. The albedo does not enter the
+majorant, so a reflectance changes nothing of the sampling but the weights.
+
+A ``reflectance`` C(p) is the colour a thick piece of the medium shows under even light
+behind its boundary (docs/rendering-model.md, "The colour you see: reflectance"): per
+component α = 1 − s², s from van de Hulst's fit of the spherical albedo after the
+boundary's mean Fresnel reflectance F̄(ior) is taken out, computed in Dr.Jit at each point
+(every variant; differentiable through the texture). F̄ is computed once, when the medium
+is made, by quadrature of ``mi.fresnel``
+(:func:`~mimarble.mitsuba.plugins.subsurface_reflectance.diffuse_fresnel_reflectance`).
 
 The textures are any Mitsuba textures (``marble``, ``channel_expression``, ``rgb``,
 ``srgb``, …), evaluated at a :class:`SurfaceInteraction3f` holding only the point (and
@@ -43,7 +53,17 @@ the shape whose ``interior`` it is bounds it.
    * - ``albedo``
      - texture, colour or float
      - Single-scattering albedo α, clamped to [0, 1] per component (default 0.75, as
-       Mitsuba's media). Traversed as ``albedo.…``, differentiable through the texture.
+       Mitsuba's media, when no ``reflectance`` is given either). Traversed as
+       ``albedo.…``, differentiable through the texture. Not with ``reflectance``.
+   * - ``reflectance``
+     - texture, colour or float
+     - Instead of ``albedo``: the colour seen (the multiple-scattering albedo), clamped to
+       [0, 1] per component; α = inversion(reflectance(p), F̄(ior)) at each point (above).
+       Traversed as ``reflectance.…``, differentiable through the texture.
+   * - ``ior``
+     - float > 0 (default 1)
+     - With ``reflectance`` only: the boundary's relative index (inside over outside),
+       for F̄(ior) = ∫₀¹ F(μ, ior) 2μ dμ (0 at 1, 0.0918 at 1.5). Not traversed.
    * - ``density``
      - texture (optional)
      - d before the clamp: the mean of its three components (none: 1 everywhere) — of its
@@ -79,6 +99,7 @@ from mimarble.mitsuba.plugins.registration import (describe, first_number, held_
     recording_key)
 from mimarble.contract import FLT_MAX
 from .channel_expression import gives_rgb
+from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scattering_albedo
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
@@ -116,7 +137,7 @@ def _held(value: float):
 
 @plugin("medium", "marble_medium")
 class MarbleMedium:
-    """Heterogeneous medium with texture albedo and density: see
+    """Heterogeneous medium with texture albedo (or reflectance) and density: see
     mimarble/mitsuba/plugins/marble_medium.py for the parameters and the math."""
 
     def __init__(self, props):
@@ -132,8 +153,7 @@ class MarbleMedium:
         if mi.has_flag(phase.flags(), mi.PhaseFunctionFlags.Microflake):
             raise MarbleMediumError("marble_medium: a microflake phase function is not "
                                     "supported; use isotropic (the default) or hg")
-        self.albedo = props.get_texture("albedo") if "albedo" in props \
-            else mi.load_dict({"type": "uniform", "value": DEFAULT_ALBEDO})
+        self._albedo_and_reflectance(props)
         self.density = props.get_texture("density") if "density" in props else None
         if mi.is_spectral and self.density is not None and not gives_rgb(self.density):
             # d is a number made from the density's RGB colour (density_at), the same in
@@ -153,6 +173,28 @@ class MarbleMedium:
         if self._bound_given:
             self.editable["density_bound"] = _held(float(bound))
         self.parameters_changed([])
+
+    def _albedo_and_reflectance(self, props):
+        """``albedo`` (default 0.75) or ``reflectance`` with its ``ior`` (default 1), F̄(ior)
+        computed here; both, or an ior without a reflectance, refused."""
+        self.albedo = self.reflectance = None
+        if "reflectance" in props:
+            if "albedo" in props:
+                raise MarbleMediumError("marble_medium: give albedo (single-scattering) or "
+                                        "reflectance (the colour seen), not both")
+            self.reflectance = props.get_texture("reflectance")
+            self.ior = props.get("ior", 1.0)
+            problem = _number_problem("ior", self.ior, 0.0, strict=True)
+            if problem:
+                raise MarbleMediumError(problem)
+            self.fresnel_mean = diffuse_fresnel_reflectance(float(self.ior))
+            return
+        if "ior" in props:
+            raise MarbleMediumError("marble_medium: ior is the boundary's index for a "
+                                    "reflectance's inversion; without a reflectance it has "
+                                    "no use")
+        self.albedo = props.get_texture("albedo") if "albedo" in props \
+            else mi.load_dict({"type": "uniform", "value": DEFAULT_ALBEDO})
 
     def _derived_bound(self) -> float:
         """The bound when none is given, read back (for the checks): 1 without a density
@@ -185,7 +227,10 @@ class MarbleMedium:
         if self._bound_given:
             cb.put("density_bound", self.editable["density_bound"],
                    mi.ParamFlags.NonDifferentiable)
-        cb.put("albedo", self.albedo, mi.ParamFlags.Differentiable)
+        if self.reflectance is not None:
+            cb.put("reflectance", self.reflectance, mi.ParamFlags.Differentiable)
+        else:
+            cb.put("albedo", self.albedo, mi.ParamFlags.Differentiable)
         if self.density is not None:
             cb.put("density", self.density, mi.ParamFlags.Differentiable)
 
@@ -240,15 +285,20 @@ class MarbleMedium:
     def recording_key(self) -> tuple:
         """What decides the code traced besides Dr.Jit's variables (see
         ``Marble.recording_key``): whether there is a density, the textures' own keys, and
-        the host values a bound not given is made of (a Mitsuba texture's ``max()``)."""
+        the host values a bound not given is made of (a Mitsuba texture's ``max()``), and a
+        reflectance's F̄ (a literal in the kernel)."""
         derived = not self._bound_given and self.density is not None
-        return ("marble_medium", self.density is None, recording_key(self.albedo),
+        colour = ("albedo", recording_key(self.albedo)) if self.reflectance is None else \
+            ("reflectance", recording_key(self.reflectance), self.fresnel_mean)
+        return ("marble_medium", self.density is None, colour,
                 recording_key(self.density), self._bound_given,
                 held_maximum(self.density)[1] if derived else ())
 
     def to_string(self):
+        colour = {"albedo": self.albedo} if self.reflectance is None else \
+            {"reflectance": self.reflectance, "ior": self.ior, "fresnel_mean": self.fresnel_mean}
         return describe("MarbleMedium", {
-            "albedo": self.albedo,
+            **colour,
             "density": "1 (none given)" if self.density is None else self.density,
             "scale": first_number(self.scale),
             "density_bound": first_number(self.density_bound()),
@@ -302,12 +352,20 @@ class MarbleMedium:
         c = self.density.eval_3(si, active) if mi.is_spectral else self.density.eval(si, active)
         return dr.clip((c[0] + c[1] + c[2]) / 3.0, 0.0, bound)
 
+    def albedo_at(self, si, active=True):
+        """α at the texture point: the albedo clamped to [0, 1], or the reflectance's
+        inversion for F̄(ior) (module docstring)."""
+        if self.reflectance is None:
+            return dr.clip(mi.UnpolarizedSpectrum(self.albedo.eval(si, active)), 0.0, 1.0)
+        colour = mi.UnpolarizedSpectrum(self.reflectance.eval(si, active))
+        return single_scattering_albedo(colour, self.fresnel_mean)
+
     def get_scattering_coefficients(self, mei, active=True):
         """(σ_s, σ_n, σ_t) at ``mei.p``; zero where ``active`` is False (as ``homogeneous``
         gives: Mitsuba asks at points past the medium too, p = ray(∞) there)."""
         si = self._texture_point(mei)
         sigma_t = dr.select(self._defined(), self.scale * self.density_at(si, active), dr.nan)
-        albedo = dr.clip(mi.UnpolarizedSpectrum(self.albedo.eval(si, active)), 0.0, 1.0)
+        albedo = self.albedo_at(si, active)
         sigma_s = albedo * sigma_t
         sigma_n = self.majorant - sigma_t
         zero = mi.UnpolarizedSpectrum(0.0)

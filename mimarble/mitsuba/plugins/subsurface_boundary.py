@@ -2,8 +2,8 @@
 
 η = int_ior/ext_ior (inside over outside). F(μ) is the exact unpolarised Fresnel
 reflectance for light arriving from *outside* at cosine μ (Mitsuba's ``fresnel``), and
-F̄ = ∫₀¹ F(μ) 2μ dμ its cosine-weighted hemispherical mean (:func:`mean_fresnel_reflectance`,
-computed once on the host: 0 at η = 1, ≈ 0.092 at 1.5). In the shading frame, wᵢ the
+F̄ = ∫₀¹ F(μ) 2μ dμ its cosine-weighted hemispherical mean (
+:func:`~mimarble.mitsuba.plugins.subsurface_reflectance.diffuse_fresnel_reflectance`, computed once on the host: 0 at η = 1, ≈ 0.092 at 1.5). In the shading frame, wᵢ the
 direction towards where the path came from, μᵢ = cos θᵢ, μₒ = cos θₒ:
 
 * **From outside** (μᵢ > 0): with probability F(μᵢ) the mirror direction (a delta
@@ -48,55 +48,19 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import describe, plugin
+from mimarble.mitsuba.plugins.subsurface_reflectance import diffuse_fresnel_reflectance
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Mitsuba's defaults of ``dielectric`` (src/bsdfs/dielectric.cpp: "bk7" inside, "air" outside).
 DEFAULT_INT_IOR = 1.5046
 DEFAULT_EXT_IOR = 1.000277
-#: Gauss–Legendre nodes of F̄'s quadrature (its integrand is smooth: float64 rounding is
-#: reached well before this many).
-_QUADRATURE_NODES = 64
 
 
 class SubsurfaceBoundaryError(ValueError):
     """An invalid ``subsurface_boundary``; the message names the parameter."""
-
-
-def fresnel_from_outside(mu, eta: float) -> np.ndarray:
-    """F(μ, η) on the host, float64: the unpolarised reflectance r = (r_s² + r_p²)/2 for
-    light from outside at cosine μ ∈ [0, 1], η inside over outside;
-    r_s = (μ − η μₜ)/(μ + η μₜ), r_p = (η μ − μₜ)/(η μ + μₜ), μₜ = √(1 − (1 − μ²)/η²); 1
-    where sin θₜ would pass 1 (η < 1, past the critical angle) and at μ = 0 (η ≠ 1)."""
-    mu = np.clip(np.asarray(mu, dtype=np.float64), 0.0, 1.0)
-    sin2_t = (1.0 - mu * mu) / (eta * eta)
-    mu_t = np.sqrt(np.maximum(1.0 - sin2_t, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        r_s = (mu - eta * mu_t) / (mu + eta * mu_t)
-        r_p = (eta * mu - mu_t) / (eta * mu + mu_t)
-        r = 0.5 * (r_s * r_s + r_p * r_p)
-    return np.where((sin2_t >= 1.0) | ~np.isfinite(r), 1.0, r) if eta != 1.0 else np.zeros_like(mu)
-
-
-def mean_fresnel_reflectance(eta: float) -> float:
-    """F̄(η) = ∫₀¹ F(μ, η) 2μ dμ, by Gauss–Legendre quadrature. For η ≥ 1 F is smooth on
-    [0, 1]. For η < 1, F = 1 below the critical cosine μ_c = √(1 − η²) (2μ integrates to
-    1 − η² there) and above it behaves as 1 − c·√(μ − μ_c): the substitution
-    μ = μ_c + (1 − μ_c)·t² makes that piece smooth in t ∈ [0, 1]."""
-    if eta == 1.0:
-        return 0.0
-    nodes, weights = np.polynomial.legendre.leggauss(_QUADRATURE_NODES)
-    t, w = 0.5 * (nodes + 1.0), 0.5 * weights
-    if eta > 1.0:
-        return float(np.sum(w * fresnel_from_outside(t, eta) * 2.0 * t))
-    critical = math.sqrt(1.0 - eta * eta)
-    mu = critical + (1.0 - critical) * t * t
-    jacobian = 2.0 * (1.0 - critical) * t
-    return critical * critical + float(np.sum(w * jacobian * fresnel_from_outside(mu, eta) * 2.0 * mu))
 
 
 def _ior(props, name: str, default: float) -> float:
@@ -118,7 +82,7 @@ class SubsurfaceBoundary:
         self.int_ior = _ior(props, "int_ior", DEFAULT_INT_IOR)
         self.ext_ior = _ior(props, "ext_ior", DEFAULT_EXT_IOR)
         self.eta = self.int_ior / self.ext_ior
-        self.mean_reflectance = mean_fresnel_reflectance(self.eta)
+        self.mean_reflectance = diffuse_fresnel_reflectance(self.eta)
         # W(μₒ) = (1 − F(μₒ))·exit_scale: F̄ < 1 for every finite η > 0
         self.exit_scale = 1.0 / (1.0 - self.mean_reflectance)
         reflection = mi.BSDFFlags.DeltaReflection | mi.BSDFFlags.FrontSide

@@ -30,7 +30,8 @@ def subsurface_boundary(subsurface: model.Subsurface) -> dict:
 
 def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> dict:
     """The ``marble_medium`` (mimarble/mitsuba/plugins/marble_medium.py) of a subsurface: the
-    textures of its albedo and density channels (``ref(channel)``: a texture or a reference
+    textures of its albedo (or reflectance, with the boundary's ``ior`` for its inversion)
+    and density channels (``ref(channel)``: a texture or a reference
     to one; default: :func:`texture_dict`), ``scale`` = 1/mean_free_path, so that
     σ_t(p) = scale·d(p), and ``density_bound`` ≥ every d(p) (the majorant is
     scale·density_bound): ``error_budget.mean_bound`` of the density channel (d is the mean
@@ -50,7 +51,11 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
             f"mean_free_path {subsurface.mean_free_path:g} with a density up to {bound:g} is "
             f"an extinction of up to {scale * bound!r} per scene unit, past float32's "
             f"{FLT_MAX!r}, the most Mitsuba's single precision holds")
-    out = {"type": "marble_medium", "albedo": ref(subsurface.albedo)}
+    out = {"type": "marble_medium"}
+    if subsurface.reflectance is not None:       # inverted in the medium, for the boundary's ior
+        out.update(reflectance=ref(subsurface.reflectance), ior=subsurface.ior)
+    else:
+        out["albedo"] = ref(subsurface.albedo)
     if density is not None:
         out["density"] = ref(density)
     out.update(scale=scale, density_bound=bound, sample_emitters=False)
