@@ -76,9 +76,10 @@ VOLPATH_MAX_DEPTH = 1024
 #: q = min(max β, 0.95), so in a medium of albedo α > 0.95 the weight grows as (α/0.95)ᵏ
 #: while the path survives with 0.95ᵏ: white marble (α ≈ 0.9995) becomes a few huge
 #: fireflies. Measured on a white sphere (α 0.9995, mean free path 0.05 / 0.02): without
-#: roulette 3.8× / 16× the efficiency (1/(variance·time)) of rr_depth 5, which missed the
-#: mean by 145 % at 0.02; at α ≤ 0.95 the roulette is 2.6–4.4× more efficient
-#: (docs/benchmarks.md, "Russian roulette on white marble").
+#: roulette 4.1× / 14× the efficiency (1/(variance·time)) of rr_depth 5, which missed the
+#: mean by 145 % at 0.02; at α ≤ 0.95 the roulette is 2.5–8.5× more efficient
+#: (docs/benchmarks.md, "Russian roulette on white marble"). Where it is off, the media
+#: end walks by their albedo instead (the ``roulette_isotropic`` phase function).
 VOLPATH_RR_DEPTH = VOLPATH_MAX_DEPTH
 #: Russian roulette from this depth on (Mitsuba volpath's default ``rr_depth``; the
 #: reference walk's default).

@@ -226,7 +226,9 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     ``(image, sample_variance)``: the second, (H, W, 3), is each pixel's unbiased variance
     of one sample (so the pixel mean's variance is it / spp; 0 at spp 1). ``steps``, a dict,
     gains the delta tracking's counts: ``paths``, ``real`` and ``null`` collisions (the
-    majorant's efficiency is real / (real + null)).
+    majorant's efficiency is real / (real + null)); if it holds a list ``depths``, each
+    batch appends its paths' vertex counts (volpath's depth where each ended), in the
+    order of their lanes (pixel by pixel, a pixel's samples together).
     """
     _checked(scene, spp, max_depth, rr_depth, chunk_paths)
     spp = int(spp)
@@ -424,4 +426,6 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 stop[lost] = True
             ended[ev[stop]] = True
         live = live[~ended]
+    if steps is not None and "depths" in steps:    # each path's vertices, in lane order
+        steps["depths"].append(depth)
     return value

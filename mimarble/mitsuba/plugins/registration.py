@@ -127,6 +127,7 @@ _KINDS = {
     "integrator": ("SamplingIntegrator", "register_integrator"),
     "emitter": ("Emitter", "register_emitter"),
     "medium": ("Medium", "register_medium"),
+    "phase": ("PhaseFunction", "register_phase"),
 }
 _plugins: list[tuple[str, str, type]] = []
 _bound: dict[tuple[str, str], type] = {}

@@ -1,0 +1,63 @@
+"""``roulette_isotropic`` (mimarble/mitsuba/plugins/roulette_phase.py) on its own, in every RGB
+variant: directions uniform on the sphere, kept with probability max α (a binomial bound),
+weight 1/max α, an isotropic eval_pdf; and path mode's choice of it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble import scene as S
+from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+
+dr, mi = mimarble.dr, mimarble.mi
+
+
+def _collision(albedo):
+    mei = dr.zeros(mi.MediumInteraction3f)
+    mei.sigma_t = mi.UnpolarizedSpectrum(2.0)
+    mei.sigma_s = mi.UnpolarizedSpectrum(*(2.0 * a for a in albedo)) if not mi.is_spectral \
+        else mi.UnpolarizedSpectrum(2.0 * max(albedo))
+    return mei
+
+
+@pytest.mark.parametrize("albedo", [(0.9, 0.9, 0.9), (0.3, 0.7, 0.5), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)])
+def test_samples_survive_with_the_largest_albedo_and_weigh_its_inverse(variant, albedo):
+    phase = mi.load_dict({"type": "roulette_isotropic"})
+    ctx = mi.PhaseFunctionContext(None)
+    rng = np.random.default_rng(3)
+    k = 200 if variant == "scalar_rgb" else 20000
+    q = max(albedo)
+    kept, directions = 0, []
+    u1, u2 = rng.random(k), rng.random((k, 2))
+    if dr.is_jit_v(mi.Float):
+        mei = _collision(albedo)
+        wo, weight, pdf = phase.sample(ctx, mei, mi.Float(u1), mi.Point2f(u2[:, 0], u2[:, 1]))
+        weight, wo, pdf = np.array(weight)[0], np.array(wo).T, np.array(pdf)
+    else:
+        rows = [phase.sample(ctx, _collision(albedo), float(a), mi.Point2f(*b)) for a, b in zip(u1, u2)]
+        wo = np.array([np.array(r[0]) for r in rows])
+        weight = np.array([np.array(r[1])[0] for r in rows])
+        pdf = np.array([r[2] for r in rows])
+    kept = weight > 0
+    assert abs(kept.sum() - q * k) <= 4.5 * math.sqrt(k * q * (1 - q)) + 1e-9
+    if q > 0:
+        np.testing.assert_allclose(weight[kept], 1.0 / q, rtol=1e-6)
+    np.testing.assert_allclose(pdf, 1.0 / (4.0 * math.pi), rtol=1e-6)
+    np.testing.assert_allclose(np.linalg.norm(wo, axis=1), 1.0, rtol=1e-5)
+    assert np.all(np.abs(wo.mean(axis=0)) < 4.5 / math.sqrt(3 * k))     # uniform: mean 0
+    value, pdf = phase.eval_pdf(ctx, _collision(albedo), mi.Vector3f(0.0, 0.6, 0.8))
+    assert np.allclose(np.array(value).ravel(), 1.0 / (4.0 * math.pi)) and \
+        np.allclose(np.array(pdf), 1.0 / (4.0 * math.pi))
+
+
+@pytest.mark.parametrize("albedo, phase", [("0.9", None), ("0.99", "roulette_isotropic")])
+def test_path_mode_ends_white_walks_at_the_phase_function_where_volpath_rolls_no_dice(albedo, phase):
+    text = (f'material "m" {{ subsurface {{ albedo color < {albedo} 0.5 0.5 > mean_free_path 0.1 }} }}\n'
+            'sphere { material "m" }')
+    d = to_mitsuba(S.parse(text), mode="path")
+    assert d["sphere_0"]["interior"].get("phase", {}).get("type") == phase
+    assert d["integrator"]["rr_depth"] == (5 if phase is None else 1024)
