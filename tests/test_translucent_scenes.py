@@ -18,7 +18,7 @@ def test_each_fig11_marble_has_a_translucent_twin():
     assert [p.stem for p in SCENES] == [f"fig11{k}-translucent" for k in "abcd"]
     for path in SCENES:
         twin, original = S.load(path), S.load(ROOT / "scenes" / f"{path.stem[:6]}.scene")
-        albedo = twin.materials["translucent marble"].subsurface.albedo
+        albedo = twin.materials["translucent marble"].subsurface.reflectance
         marble = original.materials["marble"].diffuse
         for key in ("scale", "period", "distortion", "octaves", "function", "axis"):
             assert getattr(albedo, key) == getattr(marble, key), (path.stem, key)
@@ -39,15 +39,16 @@ def test_whitted_mode_refuses_a_translucent_scene_at_its_subsurface(llvm):
     assert str(info.value).startswith(f"{path}:{line}:") and "--mode path" in str(info.value)
 
 
-def test_a_subsurface_albedo_bakes_on_a_grid_as_the_reference_marble(tmp_path):
+def test_a_subsurface_reflectance_bakes_on_a_grid_as_the_reference_marble(tmp_path):
     from mimarble.tools import bake
     from mimarble.reference.channels import channel_color
     scene = S.load(SCENES[0])
-    lo, hi = bake.bake_volume(scene, "sphere_0", tmp_path / "albedo.vol", size=4, channel="albedo")
-    data = (tmp_path / "albedo.vol").read_bytes()
+    lo, hi = bake.bake_volume(scene, "sphere_0", tmp_path / "reflectance.vol", size=4,
+                                channel="reflectance")
+    data = (tmp_path / "reflectance.vol").read_bytes()
     values = np.frombuffer(data[-4 ** 3 * 3 * 4:], dtype="<f4").reshape(4, 4, 4, 3)  # z, y, x
     centre = (np.asarray(lo) + (np.asarray(hi) - np.asarray(lo)) * (np.array([1, 2, 0]) + 0.5) / 4)
-    expected = channel_color(scene.materials["translucent marble"].subsurface.albedo, centre[None])
+    expected = channel_color(scene.materials["translucent marble"].subsurface.reflectance, centre[None])
     np.testing.assert_allclose(values[0, 2, 1], expected[0], atol=1e-6)
 
 
