@@ -52,7 +52,8 @@ What the twin supports, and how each part maps (anything else is refused in one 
 
 The render time is Cycles' own (``--debug-cycles`` logs it): ``cycles_render_s`` the "render
 time (without synchronization)", ``cycles_total_s`` with the scene's sync (mesh, BVH, shaders)
-added; ``blender_call_s`` is the wall time of the whole ``bpy.ops.render.render`` call.
+added; ``blender_call_s`` is the wall time of the whole ``bpy.ops.render.render`` call and
+``blender_call_cpu_s`` the CPU seconds of Blender's threads over it.
 """
 
 from __future__ import annotations
@@ -345,9 +346,10 @@ def build_and_render(spec: dict, out: str) -> dict:
         obj.data.materials.append(principled_material(f"sphere_{k}", sphere))
 
     scene.render.filepath = out
-    start = time.perf_counter()
+    start, used = time.perf_counter(), time.process_time()
     bpy.ops.render.render(write_still=True)
-    return {"blender_call_s": time.perf_counter() - start, "blender": bpy.app.version_string,
+    return {"blender_call_s": time.perf_counter() - start,
+            "blender_call_cpu_s": time.process_time() - used, "blender": bpy.app.version_string,
             "sampling_pattern": cycles.sampling_pattern}
 
 
