@@ -34,9 +34,10 @@ What the twin supports, and how each part maps (anything else is refused in one 
   the diffusion length 1/σ_tr, and the walk's mean free path is radius·√(3(1 − α′)).
   ``--radius mfp`` (the default, the issue's setup) sets the radius to the scene's
   mean_free_path in every channel: Cycles' medium is then denser than ours (at colour 0.8,
-  ior 1.5 its mean free path is about 0.35 of the radius). ``--radius matched`` divides the
-  mean free path by √(3(1 − α′)) per channel (α′ of the constant colour, or of the marble
-  ramp's mean colour) so that Cycles' walk has our mean free path.
+  ior 1.5, α′ = 0.9986: its mean free path is 0.065 of the radius). ``--radius matched``
+  divides the mean free path by √(3(1 − α′)) per channel (α′ of the constant colour, or of
+  the marble ramp's mean colour) so that Cycles' walk has our mean free path. (Read in the
+  Cycles 3.x sources; not checked line by line against the 3.4.1 binary.)
 * ``ambient`` A: the world, a Background of colour A and strength 1 (constant radiance A),
   hidden from camera rays as path mode hides emitters (``hide_emitters``).
 * Point lights and spherical area lights: Cycles point lights (radius 0, or the sphere's
