@@ -60,6 +60,22 @@ def test_the_principled_inputs_follow_the_subsurface():
     assert spec["seed"] == 3 and spec["ambient"] == [0.5, 0.5, 0.5]
 
 
+def test_a_reflectance_is_taken_as_the_colour_seen():
+    # issue 40's `reflectance` (the colour seen, Cycles' Subsurface Color) when the model has
+    # it: a stand-in subsurface with one, as the scene model will carry it.
+    from types import SimpleNamespace
+    from mimarble.scene import model
+    twin, scene = _twin(), _scene()
+    subsurface = SimpleNamespace(reflectance=model.ColorChannel((0.9, 0.9, 0.9)), albedo=None,
+                                 density=None, ior=1.5, mean_free_path=0.05)
+    fields = ("planes", "boxes", "meshes", "spheres", "camera", "lights", "image", "ambient")
+    stand_in = SimpleNamespace(**{k: getattr(scene, k) for k in fields},
+                               materials={"m": SimpleNamespace(subsurface=subsurface)})
+    spec = twin.twin_spec(stand_in, 4, 0)
+    assert spec["colour_comparable"] is True
+    assert spec["spheres"][0]["colour"]["colour"] == [0.9, 0.9, 0.9]
+
+
 def test_the_matched_radius_gives_cycles_walk_our_mean_free_path():
     twin = _twin()
     (sphere,) = twin.twin_spec(_scene(), 4, 0, radius_rule="matched")["spheres"]
