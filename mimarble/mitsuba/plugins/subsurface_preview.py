@@ -60,7 +60,8 @@ from __future__ import annotations
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import describe, plugin, recording_key
 from mimarble.mitsuba.plugins.subsurface_boundary import (DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
-                                                          SubsurfaceBoundaryError, _ior)
+                                                          SubsurfaceBoundaryError, _ior,
+                                                          fresnel_from_outside)
 from mimarble.mitsuba.plugins.subsurface_reflectance import (diffuse_fresnel_reflectance,
                                                              spherical_albedo,
                                                              spherical_albedo_seen)
@@ -103,11 +104,6 @@ class SubsurfacePreview:
 
     # -- the lobes ---------------------------------------------------------------
 
-    def _fresnel(self, mu):
-        """F(μ) for μ ≥ 0 (light from outside), in the kernel."""
-        return mi.fresnel(mi.Float(mu), self.eta)[0] if dr.is_jit_v(mi.Float) \
-            else mi.fresnel(mu, self.eta)[0]
-
     def _albedo(self, si, active):
         """A(p) per component (module docstring), from the texture at the surface point."""
         colour = mi.UnpolarizedSpectrum(self.texture.eval(si, active))
@@ -124,7 +120,7 @@ class SubsurfacePreview:
 
     def sample(self, ctx, si, sample1, sample2, active=True):
         cos_i = mi.Frame3f.cos_theta(si.wi)
-        f_i = self._fresnel(dr.maximum(cos_i, 0.0))
+        f_i = fresnel_from_outside(dr.maximum(cos_i, 0.0), self.eta)
         p_coat = self._coat_probability(ctx, f_i)
         mirror = sample1 < p_coat
         wo = mi.warp.square_to_cosine_hemisphere(sample2)
@@ -144,7 +140,7 @@ class SubsurfacePreview:
         # (1 − F(μᵢ))/(1 − P(coat))·A·(1 − F(μₒ))/(1 − F̄) (the first factor 1 with both)
         diffuse = ok & (sample1 >= p_coat)              # (not ~mirror: a bool in scalar_rgb)
         lobe = (1.0 - f_i) / dr.maximum(1.0 - p_coat, 1e-30) \
-            * (1.0 - self._fresnel(cos_o)) * self.exit_scale
+            * (1.0 - fresnel_from_outside(cos_o, self.eta)) * self.exit_scale
         weight = dr.select(mirror, mi.UnpolarizedSpectrum(f_i / dr.maximum(p_coat, 1e-30)),
                            lobe * self._albedo(si, diffuse))
         return bs, mi.Spectrum(dr.select(ok, weight, 0.0))
@@ -156,8 +152,8 @@ class SubsurfacePreview:
         cos_o = mi.Frame3f.cos_theta(wo)
         ok = active & (cos_i > 0.0) & (cos_o > 0.0) \
             & ctx.is_enabled(mi.BSDFFlags.DiffuseReflection, 1)
-        f_i = self._fresnel(dr.maximum(cos_i, 0.0))
-        value = (1.0 - f_i) * (1.0 - self._fresnel(dr.maximum(cos_o, 0.0))) \
+        f_i = fresnel_from_outside(dr.maximum(cos_i, 0.0), self.eta)
+        value = (1.0 - f_i) * (1.0 - fresnel_from_outside(dr.maximum(cos_o, 0.0), self.eta)) \
             * self.exit_scale * cos_o * dr.inv_pi
         pdf = (1.0 - self._coat_probability(ctx, f_i)) * cos_o * dr.inv_pi
         return dr.select(ok, value, 0.0), dr.select(ok, pdf, 0.0), ok
