@@ -104,6 +104,7 @@ SPHERICAL_ALBEDO_FIT_C = 1.17
 # ---------------------------------------------------------------------------
 # Names
 
-#: The render modes: ``whitted`` (the paper's direct lighting) and ``path`` (volpath, for
-#: translucent materials).
-RENDER_MODES = ("whitted", "path")
+#: The render modes: ``whitted`` (the paper's direct lighting), ``path`` (volpath, for
+#: translucent materials) and ``preview`` (path mode with each translucent material's
+#: fast preview, ``subsurface_preview``, in place of its walk).
+RENDER_MODES = ("whitted", "path", "preview")

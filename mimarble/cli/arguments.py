@@ -145,6 +145,8 @@ def _render_command(sub) -> None:
                    help="whitted: the paper's shading (default); path: physically based — "
                         "marble as a dielectric (a highlight of a few percent, not the paper's "
                         "Phong highlight), black background, noisy at few samples (use --spp 256); "
+                        "preview: path with each translucent material's fast preview (light "
+                        "leaves where it enters: no walk, no glow through thin parts); "
                         "see docs/rendering-model.md")
     _add_size(p)
     _add_quality(p)

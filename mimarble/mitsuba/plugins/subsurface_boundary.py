@@ -72,6 +72,11 @@ def _ior(props, name: str, default: float) -> float:
     return float(value)
 
 
+def fresnel_from_outside(mu, eta: float):
+    """F(μ, η) for μ ≥ 0, light arriving from outside (``mi.fresnel``), in the kernel."""
+    return mi.fresnel(mi.Float(mu), eta)[0] if dr.is_jit_v(mi.Float) else mi.fresnel(mu, eta)[0]
+
+
 @plugin("bsdf", "subsurface_boundary")
 class SubsurfaceBoundary:
     """The surface of a translucent material: Fresnel-weighted delta reflection outside,
@@ -95,8 +100,7 @@ class SubsurfaceBoundary:
 
     def _fresnel(self, mu):
         """F(μ) for μ ≥ 0 (light from outside), in the kernel."""
-        return mi.fresnel(mi.Float(mu), self.eta)[0] if dr.is_jit_v(mi.Float) \
-            else mi.fresnel(mu, self.eta)[0]
+        return fresnel_from_outside(mu, self.eta)
 
     def _reflect_probability(self, ctx, f_i, outside):
         """The probability of the delta reflection at a point seen from outside: F(μᵢ),

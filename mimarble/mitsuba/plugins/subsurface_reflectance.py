@@ -1,5 +1,6 @@
 """The colour you see, Mitsuba's side: F̄(η) by quadrature of ``mi.fresnel``, and a
-subsurface's reflectance inverted to its single-scattering albedo in Dr.Jit.
+subsurface's reflectance inverted to its single-scattering albedo in Dr.Jit, and the spherical
+albedo forwards (the fast preview's).
 
 A thick translucent object under even light of radiance L shows, on the mean over its
 silhouette, L·[F̄ + (1 − F̄)·A(α)] (docs/rendering-model.md, "The colour you see:
@@ -59,14 +60,31 @@ def diffuse_fresnel_reflectance(eta: float, nodes: int = QUADRATURE_NODES) -> fl
     return float(mu_c2 + (1.0 - mu_c2) * np.sum(w * _fresnel(mu, eta) * 2.0 * t))
 
 
+def spherical_albedo_seen(reflectance, fresnel_mean: float):
+    """a = clamp((C − F̄)/(1 − F̄), 0, 1) per component of ``reflectance`` C clamped to
+    [0, 1]: the spherical albedo a thick medium behind the boundary must have for its
+    silhouette's mean under even light to be C (the coat's mean share F̄ taken out) — what
+    the inversion gives α for, and what the fast preview (``subsurface_preview``) returns."""
+    c = dr.clip(reflectance, 0.0, 1.0)
+    transmitted = max(1.0 - fresnel_mean, FLT_MIN_NORMAL)     # 1 − F̄, never 0
+    return dr.clip((c - fresnel_mean) / transmitted, 0.0, 1.0)
+
+
+def spherical_albedo(albedo):
+    """Van de Hulst's fit, forwards: A(α) = (1 − s)(1 − B s)/(1 + C_fit s), s = √(1 − α),
+    per component of the single-scattering ``albedo`` clamped to [0, 1] — the spherical
+    albedo of the semi-infinite medium (0 at α = 0, 1 at α = 1), what the inversion below
+    undoes."""
+    s = dr.sqrt(1.0 - dr.clip(albedo, 0.0, 1.0))
+    return (1.0 - s) * (1.0 - FIT_B * s) / (1.0 + FIT_C * s)
+
+
 def single_scattering_albedo(reflectance, fresnel_mean: float):
     """α per component of ``reflectance`` (any Dr.Jit colour, spectrum or number) for a
     boundary of mean reflectance F̄ = ``fresnel_mean`` (module docstring): in [0, 1], 1
     where the reflectance is 1, 0 where it is at most F̄ — everywhere once F̄ rounds to 1
     (an ior past 10¹⁶ or below 10⁻⁸: the coat reflects all even light)."""
-    c = dr.clip(reflectance, 0.0, 1.0)
-    transmitted = max(1.0 - fresnel_mean, FLT_MIN_NORMAL)     # 1 − F̄, never 0
-    a = dr.clip((c - fresnel_mean) / transmitted, 0.0, 1.0)
+    a = spherical_albedo_seen(reflectance, fresnel_mean)
     b = (1.0 + FIT_B) + FIT_C * a
     s = 2.0 * (1.0 - a) / (b + dr.sqrt(b * b - 4.0 * FIT_B * (1.0 - a)))
     return 1.0 - s * s

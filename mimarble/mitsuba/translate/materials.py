@@ -1,6 +1,6 @@
 """Scene materials → Mitsuba BSDFs: the paper's ``channel_material`` in whitted mode; in
 path mode ``diffuse``, or ``roughplastic`` with a specular channel, or a translucent
-material's ``subsurface_boundary``.
+material's ``subsurface_boundary`` (preview mode: its ``subsurface_preview``; else as path).
 
 Path mode: the diffuse channel kd → ``diffuse`` reflectance; with a specular channel,
 ``roughplastic`` (diffuse_reflectance kd, specular_reflectance ks, Beckmann
@@ -15,7 +15,7 @@ import math
 
 from mimarble.scene import model
 
-from .media import subsurface_boundary
+from .media import subsurface_boundary, subsurface_preview
 
 
 #: Marble is calcite: refractive index 1.49–1.66, so a polished face reflects ~5 % at normal
@@ -39,6 +39,8 @@ def surface_bsdf(material: model.Material, mode: str, ref) -> dict:
     """The material's BSDF in ``mode``, its channels' textures given by ``ref(channel)``."""
     if mode == "path" and material.subsurface is not None:
         return subsurface_boundary(material.subsurface)   # its channels: unused
+    if mode == "preview" and material.subsurface is not None:
+        return subsurface_preview(material.subsurface, ref)   # the subsurface's colour
     if mode == "whitted":
         bsdf = {"type": "channel_material", "shininess": material.shininess}
         for channel_name, channel in material.channels().items():

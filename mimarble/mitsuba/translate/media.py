@@ -1,5 +1,5 @@
 """Translucent materials → Mitsuba: the ``subsurface_boundary`` surface and the ``marble_medium``
-interior of a material with a ``subsurface``."""
+interior of a material with a ``subsurface`` (preview mode: its ``subsurface_preview`` surface)."""
 
 from __future__ import annotations
 
@@ -26,6 +26,19 @@ def subsurface_boundary(subsurface: model.Subsurface) -> dict:
     entry, and a diffuse exit on which ``volpath`` connects the walk to every light (point
     lights too: docs/rendering-model.md, "Translucent materials"). It is two-sided itself."""
     return {"type": "subsurface_boundary", "int_ior": subsurface.ior, "ext_ior": 1.0}
+
+
+def subsurface_preview(subsurface: model.Subsurface, ref) -> dict:
+    """Preview mode's BSDF of a translucent material's surface: ``subsurface_preview``
+    (mimarble/mitsuba/plugins/subsurface_preview.py), the walk's limit as the mean free path
+    goes to 0 — the boundary's Fresnel coat over a diffuse lobe of the spherical albedo the
+    walk would return, from the subsurface's reflectance (or albedo) at the surface point
+    (``ref(channel)``: its texture, placed as the surface's channels are); no medium. The
+    density and the mean free path do not enter (docs/rendering-model.md, "The fast
+    preview")."""
+    kind = "reflectance" if subsurface.reflectance is not None else "albedo"
+    return {"type": "subsurface_preview", kind: ref(getattr(subsurface, kind)),
+            "int_ior": subsurface.ior, "ext_ior": 1.0}
 
 
 def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> dict:

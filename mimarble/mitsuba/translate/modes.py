@@ -1,4 +1,4 @@
-"""The two rendering modes: the integrator and sampler each renders with, and the error
+"""The rendering modes: the integrator and sampler each renders with, and the error
 for a scene that a mode cannot render.
 
 ``whitted``: the paper's model exactly — ``channel_material`` BSDFs, ``point`` lights, the
@@ -10,6 +10,9 @@ integrator (``volpath`` when a material has a ``subsurface``, max_depth
 :data:`VOLPATH_MAX_DEPTH`, no Russian roulette where an albedo may pass its cap:
 :func:`roulette_depth`; whitted mode refuses one: :class:`ModeError`, at its
 ``subsurface`` keyword). docs/rendering-model.md says how the paper's quantities map.
+
+``preview``: path mode with every translucent material's fast preview in place of its
+walk (``subsurface_preview``: a surface, no medium), so ``path`` for every scene.
 """
 
 from __future__ import annotations
@@ -53,12 +56,13 @@ def refuse_translucent(scene, mode: str, translucent: tuple) -> None:
 def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple) -> tuple[dict, dict]:
     """The mode's integrator and sampler: whitted with the scene's ambient and background
     over n×n stratum centres; path (volpath with translucent materials: light scattered
-    inside media, docs/rendering-model.md) over independent samples."""
+    inside media, docs/rendering-model.md) over independent samples; preview as path
+    without media: ``path`` always."""
     if mode == "whitted":
         return ({"type": "whitted", "ambient": list(scene.ambient),
                  "background": list(scene.image.background)},
                 {"type": "stratified", "sample_count": spp, "jitter": False})
-    if translucent:
+    if translucent and mode == "path":
         return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH,
                  "rr_depth": roulette_depth(translucent), "hide_emitters": True},
                 {"type": "independent", "sample_count": spp})

@@ -1,4 +1,4 @@
-"""Scene model → Mitsuba scene dict (:func:`to_mitsuba`), in two modes (modes.py): the
+"""Scene model → Mitsuba scene dict (:func:`to_mitsuba`), in its modes (modes.py): the
 sensor, then the channels' textures (textures.py), the materials' BSDFs (materials.py),
 the shapes (shapes.py) with a translucent material's medium (media.py), the lights
 (lights.py).
@@ -149,11 +149,19 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
 
     bsdfs: dict = {}       # (material name, placement's matrix or None) -> its BSDF
 
+    def placed(material) -> bool:
+        """Whether some channel the material's BSDF reads is in object space: its
+        surface channels', and in preview mode its subsurface's too."""
+        channels = list(material.channels().values())
+        if mode == "preview" and material.subsurface is not None:
+            channels += material.subsurface.channels().values()
+        return any(in_object_space(c) for c in channels)
+
     def bsdf_of(name, placement=None):
         """The material's BSDF: one for every shape that uses it, or with object-space
         marbles one per placement (``placement`` as for ``ref``)."""
         material = scene.materials[name]
-        if not any(in_object_space(c) for c in material.channels().values()):
+        if not placed(material):
             placement = None
         key = (name, None if placement is None else placement[1])
         if key not in bsdfs:
@@ -161,7 +169,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         return bsdfs[key]
 
     for name, material in scene.materials.items():   # their textures, in the file's order
-        if not any(in_object_space(c) for c in material.channels().values()):
+        if not placed(material):
             bsdf_of(name)                 # (object-space ones: per shape, below)
 
     media: dict = {}       # (material name, placement's matrix or None) -> its medium
@@ -182,10 +190,12 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         placement = (shape_id, geometry.object_to_world(shape))
         bsdf = bsdf_of(shape.material, placement)
         subsurface = scene.materials[shape.material].subsurface
-        if mode == "path" and is_two_sided(shape) and subsurface is None:
+        if mode != "whitted" and is_two_sided(shape) \
+                and (subsurface is None or mode == "preview"):
             # Mitsuba's BSDFs reflect on the side their normal points to; planes, boxes
             # and meshes are shaded on either side (whitted flips n to the viewer). A
-            # subsurface boundary is two-sided itself (and twosided refuses transmission).
+            # subsurface boundary is two-sided itself (and twosided refuses transmission);
+            # its preview is a one-sided reflection, as an opaque material's BSDF.
             bsdf = two_sided.setdefault(id(bsdf), {"type": "twosided", "bsdf": bsdf})
         # Its medium's textures first: a reference follows what it refers to.
         interior = medium_of(shape.material, placement) \
@@ -196,13 +206,14 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             out[shape_id]["interior"] = interior
             _facing_out(out[shape_id], shape)
 
+    lighting = "path" if mode == "preview" else mode      # the preview is lit as path mode
     for k, light in enumerate(scene.lights):
         if light.area is not None:
-            out[f"light_{k}"] = area_light_dict(light, scene.camera.lookat, mode)
+            out[f"light_{k}"] = area_light_dict(light, scene.camera.lookat, lighting)
             continue
-        out[f"light_{k}"] = point_light_dict(light, scene.camera.lookat, mode)
+        out[f"light_{k}"] = point_light_dict(light, scene.camera.lookat, lighting)
 
-    ambient = ambient_dict(scene, mode)
+    ambient = ambient_dict(scene, lighting)
     if ambient is not None:
         out["ambient"] = ambient
     return out
