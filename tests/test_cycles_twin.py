@@ -95,8 +95,8 @@ def test_a_marble_colour_becomes_a_wave_and_a_ramp():
     colour = spec["spheres"][0]["colour"]
     assert colour["kind"] == "wave" and colour["axis"] == "X"
     assert len(colour["stops"]) == twin.RAMP_STOPS
-    assert colour["stops"][0][1:] == pytest.approx([0.95, 0.3, 0.3])
-    assert colour["stops"][-1][1:] == pytest.approx([0.95, 0.8687, 0.3])
+    assert colour["stops"][0][1:] == pytest.approx([0.9, 0.0, 0.0])
+    assert colour["stops"][-1][1:] == pytest.approx([0.9, 0.7875, 0.0])
 
 
 @pytest.mark.parametrize("change, words", [
