@@ -63,12 +63,15 @@ class SubsurfaceBoundaryError(ValueError):
     """An invalid ``subsurface_boundary``; the message names the parameter."""
 
 
-def _ior(props, name: str, default: float) -> float:
+def _ior(props, name: str, default: float, plugin_name: str = "subsurface_boundary",
+         error=None) -> float:
+    """A positive finite index of refraction ``name`` (``default`` when not given), else
+    ``error`` (default :class:`SubsurfaceBoundaryError`) naming the plugin."""
     value = props.get(name, default)
     if isinstance(value, bool) or not isinstance(value, (int, float)) \
             or not (0.0 < value < math.inf):
-        raise SubsurfaceBoundaryError(f"subsurface_boundary: {name}={value!r} must be a "
-                                      f"positive finite number")
+        raise (error or SubsurfaceBoundaryError)(f"{plugin_name}: {name}={value!r} must be a "
+                                                 f"positive finite number")
     return float(value)
 
 

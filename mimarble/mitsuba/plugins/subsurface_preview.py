@@ -87,12 +87,10 @@ class SubsurfacePreview:
                 "(single-scattering), " + ("not both" if given else "one of them"))
         self.kind = given[0]
         self.texture = props.get_texture(self.kind)
-        try:                                   # the boundary's checks, in this plugin's name
-            self.int_ior = _ior(props, "int_ior", DEFAULT_INT_IOR)
-            self.ext_ior = _ior(props, "ext_ior", DEFAULT_EXT_IOR)
-        except SubsurfaceBoundaryError as e:
-            raise SubsurfacePreviewError(str(e).replace("subsurface_boundary",
-                                                        "subsurface_preview")) from None
+        self.int_ior = _ior(props, "int_ior", DEFAULT_INT_IOR, "subsurface_preview",
+                            SubsurfacePreviewError)
+        self.ext_ior = _ior(props, "ext_ior", DEFAULT_EXT_IOR, "subsurface_preview",
+                            SubsurfacePreviewError)
         self.eta = self.int_ior / self.ext_ior
         self.mean_reflectance = diffuse_fresnel_reflectance(self.eta)
         self.exit_scale = 1.0 / (1.0 - self.mean_reflectance)     # F̄ < 1 for finite η > 0
