@@ -341,11 +341,39 @@ def _doctor_command(sub) -> None:
     _add_variant(p)
 
 
+def _studio_command(sub) -> None:
+    p = sub.add_parser("studio", help="tune a scene's marbles live in the browser: serve the "
+                                      "studio page on this machine and open it")
+    p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
+    p.add_argument("--port", type=_port, default=0, metavar="N",
+                   help="the port to listen on (default: a free one)")
+    p.add_argument("--host", default="127.0.0.1", metavar="H",
+                   help="the address to listen on (default 127.0.0.1, this machine only; "
+                        "another one lets other machines reach the studio: a warning)")
+    p.add_argument("--no-browser", action="store_true",
+                   help="print the URL (with its token) but do not open a browser")
+    p.add_argument("--mode", choices=RENDER_MODES,
+                   help="whitted or path (default: the scene's; the page can switch)")
+    _add_variant(p)
+
+
 #: Every command, in the order ``--help`` lists them: name -> the function that adds it.
 _COMMANDS = {"render": _render_command, "reference": _reference_command,
              "compare": _compare_command, "bench": _bench_command, "sweep": _sweep_command,
              "stress": _stress_command, "gallery": _gallery_command, "scenes": _scenes_command,
-             "export": _export_command, "bake": _bake_command, "doctor": _doctor_command}
+             "export": _export_command, "bake": _bake_command, "doctor": _doctor_command,
+             "studio": _studio_command}
+
+
+def _port(text: str) -> int:
+    """A TCP port: 0 (a free one) to 65535."""
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a port number") from None
+    if not 0 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"{port}: a port lies in 0..65535 (0: a free one)")
+    return port
 
 
 def _edge_spp(text: str) -> int:

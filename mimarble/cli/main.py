@@ -39,6 +39,7 @@ HANDLERS = {
     "export": ("export_bake", "_export"),
     "bake": ("export_bake", "_bake"),
     "doctor": ("doctor", "_doctor"),
+    "studio": ("studio", "_studio"),
 }
 
 

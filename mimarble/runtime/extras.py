@@ -6,7 +6,9 @@ A texture needs neither Dask nor matplotlib, so they are extras of the package
 * ``dask`` — ``dask[distributed]``: sweeps with ``--workers`` or ``--scheduler``
   (mimarble/sweeps/cluster.py);
 * ``matplotlib`` — ``bench --plot`` (mimarble/bench/plot.py) and the legend under
-  ``compare --diff``'s error map (mimarble/tools/compare.py).
+  ``compare --diff``'s error map (mimarble/tools/compare.py);
+* ``studio`` — Starlette, uvicorn and websockets: ``mimarble studio`` and
+  ``mimarble.studio(scene)`` (mimarble/studio/server.py).
 
 A feature asks for its extra before it starts (:func:`missing_extra` for a sentence its
 own error carries, :func:`require_extra` for :class:`MissingExtra`) and again where it
@@ -24,6 +26,7 @@ from mimarble.runtime.environment import EnvironmentProblem
 EXTRAS = {
     "dask": "distributed",
     "matplotlib": "matplotlib",
+    "studio": "uvicorn",
 }
 #: Each feature that needs an extra: (the extra, the feature in words, a plural).
 FEATURES = {
@@ -31,6 +34,7 @@ FEATURES = {
     "sweep --scheduler": ("dask", "sweeps with --scheduler"),
     "bench --plot": ("matplotlib", "benchmark plots (bench --plot)"),
     "compare --diff": ("matplotlib", "error maps' legends (compare --diff)"),
+    "studio": ("studio", "the marble studio's pages (mimarble studio, mimarble.studio)"),
 }
 
 

@@ -1,0 +1,407 @@
+"""The studio's web server: the page, its static files and one websocket per tab, over a
+:class:`~mimarble.studio.StudioSession` (the engine: edits → frames).
+
+Starlette routes the requests and uvicorn serves them (docs/design-decisions.md, "Marble
+studio's server and page (issue 41)", says why these and what they were measured
+against). The server runs its own asyncio loop in a background thread
+(:meth:`StudioServer.start`), so the command line and a Jupyter kernel use it alike.
+
+Data flow:
+
+* page → server: JSON messages (mimarble/studio/messages.py), each checked, then handed
+  to the session (an edit, an orbit, save, …); every one gets an answer (``edited``,
+  ``invalid`` with the parameter table's sentence, ``done``, ``problem``);
+* server → page: the session's events (from its render thread, handed over to the loop):
+  frames as binary messages (:func:`~mimarble.studio.messages.frame_message`), state,
+  controls, compare results. Each tab has a mailbox that keeps only the **latest** of each
+  kind: a tab that reads slowly gets the newest frame, never a queue of stale ones;
+* an edit from one tab is shown by every other (``value`` messages; ``controls`` after an
+  edit that changes their structure): the last edit wins everywhere.
+
+Security: :class:`~mimarble.studio.guard.Guard` checks token, Host and Origin on every
+request and websocket; the routes read only the page's own files (a fixed list), and
+write only through the session (the opened scene, and the paths the user types for
+Save as / Snapshot / Export).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import collections
+import json
+import socket
+import sys
+import threading
+from pathlib import Path
+
+from starlette.applications import Starlette
+from starlette.responses import HTMLResponse, Response
+from starlette.routing import Route, WebSocketRoute
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from mimarble.studio import messages
+from mimarble.studio.guard import LOOPBACK_NAMES, Guard, host_names, new_token
+
+#: The page's files, read from the package (the only files a request can get).
+STATIC = Path(__file__).resolve().parent / "static"
+#: Each static file's name and its media type: a fixed list, so no request names a file.
+STATIC_TYPES = {"studio.js": "text/javascript; charset=utf-8",
+                "studio.css": "text/css; charset=utf-8"}
+#: The page's Content-Security-Policy: its own scripts and styles only, images from the
+#: frames' blobs, the websocket back to this server; nothing from elsewhere.
+CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
+       "connect-src 'self' ws: wss:; base-uri 'none'; form-action 'none'")
+
+
+class _Mailbox:
+    """What the server has to send one tab: answers in order, and the latest message of
+    each coalesced kind (frame, state, controls, compare) — a newer one replaces an unsent
+    older one, so a slow tab is never behind by more than one frame."""
+
+    def __init__(self, websocket: WebSocket):
+        self.websocket = websocket
+        self.answers = collections.deque()
+        self.latest: dict = {}
+        self.wake = asyncio.Event()
+
+    def answer(self, message) -> None:
+        self.answers.append(message)
+        self.wake.set()
+
+    def put(self, kind: str, message) -> None:
+        self.latest[kind] = message
+        self.wake.set()
+
+    async def pump(self) -> None:
+        """Send what is in the mailbox, as it comes, until the tab goes away."""
+        while True:
+            await self.wake.wait()
+            self.wake.clear()
+            while self.answers or self.latest:
+                if self.answers:
+                    message = self.answers.popleft()
+                else:
+                    message = self.latest.pop(next(iter(self.latest)))
+                if isinstance(message, bytes):
+                    await self.websocket.send_bytes(message)
+                else:
+                    await self.websocket.send_text(json.dumps(message))
+
+
+class StudioServer:
+    """The studio's HTTP and websocket server over one session.
+
+    ========== ===============================================================
+    Parameter  Meaning
+    ========== ===============================================================
+    session    the :class:`~mimarble.studio.StudioSession` the page drives
+    host       the address to listen on (default 127.0.0.1: this machine only)
+    port       the port (0: a free one, chosen by the system)
+    token      the secret of the URL (default: :func:`~mimarble.studio.guard.new_token`)
+    ========== ===============================================================
+
+    The socket is bound in the constructor (an ``OSError`` when the port is taken), so
+    :attr:`url` is known before :meth:`start`.
+    """
+
+    def __init__(self, session, host: str = "127.0.0.1", port: int = 0, token: str | None = None):
+        self.session = session
+        self.host = host
+        self.token = token or new_token()
+        self._socket = _bind(host, port)
+        self.port = self._socket.getsockname()[1]
+        hosts = host_names(host, self.port)
+        if host in ("0.0.0.0", "::"):
+            hosts |= host_names(socket.gethostname(), self.port) | frozenset(
+                f"{address}:{self.port}" for address in _addresses())
+        self.app = Guard(self._routes(), self.token, hosts)
+        self.clients: set = set()
+        self.loop: asyncio.AbstractEventLoop | None = None
+        self._server = None
+        self._thread: threading.Thread | None = None
+        self._unsubscribe = None
+        self._structural: dict = {}
+
+    # ---- addresses -------------------------------------------------------------------
+
+    @property
+    def url(self) -> str:
+        """The page's address with its token: what the user opens."""
+        name = self.host if self.host not in ("0.0.0.0", "::", "") else "127.0.0.1"
+        name = f"[{name}]" if ":" in name else name
+        return f"http://{name}:{self.port}/?token={self.token}"
+
+    # ---- running ---------------------------------------------------------------------
+
+    def start(self, timeout: float = 30.0) -> "StudioServer":
+        """Serve in a background thread (its own asyncio loop); returns once it listens."""
+        import uvicorn
+        config = uvicorn.Config(self.app, log_level="warning", lifespan="off",
+                                ws="websockets", ws_max_size=messages.MAX_WIRE_BYTES,
+                                timeout_graceful_shutdown=2, access_log=False)
+        self._server = uvicorn.Server(config)
+        ready = threading.Event()
+
+        def serve():
+            self.loop = asyncio.new_event_loop()
+            asyncio.set_event_loop(self.loop)
+            self.loop.call_soon(ready.set)
+            try:
+                self.loop.run_until_complete(self._server.serve(sockets=[self._socket]))
+            finally:
+                self.loop.close()
+
+        self._unsubscribe = self.session.subscribe(self._event)
+        self._thread = threading.Thread(target=serve, name="mimarble-studio-server", daemon=True)
+        self._thread.start()
+        ready.wait(timeout)
+        while not self._server.started and self._thread.is_alive():
+            threading.Event().wait(0.01)
+        return self
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Close every tab's websocket, stop serving and join the thread; idempotent."""
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+        if self._server is not None:
+            self._server.should_exit = True
+        if self._thread is not None:
+            self._thread.join(timeout)
+            self._thread = None
+        self._socket.close()
+
+    def __enter__(self):
+        return self.start()
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    # ---- the session's events (render thread → loop) -----------------------------------
+
+    def _event(self, kind: str, payload) -> None:
+        """The session's callback: hand the event over to the loop (never block here)."""
+        loop = self.loop
+        if loop is not None and not loop.is_closed():
+            try:
+                loop.call_soon_threadsafe(self._broadcast, kind, payload)
+            except RuntimeError:                 # the loop closed meanwhile
+                pass
+
+    def _broadcast(self, kind: str, payload) -> None:
+        if kind == "frame":
+            message = messages.frame_message(dict(payload.meta(), type="frame"), payload.image)
+            for client in self.clients:
+                client.put("frame", message)
+        elif kind == "compare":
+            self._put_all("compare", compare_message(payload))
+        elif kind == "reload":
+            self._send_controls()
+            self._put_all("reload", dict(payload, type="reload"))
+        else:
+            self._put_all(kind, {"type": kind, kind: payload})
+
+    def _put_all(self, kind: str, message, but=None) -> None:
+        for client in self.clients:
+            if client is not but:
+                client.put(kind, message)
+
+    def _send_controls(self) -> None:
+        controls = self.session.controls()
+        self._structural = {c["key"]: c.get("structural", False)
+                            for group in controls["groups"] for c in group["controls"]}
+        self._put_all("controls", {"type": "controls", "controls": controls})
+
+    # ---- the routes --------------------------------------------------------------------
+
+    def _routes(self) -> Starlette:
+        return Starlette(routes=[Route("/", self._index),
+                                 Route("/static/{name}", self._static),
+                                 WebSocketRoute("/ws", self._websocket)])
+
+    async def _index(self, request):
+        page = (STATIC / "index.html").read_text(encoding="utf-8")
+        # The token reaches the page's script through a meta tag (the CSP allows no inline
+        # script); asset URLs carry it as every request must.
+        page = page.replace("{{token}}", self.token)
+        return HTMLResponse(page, headers=_HEADERS)
+
+    async def _static(self, request):
+        name = request.path_params["name"]
+        if name not in STATIC_TYPES:
+            return Response("no such file\n", status_code=404, media_type="text/plain")
+        return Response((STATIC / name).read_bytes(), media_type=STATIC_TYPES[name],
+                        headers=_HEADERS)
+
+    async def _websocket(self, websocket: WebSocket):
+        await websocket.accept()
+        client = _Mailbox(websocket)
+        self.clients.add(client)
+        pump = asyncio.ensure_future(client.pump())
+        try:
+            controls = self.session.controls()
+            self._structural = {c["key"]: c.get("structural", False)
+                                for group in controls["groups"] for c in group["controls"]}
+            client.answer({"type": "hello", "controls": controls, "state": self.session.state(),
+                           "limits": {"message_bytes": messages.MAX_MESSAGE_BYTES}})
+            frame = self.session.latest_frame()
+            if frame is not None:
+                client.put("frame", messages.frame_message(dict(frame.meta(), type="frame"),
+                                                           frame.image))
+            latest = getattr(self.session, "latest_histograms", lambda: None)()
+            if latest is not None:
+                client.put("histograms", {"type": "histograms", "histograms": latest})
+            while True:
+                received = await websocket.receive()
+                if received["type"] == "websocket.disconnect":
+                    break
+                text = received.get("text")
+                if text is None:
+                    text = received.get("bytes") or b""
+                await self._handle(client, text)
+        except WebSocketDisconnect:
+            pass
+        finally:
+            self.clients.discard(client)
+            pump.cancel()
+
+    # ---- the page's messages ------------------------------------------------------------
+
+    async def _handle(self, client: _Mailbox, text) -> None:
+        """Act on one message and answer it; nothing a message holds raises past here."""
+        try:
+            message = messages.parse(text)
+        except messages.MessageError as e:
+            client.answer({"type": "problem", "action": "message", "message": str(e)})
+            return
+        kind = message["type"]
+        try:
+            await getattr(self, f"_on_{kind}")(client, message)
+        except Exception as e:                     # the server outlives any message
+            client.answer({"type": "problem", "action": kind, "message": _sentence(e)})
+            if not isinstance(e, (ValueError, OSError, TypeError, KeyError)):
+                print(f"mimarble studio: {kind}: {type(e).__name__}: {e}", file=sys.stderr)
+
+    async def _on_edit(self, client, message):
+        key, value, seq = message["key"], message["value"], message.get("seq")
+        try:
+            version = self.session.edit(key, value)
+        except (ValueError, TypeError, KeyError) as e:
+            client.answer({"type": "invalid", "key": key, "seq": seq, "message": _sentence(e)})
+            return
+        client.answer({"type": "edited", "key": key, "seq": seq, "version": version})
+        if self._structural.get(key, True):
+            self._send_controls()
+        else:
+            self._put_all(f"value {key}", {"type": "value", "key": key, "value": value},
+                          but=client)
+
+    async def _on_orbit(self, client, message):
+        self.session.orbit(message["dx"], message["dy"])
+
+    async def _on_zoom(self, client, message):
+        factor = message["factor"]
+        if not 0.01 <= factor <= 100:
+            raise ValueError(f"a zoom factor must lie in [0.01, 100], not {factor}")
+        self.session.zoom(factor)
+
+    async def _on_save(self, client, message):
+        await _off_loop(self.session.save)
+        client.answer({"type": "done", "action": "save",
+                       "message": f"saved {self.session.state().get('path')}"})
+
+    async def _on_save_as(self, client, message):
+        path = self._user_path(message["path"])
+        await _off_loop(self.session.save_as, path)
+        self._send_controls()
+        client.answer({"type": "done", "action": "save_as", "message": f"saved as {path}"})
+
+    async def _on_snapshot(self, client, message):
+        path = self._user_path(message["path"])
+        await _off_loop(self.session.snapshot, path)
+        client.answer({"type": "done", "action": "snapshot", "message": f"wrote {path}"})
+
+    async def _on_export(self, client, message):
+        path = self._user_path(message["path"])
+        await _off_loop(self.session.export, path, python=message.get("python", False))
+        client.answer({"type": "done", "action": "export", "message": f"exported {path}"})
+
+    async def _on_compare(self, client, message):
+        self.session.compare()
+        client.answer({"type": "done", "action": "compare",
+                       "message": "rendering the float64 reference…"})
+
+    async def _on_reload(self, client, message):
+        result = await _off_loop(getattr(self.session, "reload", None) or self.session.poll_file)
+        self._send_controls()
+        client.answer({"type": "done", "action": "reload",
+                       "message": "reloaded" if result else "the file is unchanged on disk"})
+
+    async def _on_ping(self, client, message):
+        client.answer({"type": "pong", "seq": message.get("seq")})
+
+    def _user_path(self, text: str) -> Path:
+        """A path the user typed: ``~`` expanded, a relative one taken from the scene
+        file's folder (the server's own working folder means nothing to the page)."""
+        path = Path(text).expanduser()
+        if not path.is_absolute():
+            scene = self.session.state().get("path")
+            path = (Path(scene).parent if scene else Path.cwd()) / path
+        return path
+
+
+#: Headers of every page and file: no caching of the token-bearing page, no sniffing,
+#: the page's own CSP, and no referrer (the token must not leak in one).
+_HEADERS = {"Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
+            "Content-Security-Policy": CSP, "Referrer-Policy": "no-referrer"}
+
+
+def compare_message(result: dict) -> bytes:
+    """A compare result as a binary message: its figures as the header, the difference
+    image as the body (the reference image is not sent: the page shows the difference)."""
+    header = {k: v for k, v in result.items() if not isinstance(v, (bytes, bytearray))}
+    header["type"] = "compare"
+    header["mime"] = "image/png"
+    return messages.frame_message(header, bytes(result.get("difference_png") or b""))
+
+
+async def _off_loop(function, *args, **kwargs):
+    """Run blocking file work (save, export, …) in a worker thread: tabs stay served."""
+    return await asyncio.get_running_loop().run_in_executor(
+        None, lambda: function(*args, **kwargs))
+
+
+def _sentence(error: BaseException) -> str:
+    """An exception's message as the one sentence the page shows."""
+    text = str(error).strip() or type(error).__name__
+    if isinstance(error, KeyError) and len(error.args) == 1 and isinstance(error.args[0], str):
+        text = error.args[0]
+    return text
+
+
+def _bind(host: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``host:port`` (IPv6 when ``host`` is one)."""
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind((host.strip("[]"), port))
+        sock.listen(64)
+        sock.setblocking(False)
+    except OSError:
+        sock.close()
+        raise
+    return sock
+
+
+def _addresses() -> set:
+    """This machine's own addresses (for --host 0.0.0.0: the Host a remote browser sends)."""
+    try:
+        return set(socket.gethostbyname_ex(socket.gethostname())[2])
+    except OSError:
+        return set()
+
+
+def is_loopback(host: str) -> bool:
+    """Whether ``host`` is this machine only (no warning needed)."""
+    return host.strip("[]") in {name.strip("[]") for name in LOOPBACK_NAMES} | {"::1"}
