@@ -53,6 +53,16 @@ class LoadedScenes:
         seeded per pass), so the ``spp`` option is checked and the scene loaded at 1 spp:
         renders of one scene at any spp share one loaded scene (the scalar variant renders
         through ``mi.render``, which reads it)."""
+        return self._loaded(*self._translated(scene, options)[:3])
+
+    def is_loaded(self, scene, **options) -> bool:
+        """Whether :meth:`scene_of` with these arguments would find its structure loaded
+        (an edit in place, no ``mi.load_dict``): translated, not loaded."""
+        return (mi.variant(), self._translated(scene, options)[1]) in self.scenes
+
+    def _translated(self, scene, options) -> tuple:
+        """(scene dict, structure, in-place values, files read) of ``to_mitsuba(scene,
+        **options)``, kept for the same model and options (:meth:`scene_of`)."""
         if dr.is_jit_v(mi.Float):
             checked_samples(scene, options.get("mode", "whitted"), options.get("spp"))
             options = {**options, "spp": 1}
@@ -60,7 +70,8 @@ class LoadedScenes:
             memo = (mi.variant(), scene, tuple(sorted(options.items())))
             hash(memo)
         except TypeError:            # a model built in Python with unhashable parts
-            return self.scene_for(to_mitsuba(scene, **options))
+            scene_dict = to_mitsuba(scene, **options)
+            return (scene_dict, *_structure(scene_dict))
         kept = self.translated.get(memo)
         if kept is None or _files_read(kept[0]) != kept[3]:
             scene_dict = to_mitsuba(scene, **options)
@@ -68,7 +79,7 @@ class LoadedScenes:
                 self.translated.pop(next(iter(self.translated)))
             digests = [mesh.digest for mesh in scene.meshes]
             kept = self.translated[memo] = (scene_dict, *_structure(scene_dict, digests))
-        return self._loaded(kept[0], kept[1], kept[2])
+        return kept
 
     def scene_for(self, scene_dict: dict):
         """The loaded scene of ``scene_dict`` (a ``to_mitsuba`` dict): a kept one of the
