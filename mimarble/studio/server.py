@@ -137,7 +137,7 @@ class StudioServer:
         """Serve in a background thread (its own asyncio loop); returns once it listens."""
         import uvicorn
         config = uvicorn.Config(self.app, log_level="warning", lifespan="off",
-                                ws="websockets", ws_max_size=messages.MAX_WIRE_BYTES,
+                                ws="websockets-sansio", ws_max_size=messages.MAX_WIRE_BYTES,
                                 timeout_graceful_shutdown=2, access_log=False)
         self._server = uvicorn.Server(config)
         ready = threading.Event()
