@@ -14,7 +14,9 @@
 const token = document.querySelector('meta[name="mimarble-token"]').content;
 const studio = window.studio = {
   latencies: [], frames: [], problems: [], longestGap: 0, connected: false,
-  version: 0, resetGap() { this.longestGap = 0; },
+  version: 0, compilingSeen: false, state: null,
+  resetGap() { this.longestGap = 0; },
+  edit: (key, value) => edit(key, value),        // for scripts: as a control would
 };
 
 let socket = null;
@@ -124,6 +126,7 @@ function onProblem(m) {
 // ---- frames --------------------------------------------------------------------------
 
 function onFrame(header, blob) {
+  const arrived = performance.now();
   const url = URL.createObjectURL(blob);
   const img = $("frame");
   img.onload = () => {
@@ -131,16 +134,16 @@ function onFrame(header, blob) {
     if (frameUrl) URL.revokeObjectURL(frameUrl);
     frameUrl = url;
     studio.version = header.version;
-    studio.frames.push({ t: now, version: header.version, spp: header.spp });
+    studio.frames.push({ t: now, arrived, version: header.version, spp: header.spp });
     if (studio.frames.length > 2000) studio.frames.splice(0, 1000);
-    for (let i = pending.length - 1; i >= 0; i--) {
-      const p = pending[i];
-      if (p.version !== undefined && p.version <= header.version) {
-        // Only the newest edit a frame shows is timed: older ones were dropped, not shown.
-        if (!pending.slice(i + 1).some((q) => q.version !== undefined && q.version <= header.version)) {
-          studio.latencies.push(now - p.t0);
-        }
-        pending.splice(i, 1);
+    // The newest edit this frame shows is timed; older ones it covers were never shown
+    // on their own (dropped as stale), so they are not timed.
+    let newest = -1;
+    pending.forEach((p, i) => { if (p.version !== undefined && p.version <= header.version) newest = i; });
+    if (newest >= 0) {
+      studio.latencies.push(now - pending[newest].t0);
+      for (let i = pending.length - 1; i >= 0; i--) {
+        if (pending[i].version !== undefined && pending[i].version <= header.version) pending.splice(i, 1);
       }
     }
     const latest = studio.latencies.length ? studio.latencies[studio.latencies.length - 1] : null;
@@ -156,6 +159,8 @@ function fmt(x) { return typeof x === "number" ? x.toFixed(1) : "?"; }
 
 function onState(s) {
   if (!s) return;
+  studio.state = s;
+  if (s.compiling) studio.compilingSeen = true;
   $("compiling").hidden = !s.compiling;
   $("dirty").hidden = !s.dirty;
   if (s.path) { scenePath = s.path; $("scene-path").textContent = s.path; }
