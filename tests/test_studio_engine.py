@@ -242,3 +242,34 @@ def test_close_leaves_no_thread():
     s.close()
     s.close()                                 # idempotent
     assert _studio_threads() == []
+
+
+def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit(session):
+    results = []
+    session.subscribe(lambda kind, p: results.append(p) if kind == "compare" else None)
+    session.compare()
+    deadline = time.monotonic() + 120
+    while not results:
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    (result,) = results
+    assert result["status"] == "done", result
+    assert result["spp"] == 4 and result["psnr"] > 40.0     # float32 against float64
+    assert result["difference_png"][:4] == b"\x89PNG" and result["reference_png"][:4] == b"\x89PNG"
+    assert session.compare_result() is result or session.compare_result() == result
+    session.compare()
+    comparison = session._compare
+    assert comparison.process.poll() is None
+    session.edit("marble.period", 1.9)           # the next edit cancels it
+    assert comparison.process.poll() is not None and comparison.status == "cancelled"
+    folder = comparison._folder
+    comparison._thread.join(60)
+    assert not folder.exists()
+    assert len(results) == 1
+
+
+def test_compare_is_refused_in_path_mode(session):
+    from mimarble.studio import StudioError
+    session.edit("mode", "path")
+    with pytest.raises(StudioError, match="whitted"):
+        session.compare()
