@@ -319,6 +319,28 @@ class StudioSession:
             eye = zoomed_eye(self._scene.camera, factor)
         return self.edit("camera.eye", eye)
 
+    # -- Files written: snapshot, export ---------------------------------------------------
+
+    def snapshot(self, path) -> Frame:
+        """Write the latest frame to ``path`` (.png, .jpg, .jpeg: 8-bit sRGB as ``mimarble
+        render`` writes it; .exr: linear float), whole or not at all; returns the frame
+        written. StudioError before the first frame."""
+        from mimarble.mitsuba.rendering.image_output import write_image
+        frame = self.latest_frame()
+        if frame is None:
+            raise StudioError("snapshot: no frame has been rendered yet")
+        write_image(path, frame.pixels)
+        return frame
+
+    def export(self, path, python: bool = False) -> str:
+        """Write the scene as it is edited now, in the session's mode, as Mitsuba XML (or
+        a Python file, ``python``) to ``path`` (``mimarble export``; whole or not at all);
+        returns the text written."""
+        from mimarble.tools.export import export
+        with self._lock:
+            scene, mode = self._scene, self._mode
+        return export(scene, path, mode=mode, python=python)
+
     # -- Compare ---------------------------------------------------------------------------
 
     def compare(self) -> None:
