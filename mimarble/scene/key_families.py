@@ -247,7 +247,7 @@ class MarbleKeys(KeyFamily):
                 positions[n] = position
                 problem = positions_problem(tuple(positions), key.path)
                 if problem:
-                    raise KeyPathError(problem[1])
+                    raise KeyPathError(f"{key.path}: {problem[1]}")
                 positions = tuple(positions)
             return _replaced(m, ramp=colours, ramp_positions=positions)
         return stop

@@ -94,5 +94,5 @@ def keys_listing(scene) -> str:
         what = "a ramp stop: [position] colour" if key.stop is not None else \
             "a ramp: [p] colour, [p] colour, …" if p.kind == "colours" else \
             f"{p.kind}, {p.requirement}" if p.kind not in ("vector", "colour") else p.kind
-        lines.append(f"  {key.path:<{width}}  {key.text}    ({what})")
+        lines.append(f"  {key.path:<{width}}  {key.text}  ({what})")
     return "\n".join(lines)
