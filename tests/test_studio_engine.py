@@ -10,7 +10,7 @@ What is checked, and against what:
 * refinement accumulates: whitted mode's last frame equals ``mimarble.render`` of the
   same scene at the target spp (its own sample positions and differentials; the runs'
   sums are added in float64, the render's sum is one compensated float32 sum: equal to
-  float32 rounding), and the frames' spp count 1, 2, 6, 14, 16 for 16 spp; path mode's
+  float32 rounding), and the frames' spp count 1, 4, 8, 16 for 16 spp; path mode's
   accumulated frame is as far from a path render at that spp as a render of another seed;
 * a structural edit (octaves) says ``compiling`` and going back to the earlier structure
   records nothing new;
@@ -123,9 +123,13 @@ def _accumulated(mode, samples):
 
 
 def test_whitted_refinement_is_the_render_at_its_spp():
+    frame, counts, scene = _accumulated("whitted", 25)
+    assert frame.spp == frame.target_spp == 25 and counts[-5:] == [1, 4, 8, 16, 25]
+    rendered = mimarble.render(scene, spp=25)
+    assert np.allclose(frame.pixels, rendered, rtol=2 ** -22, atol=1e-30)
     frame, counts, scene = _accumulated("whitted", 16)
     assert frame.spp == frame.target_spp == 16 and frame.mime == "image/png"
-    assert counts[-5:] == [1, 2, 6, 14, 16]
+    assert counts[-4:] == [1, 4, 8, 16]
     rendered = mimarble.render(scene, spp=16)
     assert np.allclose(frame.pixels, rendered, rtol=2 ** -22, atol=1e-30)
     assert np.mean(frame.pixels == rendered) > 0.999
@@ -242,3 +246,46 @@ def test_close_leaves_no_thread():
     s.close()
     s.close()                                 # idempotent
     assert _studio_threads() == []
+
+
+def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit(session):
+    results = []
+    session.subscribe(lambda kind, p: results.append(p) if kind == "compare" else None)
+    session.compare()
+    deadline = time.monotonic() + 120
+    while not results:
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    (result,) = results
+    assert result["status"] == "done", result
+    assert result["spp"] == 4 and result["psnr"] > 40.0     # float32 against float64
+    assert result["difference_png"][:4] == b"\x89PNG" and result["reference_png"][:4] == b"\x89PNG"
+    assert session.compare_result() is result or session.compare_result() == result
+    session.compare()
+    comparison = session._compare
+    assert comparison.process.poll() is None
+    session.edit("marble.period", 1.9)           # the next edit cancels it
+    assert comparison.process.poll() is not None and comparison.status == "cancelled"
+    folder = comparison._folder
+    comparison._thread.join(60)
+    assert not folder.exists()
+    assert len(results) == 1
+
+
+def test_compare_is_refused_in_path_mode(session):
+    from mimarble.studio import StudioError
+    session.edit("mode", "path")
+    with pytest.raises(StudioError, match="whitted"):
+        session.compare()
+
+
+def test_snapshot_and_export(session, tmp_path):
+    frame = session.wait_frame(session.edit("marble.period", 2.2))
+    written = session.snapshot(tmp_path / "frame.png")
+    from PIL import Image
+    pixels = np.asarray(Image.open(tmp_path / "frame.png"))
+    assert pixels.shape == (48, 48, 3) and written.version >= frame.version
+    text = session.export(tmp_path / "scene.xml")
+    assert (tmp_path / "scene.xml").read_text() == text and 'name="period" value="2.2"' in text
+    session.export(tmp_path / "scene_export.py", python=True)
+    assert "2.2" in (tmp_path / "scene_export.py").read_text()

@@ -91,3 +91,13 @@ def encode(pixels: np.ndarray, fmt: str = FRAME_FORMAT) -> tuple[bytes, str, flo
     else:
         raise ValueError(f"frame format {fmt!r:.20} is not png or jpeg")
     return buffer.getvalue(), MIME[fmt], (time.perf_counter() - start) * 1e3
+
+
+def png_of_rgb8(pixels: np.ndarray) -> bytes:
+    """PNG bytes of 8-bit RGB ``pixels`` (H, W, 3) as they are (no transfer curve): an
+    error map, say."""
+    from PIL import Image
+    buffer = io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(pixels, dtype=np.uint8)).save(
+        buffer, "PNG", compress_level=PNG_COMPRESSION)
+    return buffer.getvalue()

@@ -36,6 +36,7 @@ from mimarble import scene as scene_language
 from mimarble.runtime import packaged_scenes
 from mimarble.scene.edits import KeyPathError, with_image_size, with_value
 from .camera import orbited_eye, zoomed_eye
+from .compare import Comparison
 from .frames import FRAME_FORMAT, Frame
 from .worker import RenderThread, Request
 
@@ -117,6 +118,7 @@ class StudioSession:
         self._worker = RenderThread(self._publish, self._render_failed, frame_format, idle_s)
         self._worker.start()
         self._compare = None
+        self._compare_result = self._compare_note = None
         self._watcher = None
         if watch:
             self._watch_stop = threading.Event()
@@ -317,6 +319,70 @@ class StudioSession:
             eye = zoomed_eye(self._scene.camera, factor)
         return self.edit("camera.eye", eye)
 
+    # -- Files written: snapshot, export ---------------------------------------------------
+
+    def snapshot(self, path) -> Frame:
+        """Write the latest frame to ``path`` (.png, .jpg, .jpeg: 8-bit sRGB as ``mimarble
+        render`` writes it; .exr: linear float), whole or not at all; returns the frame
+        written. StudioError before the first frame."""
+        from mimarble.mitsuba.rendering.image_output import write_image
+        frame = self.latest_frame()
+        if frame is None:
+            raise StudioError("snapshot: no frame has been rendered yet")
+        write_image(path, frame.pixels)
+        return frame
+
+    def export(self, path, python: bool = False) -> str:
+        """Write the scene as it is edited now, in the session's mode, as Mitsuba XML (or
+        a Python file, ``python``) to ``path`` (``mimarble export``; whole or not at all);
+        returns the text written."""
+        from mimarble.tools.export import export
+        with self._lock:
+            scene, mode = self._scene, self._mode
+        return export(scene, path, mode=mode, python=python)
+
+    # -- Compare ---------------------------------------------------------------------------
+
+    def compare(self) -> None:
+        """Render the float64 reference of the state now in a child process and measure
+        the final frame of this version against it (mimarble/studio/compare.py); the
+        result comes as a ``compare`` event and from :meth:`compare_result`. The next
+        edit cancels it. StudioError in path mode (the reference renders whitted mode)."""
+        from mimarble.tools.compare import reference_differs
+        with self._lock:
+            if self._closed:
+                raise StudioError("compare: the studio is closed")
+            if self._mode != "whitted":
+                raise StudioError("compare: the reference tracer renders whitted mode; "
+                                  "switch the mode to whitted to compare")
+            if self._compare is not None:
+                self._compare.cancel()
+            note = ("a marble's pixel filter renders otherwise than the reference's plain "
+                    "supersampling: the difference is the filter's, not an error"
+                    if reference_differs(self._scene) else None)
+            self._compare_result = None
+            self._compare_note = note
+            self._compare = Comparison(
+                self._scene, self._version,
+                lambda version: self.wait_frame(version, final=True, timeout=3600),
+                self._compared)
+        self._emit("state", self.state())
+
+    def _compared(self, result: dict) -> None:
+        with self._lock:
+            result = {**result, "note": self._compare_note}
+            self._compare_result = result
+        self._emit("compare", result)
+        self._emit("state", self.state())
+
+    def compare_result(self) -> dict | None:
+        """The last compare's result: ``status`` (``done`` or ``failed``), ``version``,
+        ``psnr``, ``rmse``, ``max_abs``, ``frac_over_1_255``, ``spp``, ``seconds``,
+        ``difference_png``, ``reference_png`` (bytes), ``note`` — or ``message`` when it
+        failed; None before one finished."""
+        with self._lock:
+            return self._compare_result
+
     # -- The file --------------------------------------------------------------------------
 
     def _read(self) -> tuple[str, tuple]:
@@ -386,7 +452,7 @@ class StudioSession:
             compare, self._compare = self._compare, None
             self._frame_ready.notify_all()
         if compare is not None:
-            compare.cancel()
+            compare.cancel(wait=True)
         if self._watcher is not None:
             self._watch_stop.set()
             self._watcher.join(5.0)

@@ -11,8 +11,8 @@ request never waits for a render or a compile. Its contract:
   pixel centre in whitted mode): one recorded pass, a few milliseconds warm.
 * **Refinement when idle.** Once no edit has come for ``idle_s``, the same state is
   rendered again towards the scene's ``samples``, a run of samples at a time
-  (:func:`~mimarble.mitsuba.rendering.passes.trace_samples`: samples 0–1, 2–3, 4–7, …, at
-  most :data:`RUN_LANES` lanes a run), their sums **accumulated**: each frame shows all
+  (:func:`~mimarble.mitsuba.rendering.passes.trace_samples`: samples 0–3, 4–7, 8–15, …,
+  at most :data:`RUN_LANES` lanes a run), their sums **accumulated**: each frame shows all
   the samples so far. Whitted mode's sample k is the render's own (stratum k of n×n, with
   the differentials of the target spp), so the last frame is the render at that spp to
   float64 rounding of the runs' sums (tests/test_studio_engine.py); path mode's runs are
@@ -47,6 +47,9 @@ dr, mi = environment.import_drjit_and_mitsuba()
 #: Most lanes (pixels × samples) of one refinement run: 2²¹, 8 spp at 512² — about 80 ms
 #: of fig11a on the AMD EPYC, the longest an edit waits behind refinement.
 RUN_LANES = 1 << 21
+#: Samples of the first refinement run: the scene's 4 spp (the paper scenes') in one run,
+#: a frame at 4, 8, 16, … spp for more (runs of 4, 4, 8, …; docs/benchmarks.md, "Studio").
+FIRST_RUN = 4
 #: Loaded scenes a session keeps: its structures (octaves 8 and 9, both modes, …), so
 #: that going back to one reuses its loaded scene and its recorded passes.
 KEPT_SCENES = 6
@@ -82,6 +85,8 @@ class RenderThread(threading.Thread):
         self.rendered: list[int] = []
         #: (structure, mode) → seconds of its first render, for the benchmark.
         self.compile_seconds: dict = {}
+        self._loads = 0              # scenes loaded so far
+        self._recorded: dict = {}    # a 1 spp pass's key → self._loads when it last ran
 
     # -- Called from other threads ---------------------------------------------------
 
@@ -143,7 +148,14 @@ class RenderThread(threading.Thread):
         facts = scene_facts(target.scene, target.params)
         pixels = target.width * target.height
         first_key = (facts.key, mode, pixels, 1, True, True, False, False, True)
-        compiling = new_structure or (replay_enabled() and first_key not in _traced_pass.frozen)
+        # A recording is made again when its key is new, or when the loaded scenes have
+        # changed since it was made (Dr.Jit checks the registry of instances it saw:
+        # going back to octaves 8 after 9 was loaded records 8's pass once more).
+        if new_structure:
+            self._loads += 1
+        compiling = new_structure or (replay_enabled() and (
+            first_key not in _traced_pass.frozen or self._recorded.get(first_key) != self._loads))
+        self._recorded[first_key] = self._loads
         if compiling and not new_structure:
             self.publish("status", {"compiling": True, "rendering": True})
         # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
@@ -156,6 +168,9 @@ class RenderThread(threading.Thread):
         target_spp = scene.image.samples
         self._show(request, sums, 1, target_spp, elapsed, histograms)
         if histograms is None:          # after the frame is out, unless it is stale already
+            # Let the threads that wait for the frame (a server's loop) take the GIL now,
+            # not after the NumPy below (up to Python's switch interval, 5 ms, later).
+            time.sleep(0.001)
             if self._newer():
                 return
             histograms = self.histograms.of(scene)
@@ -163,9 +178,10 @@ class RenderThread(threading.Thread):
                                         "histograms": list(histograms)})
         if target_spp <= 1 or not self._wait_idle():
             return
-        # Refinement: runs of samples, accumulated; the runs double up to RUN_LANES.
+        # Refinement: runs of samples, accumulated; the first of FIRST_RUN samples, then
+        # each as many as all before it (the frames' spp double), up to RUN_LANES lanes.
         total = np.zeros_like(sums)
-        done, run, index = 0, min(2, target_spp), 0
+        done, run, index = 0, max(1, min(FIRST_RUN, RUN_LANES // pixels)), 0
         start = time.perf_counter()
         while done < target_spp:
             if self._newer():
@@ -175,7 +191,7 @@ class RenderThread(threading.Thread):
             done, index = done + count, index + 1
             self._show(request, total, done, target_spp, time.perf_counter() - start,
                        histograms)
-            run = max(1, min(2 * run, RUN_LANES // pixels))
+            run = max(1, min(done, RUN_LANES // pixels))
 
     def _show(self, request: Request, sums: np.ndarray, spp: int, target_spp: int,
               seconds: float, histograms: tuple | None) -> None:
