@@ -1,0 +1,172 @@
+"""The studio in a real headless browser (issue 41, "Tests"): Debian's chromium driven
+through chromium-driver by Selenium (mimarble/studio/headless.py; .ci/run installs them).
+
+The page is loaded with its token (and refused without), the period slider is moved with
+the arrow keys and the render changes, an invalid value typed shows the parameter
+table's sentence beside its control, Save writes the file changing only the period's
+text, the file edited on disk reloads (and a parse error shows as FILE:LINE:COL), and
+the browser's console holds no error. They skip, saying why, only where no browser can
+be started. The scene is a 96×96 copy of fig11a in a temporary folder.
+"""
+
+import difflib
+import time
+
+import pytest
+
+pytest.importorskip("uvicorn", reason="the studio extra is not installed")
+
+from mimarble.studio.headless import browser_problem  # noqa: E402
+
+problem = browser_problem()
+pytestmark = pytest.mark.skipif(problem is not None, reason=f"no headless browser: {problem}")
+
+from mimarble import scene as scene_language  # noqa: E402
+from mimarble.runtime import packaged_scenes  # noqa: E402
+from mimarble.studio import StudioSession  # noqa: E402
+from mimarble.studio.server import StudioServer  # noqa: E402
+
+KEY = "marble.period"
+
+
+@pytest.fixture(scope="module")
+def scene_file(tmp_path_factory):
+    text = packaged_scenes.find("fig11a").read_text()
+    text = text.replace("width 500 height 500 samples 4", "width 96 height 96 samples 1")
+    path = tmp_path_factory.mktemp("studio-browser") / "marble.scene"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def studio(scene_file):
+    from mimarble.studio.headless import start_browser
+    session = StudioSession(scene_file)
+    server = StudioServer(session).start()
+    driver = start_browser()
+    try:
+        yield driver, server, session
+    finally:
+        driver.quit()
+        server.stop()
+        session.close()
+
+
+def wait(driver, script, timeout=60.0, what="the page"):
+    """Poll ``script`` (returns a truthy value when done) in the page."""
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        value = driver.execute_script(script)
+        if value:
+            return value
+        time.sleep(0.05)
+    raise AssertionError(f"{what}: not within {timeout} s")
+
+
+def control(driver, label_text):
+    """The control whose <label> reads ``label_text`` (its accessible name)."""
+    label = driver.find_element("xpath", f"//label[normalize-space()='{label_text}']")
+    return driver.find_element("id", label.get_attribute("for"))
+
+
+def frames_shown(driver):
+    return driver.execute_script("return window.studio.frames.length")
+
+
+def test_the_page_is_refused_without_its_token_and_shown_with_it(studio):
+    driver, server, _ = studio
+    driver.get(server.url.split("?")[0])
+    assert "needs its token" in driver.find_element("tag name", "body").text
+    driver.get_log("browser")                     # the refusal's 403 is logged: not the page's
+    driver.get(server.url)
+    wait(driver, "return window.studio && window.studio.frames.length > 0", what="a frame")
+    assert driver.find_element("id", "frame").get_attribute("src").startswith("blob:")
+    slider = control(driver, KEY)
+    assert slider.get_attribute("type") == "range"
+    # every control has an accessible name holding its parameter's name
+    unnamed = driver.execute_script("""
+        return [...document.querySelectorAll('#controls input, #controls select')]
+          .filter((e) => !(e.labels && e.labels.length) && !e.getAttribute('aria-label'))
+          .map((e) => e.outerHTML);""")
+    assert unnamed == []
+
+
+def test_the_period_slider_moves_with_the_arrow_keys_and_the_render_changes(studio):
+    from selenium.webdriver.common.keys import Keys
+    driver, server, session = studio
+    wait(driver, "return window.studio.state && !window.studio.state.rendering",
+         what="the first frame refined")
+    image = driver.find_element("id", "frame")
+    before_png = image.screenshot_as_png
+    before = float(control(driver, KEY).get_attribute("value"))
+    version = driver.execute_script("return window.studio.version")
+    slider = control(driver, KEY)
+    slider.click()                                # focus (a click may move it too)
+    for _ in range(5):
+        slider.send_keys(Keys.ARROW_RIGHT)
+    after = float(slider.get_attribute("value"))
+    assert after > before
+    wait(driver, f"return window.studio.version > {version} && window.studio.state "
+                 "&& !window.studio.state.rendering", what="a frame of the new period")
+    time.sleep(0.3)
+    assert image.screenshot_as_png != before_png
+    values = {k.path: k.value for k in _keys(session.scene) if k.path.endswith(".period")}
+    assert values[KEY] == pytest.approx(after)
+
+
+def _keys(scene):
+    from mimarble.scene.keys import scene_keys
+    return scene_keys(scene).values()
+
+
+def test_an_invalid_value_typed_shows_the_tables_sentence_beside_its_control(studio):
+    driver, server, session = studio
+    typed = driver.find_element("id", control(driver, "marble.scale").get_attribute("id")
+                                + "-typed")
+    version = session.state()["version"]
+    typed.clear()
+    typed.send_keys("-2\n")
+    error = wait(driver, "const e = document.getElementById('c-marble_scale-error');"
+                         "return e && e.textContent", what="the sentence")
+    assert "scale" in error and "-2" in error
+    assert session.state()["version"] == version           # the render kept the last valid
+    typed.clear()
+    typed.send_keys("1\n")
+    wait(driver, "return document.getElementById('c-marble_scale-error').textContent === ''",
+         what="the sentence cleared")
+
+
+def test_save_changes_only_the_periods_text(studio, scene_file):
+    driver, server, session = studio
+    original = session.text
+    period = session.edits_made.get(KEY)
+    assert period is not None                              # the slider's edit, above
+    driver.find_element("id", "save").click()
+    wait(driver, "return /saved/.test(document.getElementById('message').textContent)",
+         what="saved")
+    saved = scene_file.read_text()
+    changed = [line for line in difflib.ndiff(original.splitlines(), saved.splitlines())
+               if line[:2] in ("- ", "+ ")]
+    assert changed and all("period" in line for line in changed), changed
+    reparsed = scene_language.parse(saved)
+    assert {k.value for k in _keys(reparsed) if k.path == KEY} == {pytest.approx(period)}
+
+
+def test_the_file_edited_on_disk_reloads_and_a_parse_error_is_shown(studio, scene_file):
+    driver, server, session = studio
+    text = scene_file.read_text()
+    scene_file.write_text(text.replace("distortion 3.0", "distortion 4.5"))
+    wait(driver, "const e = document.getElementById('c-marble_distortion');"
+                 "return e && Number(e.value) === 4.5", what="the reloaded distortion")
+    scene_file.write_text(text.replace("period", "perod", 1))
+    banner = wait(driver, "const b = document.getElementById('banner');"
+                          "return !b.hidden && b.textContent", what="the parse error")
+    assert f"{scene_file}:" in banner and "last good render" in banner
+    scene_file.write_text(text)
+    wait(driver, "return document.getElementById('banner').hidden", what="the banner gone")
+
+
+def test_the_browser_console_has_no_errors(studio):
+    driver, _, _ = studio
+    from mimarble.studio.headless import console_errors
+    assert console_errors(driver) == []
