@@ -17,8 +17,9 @@ scene file, model or loaded ``mi.Scene`` → linear float32 (H, W, 3); ``width``
 ``height`` as the command line's ``--width``/``--height``), ``mimarble.use_variant(name)``
 (a variant checked before it is set: one sentence naming what can render when it cannot,
 as ``--variant`` says it), ``mimarble.sweep``, ``mimarble.to_mitsuba``,
-``mimarble.write_image``, ``mimarble.scene`` (the scene language) and
-``mimarble.packaged_scenes`` (the paper's scenes shipped with the package).
+``mimarble.write_image``, ``mimarble.scene`` (the scene language),
+``mimarble.packaged_scenes`` (the paper's scenes shipped with the package) and
+``mimarble.studio(scene)`` (the marble studio inline in a notebook; ``mimarble studio``).
 """
 
 import importlib
@@ -84,6 +85,8 @@ def __getattr__(name):
         return importlib.import_module(f"{__name__}.runtime.packaged_scenes")
     elif name == "sweep":                # mimarble.sweeps.run.sweep: its frames start the package
         return importlib.import_module(f"{__name__}.sweeps.run").sweep
+    elif name == "studio":               # a callable package: mimarble.studio(scene) in Jupyter
+        return importlib.import_module(f"{__name__}.studio")
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
