@@ -35,7 +35,7 @@ from pathlib import Path
 from mimarble import scene as scene_language
 from mimarble.runtime import packaged_scenes
 from mimarble.scene.edits import KeyPathError, with_image_size, with_value
-from .camera import orbited_eye, zoomed_eye
+from .camera import orbited_eye, zoomed_fov
 from .compare import Comparison
 from .frames import FRAME_FORMAT, Frame
 from .worker import RenderThread, Request
@@ -307,17 +307,19 @@ class StudioSession:
 
     def orbit(self, dx: float, dy: float) -> int:
         """Turn the eye about the look-at point: ``dx`` degrees about the camera's up
-        axis, ``dy`` degrees of elevation (an edit of ``camera.eye``)."""
+        axis, ``dy`` degrees of elevation (an edit of ``camera.eye``). The loaded scene is
+        edited in place while the clip planes stay (the eye at a constant distance from
+        a sphere scene's shapes); else the new structure is loaded (and compiled)."""
         with self._lock:
             eye = orbited_eye(self._scene.camera, dx, dy)
         return self.edit("camera.eye", eye)
 
     def zoom(self, factor: float) -> int:
-        """The eye's distance to the look-at point divided by ``factor`` (> 1: closer;
-        an edit of ``camera.eye``)."""
+        """Zoom the lens by ``factor`` (> 1: closer): tan(fov/2) divided by it (an edit
+        of ``camera.fov``; the eye stays, mimarble/studio/camera.py says why)."""
         with self._lock:
-            eye = zoomed_eye(self._scene.camera, factor)
-        return self.edit("camera.eye", eye)
+            fov = zoomed_fov(self._scene.camera, factor)
+        return self.edit("camera.fov", fov)
 
     # -- Files written: snapshot, export ---------------------------------------------------
 
