@@ -301,3 +301,94 @@ def test_snapshot_and_export(session, tmp_path):
     assert (tmp_path / "scene.xml").read_text() == text and 'name="period" value="2.2"' in text
     session.export(tmp_path / "scene_export.py", python=True)
     assert "2.2" in (tmp_path / "scene_export.py").read_text()
+
+
+def _copy(tmp_path, name="stone.scene"):
+    path = tmp_path / name
+    shutil.copy(SCENES / "fig11a.scene", path)
+    return path
+
+
+def test_save_changes_only_the_edited_values(tmp_path):
+    path = _copy(tmp_path)
+    before = path.read_text()
+    s = _session(str(path))
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        s.orbit(15.0, 0.0)
+        s.save()
+        after = path.read_text()
+        changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines()) if a != b]
+        assert len(before.splitlines()) == len(after.splitlines())
+        assert len(changed) == 2, changed
+        assert changed[0][1].strip().startswith("camera") and "eye" in changed[0][1]
+        assert changed[1] == ("      period 1.3", "      period 2.25")
+        reparsed = mimarble.scene.parse(after)
+        assert reparsed.materials["marble"].diffuse.period == 2.25
+        assert reparsed.materials["marble"].ambient.period == 1.3
+        assert reparsed.camera == mimarble.scene.parse(after).camera
+        assert np.allclose(reparsed.camera.eye, s.scene.camera.eye, rtol=1e-12)
+        assert not s.state()["dirty"] and s.poll_file() is None    # its own save: no reload
+        s.save()                                                    # nothing edited: same bytes
+        assert path.read_text() == after
+    finally:
+        s.close()
+
+
+def test_save_refuses_a_file_changed_on_disk_and_a_packaged_scene(tmp_path):
+    from mimarble.studio import StudioError
+    path = _copy(tmp_path)
+    s = _session(str(path))
+    try:
+        s.edit("marble.period", 2.0)
+        path.write_text(path.read_text() + "\n// an editor's line\n")
+        with pytest.raises(StudioError, match="changed on disk"):
+            s.save()
+        assert path.read_text().endswith("// an editor's line\n")
+    finally:
+        s.close()
+    s = _session("fig11a")
+    try:
+        s.edit("marble.period", 2.0)
+        with pytest.raises(StudioError, match="packaged scene"):
+            s.save()
+        copy = tmp_path / "mine.scene"
+        s.save_as(copy)
+        assert mimarble.scene.load(copy).materials["marble"].diffuse.period == 2.0
+        assert s.state()["path"] == str(copy) and not s.state()["packaged"]
+    finally:
+        s.close()
+
+
+def test_controls_come_from_the_registry_and_the_table(session):
+    import json
+    from mimarble.parameters import BY_NAME
+    from mimarble.scene.keys import scene_keys
+    groups = session.controls()["groups"]
+    json.dumps(groups)
+    by_key = {c["key"]: c for g in groups for c in g["controls"]}
+    names = [g["name"] for g in groups]
+    # fig11a: every marble, then each channel's; material "marble" sets what every marble
+    # does, so its group is left out.
+    assert names == ["every marble", 'material "marble", ambient', 'material "marble", diffuse',
+                     "camera", "light 0", "image", "view"]
+    assert set(by_key) - {"mode", "image.width", "image.height"} <= set(scene_keys(session.scene))
+    period = by_key["marble.period"]
+    assert period["kind"] == "number" and period["value"] == 1.3 and period["name"] == "period"
+    assert period["slider"] == list(BY_NAME["period"].slider) and not period["structural"]
+    scale = by_key["marble.scale"]
+    assert scale["min"] == 0.0 and scale["exclusive_min"] and scale["max"] is None
+    octaves = by_key["marble.octaves"]
+    assert octaves["kind"] == "integer" and octaves["structural"] and octaves["max"] == 64
+    assert by_key["marble.function"]["choices"] == list(BY_NAME["function"].choices)
+    ramp = by_key["material.marble.diffuse.ramp"]
+    assert ramp["kind"] == "colours" and ramp["structural"]
+    assert ramp["value"]["colors"][0] == "#ff0000" and len(ramp["value"]["positions"]) == 8
+    stop = by_key["marble.ramp.7"]
+    assert stop["kind"] == "stop" and stop["value"]["position"] is None and not stop["structural"]
+    assert by_key["camera.eye"]["value"] == [0.0, 0.0, 9.0]
+    assert by_key["light.0.color"]["value"] == "#ffffff"
+    assert by_key["mode"]["choices"] == ["whitted", "path"] and by_key["mode"]["value"] == "whitted"
+    session.edit("marble.period", 2.5)
+    after = {c["key"]: c for g in session.controls()["groups"] for c in g["controls"]}
+    assert after["marble.period"]["value"] == 2.5
