@@ -200,7 +200,8 @@ def test_histogram_of_t_without_noise(session):
         assert time.monotonic() < deadline
         time.sleep(0.01)
     (histogram,) = session.latest_histograms()["histograms"]
-    assert histogram["label"] == "marble.ambient, marble.diffuse"
+    assert histogram["label"] == "material.marble.ambient, material.marble.diffuse"
+    assert histogram["keys"] == ["material.marble.ambient", "material.marble.diffuse"]
     points = _hits(session.scene, 96)
     expected = np.histogram(np.abs(np.sin(math.pi * 0.7 * points[:, 0])), bins=64,
                             range=(0, 1))[0]
