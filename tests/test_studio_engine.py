@@ -12,8 +12,9 @@ What is checked, and against what:
   sums are added in float64, the render's sum is one compensated float32 sum: equal to
   float32 rounding), and the frames' spp count 1, 4, 8, 16 for 16 spp; path mode's
   accumulated frame is as far from a path render at that spp as a render of another seed;
-* a structural edit (octaves) says ``compiling`` and going back to the earlier structure
-  records nothing new;
+* a structural edit (octaves) says ``compiling``; going back to the earlier structure loads
+  nothing (its pass is recorded once more, and that is said), and after that, going back
+  and forth records nothing;
 * the histogram of t: the hits counted are the sphere's disk on the grid, and with no
   noise t is |sin(π·period·x)| at hit points the test finds with its own ray–sphere
   intersection;
@@ -146,18 +147,29 @@ def test_path_refinement_converges_as_a_render_does():
     assert 0.0 < rmse(frame.pixels, reference) < 1.5 * rmse(other, reference)
 
 
-def test_structural_edit_compiles_once(session):
+def test_structural_edit_compiles_once(session, monkeypatch):
+    from mimarble.mitsuba.rendering import loaded_scenes, passes
+    loads = []
+    original = loaded_scenes.mi.load_dict
+    monkeypatch.setattr(loaded_scenes.mi, "load_dict",
+                        lambda d, *a, **k: (loads.append(1), original(d, *a, **k))[1])
     session.wait_frame()
     statuses = []
     session.subscribe(lambda kind, p: statuses.append(p["compiling"]) if kind == "state" else None)
-    session.wait_frame(session.edit("marble.octaves", 9))
-    assert True in statuses
-    compiled = dict(session._worker.compile_seconds)
+    session.wait_frame(session.edit("marble.octaves", 9))       # a new structure: loaded
+    assert True in statuses and loads == [1]
     statuses.clear()
+    # Back to 12: its loaded scene is kept, no load; its pass is recorded once more
+    # (Dr.Jit's recordings check the registry of instances, which the load of 9 changed),
+    # and the studio says so.
     session.wait_frame(session.edit("marble.octaves", 12))
-    session.wait_frame(session.edit("marble.octaves", 9))
-    assert True not in statuses
-    assert session._worker.compile_seconds == compiled
+    assert loads == [1] and True in statuses
+    statuses.clear()
+    recordings = passes._traced_pass.recordings
+    for octaves in (9, 12, 9):                  # both recorded now: nothing new
+        session.wait_frame(session.edit("marble.octaves", octaves))
+    assert loads == [1] and True not in statuses
+    assert passes._traced_pass.recordings == recordings
 
 
 def _hits(scene, grid):
@@ -188,7 +200,8 @@ def test_histogram_of_t_without_noise(session):
         assert time.monotonic() < deadline
         time.sleep(0.01)
     (histogram,) = session.latest_histograms()["histograms"]
-    assert histogram["label"] == "marble.ambient, marble.diffuse"
+    assert histogram["label"] == "material.marble.ambient, material.marble.diffuse"
+    assert histogram["keys"] == ["material.marble.ambient", "material.marble.diffuse"]
     points = _hits(session.scene, 96)
     expected = np.histogram(np.abs(np.sin(math.pi * 0.7 * points[:, 0])), bins=64,
                             range=(0, 1))[0]
@@ -289,3 +302,94 @@ def test_snapshot_and_export(session, tmp_path):
     assert (tmp_path / "scene.xml").read_text() == text and 'name="period" value="2.2"' in text
     session.export(tmp_path / "scene_export.py", python=True)
     assert "2.2" in (tmp_path / "scene_export.py").read_text()
+
+
+def _copy(tmp_path, name="stone.scene"):
+    path = tmp_path / name
+    shutil.copy(SCENES / "fig11a.scene", path)
+    return path
+
+
+def test_save_changes_only_the_edited_values(tmp_path):
+    path = _copy(tmp_path)
+    before = path.read_text()
+    s = _session(str(path))
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        s.orbit(15.0, 0.0)
+        s.save()
+        after = path.read_text()
+        changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines()) if a != b]
+        assert len(before.splitlines()) == len(after.splitlines())
+        assert len(changed) == 2, changed
+        assert changed[0][1].strip().startswith("camera") and "eye" in changed[0][1]
+        assert changed[1] == ("      period 1.3", "      period 2.25")
+        reparsed = mimarble.scene.parse(after)
+        assert reparsed.materials["marble"].diffuse.period == 2.25
+        assert reparsed.materials["marble"].ambient.period == 1.3
+        assert reparsed.camera == mimarble.scene.parse(after).camera
+        assert np.allclose(reparsed.camera.eye, s.scene.camera.eye, rtol=1e-12)
+        assert not s.state()["dirty"] and s.poll_file() is None    # its own save: no reload
+        s.save()                                                    # nothing edited: same bytes
+        assert path.read_text() == after
+    finally:
+        s.close()
+
+
+def test_save_refuses_a_file_changed_on_disk_and_a_packaged_scene(tmp_path):
+    from mimarble.studio import StudioError
+    path = _copy(tmp_path)
+    s = _session(str(path))
+    try:
+        s.edit("marble.period", 2.0)
+        path.write_text(path.read_text() + "\n// an editor's line\n")
+        with pytest.raises(StudioError, match="changed on disk"):
+            s.save()
+        assert path.read_text().endswith("// an editor's line\n")
+    finally:
+        s.close()
+    s = _session("fig11a")
+    try:
+        s.edit("marble.period", 2.0)
+        with pytest.raises(StudioError, match="packaged scene"):
+            s.save()
+        copy = tmp_path / "mine.scene"
+        s.save_as(copy)
+        assert mimarble.scene.load(copy).materials["marble"].diffuse.period == 2.0
+        assert s.state()["path"] == str(copy) and not s.state()["packaged"]
+    finally:
+        s.close()
+
+
+def test_controls_come_from_the_registry_and_the_table(session):
+    import json
+    from mimarble.parameters import BY_NAME
+    from mimarble.scene.keys import scene_keys
+    groups = session.controls()["groups"]
+    json.dumps(groups)
+    by_key = {c["key"]: c for g in groups for c in g["controls"]}
+    names = [g["name"] for g in groups]
+    # fig11a: every marble, then each channel's; material "marble" sets what every marble
+    # does, so its group is left out.
+    assert names == ["every marble", 'material "marble", ambient', 'material "marble", diffuse',
+                     "camera", "light 0", "image", "view"]
+    assert set(by_key) - {"mode", "image.width", "image.height"} <= set(scene_keys(session.scene))
+    period = by_key["marble.period"]
+    assert period["kind"] == "number" and period["value"] == 1.3 and period["name"] == "period"
+    assert period["slider"] == list(BY_NAME["period"].slider) and not period["structural"]
+    scale = by_key["marble.scale"]
+    assert scale["min"] == 0.0 and scale["exclusive_min"] and scale["max"] is None
+    octaves = by_key["marble.octaves"]
+    assert octaves["kind"] == "integer" and octaves["structural"] and octaves["max"] == 64
+    assert by_key["marble.function"]["choices"] == list(BY_NAME["function"].choices)
+    ramp = by_key["material.marble.diffuse.ramp"]
+    assert ramp["kind"] == "colours" and ramp["structural"]
+    assert ramp["value"]["colors"][0] == "#ff0000" and len(ramp["value"]["positions"]) == 8
+    stop = by_key["marble.ramp.7"]
+    assert stop["kind"] == "stop" and stop["value"]["position"] is None and not stop["structural"]
+    assert by_key["camera.eye"]["value"] == [0.0, 0.0, 9.0]
+    assert by_key["light.0.color"]["value"] == "#ffffff"
+    assert by_key["mode"]["choices"] == ["whitted", "path"] and by_key["mode"]["value"] == "whitted"
+    session.edit("marble.period", 2.5)
+    after = {c["key"]: c for g in session.controls()["groups"] for c in g["controls"]}
+    assert after["marble.period"]["value"] == 2.5

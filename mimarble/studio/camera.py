@@ -1,7 +1,7 @@
-"""The studio's camera moves: orbit about the look-at point, and zoom towards it.
+"""The studio's camera moves: orbit about the look-at point, and zoom.
 
-Both keep ``lookat``, ``up`` and ``fov`` and move only the eye, so that each is one edit
-of the key ``camera.eye`` (what Save writes back). The orbit turns the eye's offset
+The orbit moves only the eye (one edit of the key ``camera.eye``, what Save writes back),
+the zoom only the fov (``camera.fov``). The orbit turns the eye's offset
 from the look-at point about the camera's ``up`` axis (``dx`` degrees: a drag across)
 and about the right-hand axis (``dy`` degrees: a drag up or down), the elevation kept
 at least :data:`POLE_MARGIN` degrees from ``up`` and from its opposite, where the view
@@ -74,13 +74,16 @@ def orbited_eye(camera, dx: float, dy: float) -> tuple[float, float, float]:
     return _add(camera.lookat, offset)
 
 
-def zoomed_eye(camera, factor: float) -> tuple[float, float, float]:
-    """The eye of ``camera`` moved along its line to the look-at point, its distance
-    divided by ``factor`` (> 1: closer). ValueError outside :data:`ZOOM_LIMITS`."""
+def zoomed_fov(camera, factor: float) -> float:
+    """The fov of ``camera`` zoomed by ``factor`` (> 1: closer), as a lens zooms: the
+    image's half-height on the view plane, tan(fov/2), divided by ``factor``. The eye
+    stays, so the clip planes do (moving the eye towards the look-at point would move
+    them: literals of the traced code, a new kernel at every step). ValueError outside
+    :data:`ZOOM_LIMITS`; the registry refuses a fov that is not in (0, 180)."""
     lo, hi = ZOOM_LIMITS
     if isinstance(factor, bool) or not isinstance(factor, (int, float)) \
             or not lo <= factor <= hi:
         raise ValueError(f"zoom: factor must be a number in {lo:g}..{hi:g}, "
                          f"found {factor!r:.40}")
-    offset = _sub(camera.eye, camera.lookat)
-    return _add(camera.lookat, _scale(offset, 1.0 / float(factor)))
+    half = math.tan(math.radians(camera.fov) / 2.0) / float(factor)
+    return math.degrees(2.0 * math.atan(half))

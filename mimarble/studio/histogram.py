@@ -31,6 +31,7 @@ from mimarble.ramp_text import hex_of_linear
 from mimarble.reference import intersection, preparation
 from mimarble.reference.marble import stripe
 from mimarble.scene import MarbleChannel, walk
+from mimarble.scene.key_families import MarbleKeys, material_channels
 
 #: Pixel centres across the long side of the grid t is sampled on.
 GRID = 96
@@ -61,24 +62,29 @@ class Histograms:
 
     def _of(self, scene) -> tuple:
         points, local, names = self._hits(scene)
+        prefixes = {selection[1:]: prefix for _, prefix, selection in MarbleKeys().groups(scene)
+                    if selection[0] == "channel"}
         found = {}                   # marble channel → (labels, mask of the hits using it)
         for index, name in enumerate(names):
             on_material = None
-            for place, channel in _marble_places(scene.materials[name]):
+            for place, channel in material_channels(scene.materials[name]).items():
                 for marble in walk(channel):
                     if not isinstance(marble, MarbleChannel):
                         continue
                     if on_material is None:
                         on_material = local[2] == index
                     labels, mask = found.get(marble, ([], np.zeros(len(points), dtype=bool)))
-                    label = f"{name}.{place}"
+                    label = prefixes.get((name, place), f"{name}.{place}")
                     if label not in labels:
                         labels.append(label)
                     found[marble] = (labels, mask | on_material)
-        out = []
+        out, said = [], {}
         for marble, (labels, mask) in found.items():
             if not mask.any():
                 continue
+            said[tuple(labels)] = said.get(tuple(labels), 0) + 1
+            if said[tuple(labels)] > 1:      # two marbles of one channel (an expression's)
+                labels = [f"{label} ({said[tuple(labels)]})" for label in labels]
             at = local[0][mask] if marble.space == "object" else points[mask]
             out.append(histogram(stripe(at, marble), marble, labels, self.bins))
         return tuple(out)
@@ -108,7 +114,7 @@ class Histograms:
 
 def histogram(t: np.ndarray, marble, labels, bins: int = BINS) -> dict:
     """The JSON-able histogram of ``t`` for ``marble`` (a MarbleChannel): ``label`` (its
-    places, ``MATERIAL.CHANNEL``, joined), ``keys`` (those places), ``bins``, ``counts``
+    places as key-path prefixes, ``stone.diffuse``, joined), ``keys`` (those prefixes), ``bins``, ``counts``
     over [0, 1] (t is in [0, 1] by its formula; clipped against rounding), ``stops``
     (where the ramp's colours sit on t: its positions, else k/(K−1)), ``colors`` (the
     stops' colours as ``#rrggbb``, sRGB-encoded), ``samples`` (points counted) and
@@ -124,15 +130,6 @@ def histogram(t: np.ndarray, marble, labels, bins: int = BINS) -> dict:
             "counts": counts.tolist(), "stops": [float(p) for p in positions],
             "colors": [hex_of_linear(c) for c in ramp], "samples": int(t.size),
             "range": [float(t.min()), float(t.max())] if t.size else None}
-
-
-def _marble_places(material):
-    """(place, channel) of every channel of ``material``: ``ambient``, ``diffuse``,
-    ``specular``, ``subsurface.albedo`` …"""
-    yield from material.channels().items()
-    if material.subsurface is not None:
-        for name, channel in material.subsurface.channels().items():
-            yield f"subsurface.{name}", channel
 
 
 def _without_subsurfaces(scene):

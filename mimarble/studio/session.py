@@ -35,8 +35,10 @@ from pathlib import Path
 from mimarble import scene as scene_language
 from mimarble.runtime import packaged_scenes
 from mimarble.scene.edits import KeyPathError, with_image_size, with_value
-from .camera import orbited_eye, zoomed_eye
+from mimarble.scene.rewrite import SaveRefused, read_scene_text, rewrite, save_atomic
+from .camera import orbited_eye, zoomed_fov
 from .compare import Comparison
+from .controls import controls
 from .frames import FRAME_FORMAT, Frame
 from .worker import RenderThread, Request
 
@@ -307,17 +309,19 @@ class StudioSession:
 
     def orbit(self, dx: float, dy: float) -> int:
         """Turn the eye about the look-at point: ``dx`` degrees about the camera's up
-        axis, ``dy`` degrees of elevation (an edit of ``camera.eye``)."""
+        axis, ``dy`` degrees of elevation (an edit of ``camera.eye``). The loaded scene is
+        edited in place while the clip planes stay (the eye at a constant distance from
+        a sphere scene's shapes); else the new structure is loaded (and compiled)."""
         with self._lock:
             eye = orbited_eye(self._scene.camera, dx, dy)
         return self.edit("camera.eye", eye)
 
     def zoom(self, factor: float) -> int:
-        """The eye's distance to the look-at point divided by ``factor`` (> 1: closer;
-        an edit of ``camera.eye``)."""
+        """Zoom the lens by ``factor`` (> 1: closer): tan(fov/2) divided by it (an edit
+        of ``camera.fov``; the eye stays, mimarble/studio/camera.py says why)."""
         with self._lock:
-            eye = zoomed_eye(self._scene.camera, factor)
-        return self.edit("camera.eye", eye)
+            fov = zoomed_fov(self._scene.camera, factor)
+        return self.edit("camera.fov", fov)
 
     # -- Files written: snapshot, export ---------------------------------------------------
 
@@ -386,10 +390,80 @@ class StudioSession:
     # -- The file --------------------------------------------------------------------------
 
     def _read(self) -> tuple[str, tuple]:
-        """(the file's text, its facts) — SceneError as the parser says it."""
+        """(the file's text exactly, its facts) — SceneError as the parser says it."""
         scene_language.load(self.path)                   # every reading error in its words
-        data = self.path.read_bytes()
-        return data.decode("utf-8"), _facts(self.path)
+        facts = _facts(self.path)
+        try:
+            return read_scene_text(self.path), facts
+        except OSError as e:
+            raise scene_language.SceneError(f"cannot read scene file: {e}",
+                                            filename=str(self.path)) from None
+
+    def controls(self) -> dict:
+        """Every control of the scene as edited now, and of the view: JSON-able
+        (mimarble/studio/controls.py), made from the key registry and the parameter
+        table."""
+        with self._lock:
+            scene, mode = self._scene, self._mode
+        return controls(scene, mode)
+
+    def save(self) -> str:
+        """Write the edits into the scene file, changing only their values' text
+        (``scene.rewrite``: comments, layout, order, every other byte kept), whole or not
+        at all; returns the text written. StudioError (one sentence, nothing written) for
+        a packaged scene (Save as writes a copy), a file that changed on disk since it was
+        loaded (:meth:`reload` first), or an edit the text cannot say."""
+        with self._lock:
+            if self.packaged:
+                raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
+                                  f"to overwrite; use Save as to write a copy")
+            if self._disk_changed:
+                raise StudioError(f"save: {self.path} changed on disk since it was loaded; "
+                                  f"reload it (nothing was written)")
+            text = self._rewritten()
+            try:
+                save_atomic(self.path, text, self._text)
+            except SaveRefused as e:
+                self._disk_changed = True
+                raise StudioError(f"save: {e}") from None
+            except OSError as e:
+                raise StudioError(f"save: {self.path}: {e.strerror or e}") from None
+            self._saved(text)
+        self._emit("state", self.state())
+        return text
+
+    def save_as(self, path) -> str:
+        """Write the scene as edited now to ``path`` (the file's text with the edits
+        written in, whole or not at all); the session then edits that file. Returns the
+        text written; StudioError for a name or folder that cannot be written."""
+        from mimarble.runtime.files import output_name_problem
+        problem = output_name_problem(path)
+        if problem:
+            raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
+        with self._lock:
+            text = self._rewritten()
+            try:
+                save_atomic(path, text, None)
+            except OSError as e:
+                raise StudioError(f"save as: {path}: {e.strerror or e}") from None
+            self.path, self.packaged = Path(path), False
+            self._saved(text)
+        self._emit("state", self.state())
+        return text
+
+    def _rewritten(self) -> str:
+        """The file's text with the edits written in (StudioError: an edit it cannot say)."""
+        try:
+            return rewrite(self._text, self._edits, filename=str(self.path),
+                           source=str(self.path))
+        except (KeyPathError, scene_language.SceneError) as e:
+            raise StudioError(f"save: {e}") from None
+
+    def _saved(self, text: str) -> None:
+        """The file now holds ``text``: it is what the session was loaded from."""
+        self._text, self._stat, self._edits = text, _facts(self.path), {}
+        self._base = scene_language.parse(text, filename=str(self.path), source=str(self.path))
+        self._disk_changed = False
 
     def _watch(self) -> None:
         while not self._watch_stop.wait(WATCH_SECONDS):

@@ -5,12 +5,15 @@ the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
 :data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
 in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, times and
 inode of every image map and mesh file it reads, and the content digest of every mesh
-file the parser read (``Mesh.digest``) — matches a loaded one gets that loaded ``mi.Scene``,
+file the parser read (``Mesh.digest``); also masked: the camera's placement and a point
+light's position and intensity (:data:`_IN_PLACE_OF`) — matches a loaded one gets that
+loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
 ``mi.traverse`` and told to their marble as values the host holds (``Marble.hold``: the
 same decisions, and bits, as a fresh load); anything else is loaded anew (``mi.load_dict``). So repeated renders
 of one scene, and frames that differ only in a marble's scale, period or distortion,
-re-use the loaded scene, its compiled kernels and its recorded passes
+re-use the loaded scene, its compiled kernels and its recorded passes (so do an orbit of
+the camera that keeps its clip planes, and a point light moved or dimmed)
 (mimarble/mitsuba/rendering/replay.py); an edited scene file, image map or mesh file is seen,
 because its new text, file facts or digest make another structure (a file rewritten with
 its old modification time put back has a new change time).
@@ -97,7 +100,8 @@ class LoadedScenes:
             entry = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
         else:
             mitsuba_scene, params, held = entry
-            changed = {name: value for name, value in values.items() if held.get(name) != value}
+            changed = {name: value for name, value in values.items()
+                       if name not in held or _exact(held[name]) != _exact(value)}
             if changed:            # should this raise, the entry stays out: never half-updated
                 try:
                     for name, value in changed.items():
@@ -145,20 +149,38 @@ def forget(mitsuba_scene) -> None:
 
 
 def _structure(scene_dict, digests=()) -> tuple[str, dict, list]:
-    """(the dict with in-place marble values masked and the facts of the files it reads
+    """(the dict with in-place values (:data:`_IN_PLACE_OF`) masked and the facts of the files it reads
     added, and the mesh files' ``digests`` as the parser read them, as JSON; those values
     by traverse key; the files' facts, :func:`_files_read`)."""
     values, masked = {}, {}
     for name, item in scene_dict.items():
-        if isinstance(item, dict) and item.get("type") == "marble":
-            item = dict(item)
-            for key in IN_PLACE:
-                if key in item:
-                    values[f"{name}.{key}"] = item.pop(key)
+        if isinstance(item, dict):
+            for key in _IN_PLACE_OF.get(item.get("type"), ()):
+                if key in item and (key != "intensity" or _rgb(item[key])):
+                    item = dict(item)
+                    value = item.pop(key)
+                    if key == "intensity":         # {"type": "rgb", "value": […]}
+                        item[key] = {"type": "rgb"}
+                        key, value = "intensity.value", value["value"]
+                    values[f"{name}.{key}"] = value
         masked[name] = item
     files = _files_read(scene_dict)
     return json.dumps([masked, files, list(digests)], sort_keys=True, default=_exact), values, \
         files
+
+
+#: What each plugin type of a scene dict has written in place (its traverse key is its
+#: path in the dict): a marble's IN_PLACE values; the camera's placement; a point light's
+#: position and (rgb) intensity — Dr.Jit variables of the loaded scene, not constants of
+#: the traced code. The sensor's clip planes and fov, a light's kind, are structure.
+_IN_PLACE_OF = {"marble": IN_PLACE, "perspective": ("to_world",),
+                "point": ("position", "intensity")}
+
+
+def _rgb(value) -> bool:
+    """Whether ``value`` is an ``rgb`` spectrum dict with a ``value``."""
+    return isinstance(value, dict) and value.get("type") == "rgb" and "value" in value \
+        and len(value) == 2
 
 
 def _exact(item):
