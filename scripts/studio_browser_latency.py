@@ -139,7 +139,8 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, load {os.getloadavg()[0]:.2f}"
 
 
-def measure_studio(driver, session, edits: int, drag_seconds: float, screenshot) -> dict:
+def measure_studio(driver, session, edits: int, drag_seconds: float, screenshot,
+                   structural_edits: bool = True) -> dict:
     from mimarble.studio.server import StudioServer
     with StudioServer(session) as server:
         driver.get(server.url)
@@ -157,7 +158,7 @@ def measure_studio(driver, session, edits: int, drag_seconds: float, screenshot)
                                            period_values(int(drag_seconds * 60)), 1000 / 60)
         wait_final(session)
         structural = []
-        for octaves in (8, 9, 8):       # 12 → 8 (new), 8 → 9 (new), 9 → 8 (recorded before)
+        for octaves in (8, 9, 8) if structural_edits else ():       # 12 → 8 (new), 8 → 9 (new), 9 → 8 (recorded before)
             structural.append(dict(driver.execute_async_script(
                 _STRUCTURAL, "marble.octaves", octaves), octaves=octaves))
             wait_final(session)
@@ -167,7 +168,7 @@ def measure_studio(driver, session, edits: int, drag_seconds: float, screenshot)
             wait_final(session)
             time.sleep(1.0)
             driver.save_screenshot(str(screenshot))
-        return {"one_by_one": summary(one),
+        return {"one_by_one": summary(one), "latencies": [round(x, 1) for x in one],
                 "drag": {**summary(drag["latencies"]),
                          "frames_per_s": round(drag["frames"] / drag["seconds"], 1),
                          "longest_gap_ms": round(drag["longest_gap"], 1)},
@@ -187,7 +188,8 @@ window.__pane = models.find((m) => typeof m.text === "string" && m.text.includes
 if (!window.__slider || !window.__pane) return false;
 window.__changes = [];
 window.__pane.properties.text.change.connect(() => {
-  requestAnimationFrame(() => window.__changes.push(performance.now()));
+  const period = (/data-period="([^"]*)"/.exec(window.__pane.text) || [])[1];
+  requestAnimationFrame(() => window.__changes.push({t: performance.now(), period}));
 });
 return true;
 """
@@ -198,10 +200,11 @@ const out = [];
 let i = 0;
 function next() {
   if (i >= values.length) { done(out); return; }
-  const before = window.__changes.length, t0 = performance.now();
-  window.__slider.value = values[i++];
-  const wait = () => {
-    if (window.__changes.length > before) { out.push(window.__changes[before] - t0); setTimeout(next, pause); }
+  const before = window.__changes.length, t0 = performance.now(), value = values[i++];
+  window.__slider.value = value;
+  const wait = () => {    // the first frame on screen that shows this value
+    const shown = window.__changes.slice(before).find((c) => Number(c.period) === value);
+    if (shown) { out.push(shown.t - t0); setTimeout(next, pause); }
     else setTimeout(wait, 1);
   };
   wait();
@@ -217,7 +220,7 @@ const timer = setInterval(() => {
   if (i < values.length) { window.__slider.value = values[i++]; return; }
   clearInterval(timer);
   const t1 = performance.now();
-  setTimeout(() => done({frames: window.__changes.slice(before).filter((t) => t <= t1).length,
+  setTimeout(() => done({frames: window.__changes.slice(before).filter((c) => c.t <= t1).length,
                          seconds: (t1 - t0) / 1000}), 1500);
 }, interval);
 """
@@ -239,13 +242,20 @@ def measure_panel(driver, session, edits: int, drag_seconds: float) -> dict:
                 html = _img(payload)
                 doc.add_next_tick_callback(lambda: setattr(pane, "object", html))
 
+        def on_slider(event):
+            periods[session.edit("marble.period", event.new)] = event.new
+
         session.subscribe(on_event)
-        slider.param.watch(lambda event: session.edit("marble.period", event.new), "value")
+        slider.param.watch(on_slider, "value")
         return pn.Row(slider, pane)
+
+    periods = {}      # version -> the period it shows: the page finds its edit's frame by it
 
     def _img(frame):
         data = base64.b64encode(frame.image).decode() if frame is not None else ""
-        return f'<img src="data:{frame.mime if frame else "image/png"};base64,{data}">'
+        period = periods.get(frame.version, "") if frame is not None else ""
+        return (f'<img data-period="{period}" '
+                f'src="data:{frame.mime if frame else "image/png"};base64,{data}">')
 
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
@@ -267,7 +277,7 @@ def measure_panel(driver, session, edits: int, drag_seconds: float) -> dict:
         drag = driver.execute_async_script(_PANEL_DRAG, period_values(int(drag_seconds * 60)),
                                            1000 / 60)
         wait_final(session)
-        return {"one_by_one": summary(one),
+        return {"one_by_one": summary(one), "latencies": [round(x, 1) for x in one],
                 "drag": {"frames_per_s": round(drag["frames"] / drag["seconds"], 1)},
                 "version": pn.__version__}
     finally:
@@ -279,6 +289,9 @@ def main(argv=None) -> int:
     parser.add_argument("--edits", type=int, default=60)
     parser.add_argument("--drag-seconds", type=float, default=3.0)
     parser.add_argument("--panel", action="store_true", help="also measure Panel")
+    parser.add_argument("--rounds", type=int, default=1,
+                        help="measure this many times, the studio and Panel taking turns "
+                             "(the machine's load drifts; turns share it alike)")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--screenshot", type=Path)
     args = parser.parse_args(argv)
@@ -296,12 +309,20 @@ def main(argv=None) -> int:
         with StudioSession(SCENE) as session:
             session.edits({"image.width": SIZE, "image.height": SIZE})
             wait_final(session)
-            results["studio"] = measure_studio(driver, session, args.edits, args.drag_seconds,
-                                               args.screenshot)
-            if args.panel:
-                results["panel"] = measure_panel(driver, session, args.edits, args.drag_seconds)
+            for turn in range(args.rounds):
+                last = turn == args.rounds - 1
+                results.setdefault("studio", []).append(measure_studio(
+                    driver, session, args.edits, args.drag_seconds,
+                    args.screenshot if last else None, structural_edits=turn == 0))
+                if args.panel:
+                    results.setdefault("panel", []).append(
+                        measure_panel(driver, session, args.edits, args.drag_seconds))
     finally:
         driver.quit()
+    for name in ("studio", "panel"):
+        if name in results:
+            pooled = [x for run in results[name] for x in run.pop("latencies")]
+            results[f"{name}_pooled"] = summary(pooled)
     results["load_after"] = round(os.getloadavg()[0], 2)
     results["targets"] = TARGETS
     print(json.dumps(results, indent=2))

@@ -57,7 +57,8 @@ class Tab:
     """A websocket client that reads messages on a thread, as a page does."""
 
     def __init__(self, server):
-        self.socket = connect(ws_url(server), origin=own_origin(server), max_size=None)
+        self._connection = connect(ws_url(server), origin=own_origin(server), max_size=None)
+        self.socket = self._connection.__enter__()
         self.messages = []
         self.frames = []
         self.closed = None
@@ -66,7 +67,8 @@ class Tab:
 
     def _read(self):
         try:
-            for data in self.socket:
+            while True:
+                data = self.socket.recv()
                 if isinstance(data, bytes):
                     (length,) = struct.unpack(">I", data[:4])
                     header = json.loads(data[4:4 + length])
@@ -99,7 +101,7 @@ class Tab:
         raise AssertionError(f"no frame of version {version} within {timeout} s")
 
     def close(self):
-        self.socket.close()
+        self._connection.__exit__(None, None, None)
         self._thread.join(5)
 
 
@@ -315,6 +317,7 @@ def test_a_slow_tab_gets_only_the_newest_frame():
 
 
 def test_stopping_leaves_no_thread(tmp_path):
+    before = set(threading.enumerate())
     session = StudioSession(small_scene(tmp_path))
     server = StudioServer(session).start()
     tab = Tab(server)
@@ -322,10 +325,12 @@ def test_stopping_leaves_no_thread(tmp_path):
     server.stop()
     session.close()
     tab.close()
+    def left():
+        return [t.name for t in set(threading.enumerate()) - before
+                if re.match("mimarble-studio", t.name)]
     deadline = time.time() + 10
-    while time.time() < deadline and [t for t in threading.enumerate()
-                                      if re.match("mimarble-studio", t.name)]:
+    while time.time() < deadline and left():
         time.sleep(0.05)
-    assert [t.name for t in threading.enumerate() if t.name.startswith("mimarble-studio")] == []
+    assert left() == []
     with pytest.raises(OSError):
         http.client.HTTPConnection("127.0.0.1", server.port, timeout=5).request("GET", "/")

@@ -47,6 +47,11 @@ STATIC = Path(__file__).resolve().parent / "static"
 #: Each static file's name and its media type: a fixed list, so no request names a file.
 STATIC_TYPES = {"studio.js": "text/javascript; charset=utf-8",
                 "studio.css": "text/css; charset=utf-8"}
+#: The kinds of control whose edit sets that control alone: the other tabs are sent its
+#: value at once (other kinds, and structural edits, send every control).
+_VALUE_KINDS = ("number", "integer", "choice", "boolean", "colour", "vector")
+#: How soon after an edit every tab gets every control's value again (seconds).
+CONTROLS_DELAY = 0.25
 #: The page's Content-Security-Policy: its own scripts and styles only, images from the
 #: frames' blobs, the websocket back to this server; nothing from elsewhere.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
@@ -120,7 +125,8 @@ class StudioServer:
         self._server = None
         self._thread: threading.Thread | None = None
         self._unsubscribe = None
-        self._structural: dict = {}
+        self._kinds: dict = {}
+        self._controls_due = False
 
     # ---- addresses -------------------------------------------------------------------
 
@@ -207,10 +213,23 @@ class StudioServer:
                 client.put(kind, message)
 
     def _send_controls(self) -> None:
-        controls = self.session.controls()
-        self._structural = {c["key"]: c.get("structural", False)
-                            for group in controls["groups"] for c in group["controls"]}
+        self._controls_due = False
+        controls = self._read_controls()
         self._put_all("controls", {"type": "controls", "controls": controls})
+
+    def _read_controls(self) -> dict:
+        """The session's controls, and each key's kind (what an edit of it refreshes)."""
+        controls = self.session.controls()
+        self._kinds = {c["key"]: ("structural" if c.get("structural") else c["kind"])
+                       for group in controls["groups"] for c in group["controls"]}
+        return controls
+
+    def _refresh_controls(self, delay: float) -> None:
+        """Send every tab the controls after ``delay`` seconds, once however many edits
+        ask meanwhile (controls() takes ~2 ms and ~50 kB: not one per slider step)."""
+        if not self._controls_due:
+            self._controls_due = True
+            asyncio.get_running_loop().call_later(delay, self._send_controls)
 
     # ---- the routes --------------------------------------------------------------------
 
@@ -239,9 +258,7 @@ class StudioServer:
         self.clients.add(client)
         pump = asyncio.ensure_future(client.pump())
         try:
-            controls = self.session.controls()
-            self._structural = {c["key"]: c.get("structural", False)
-                                for group in controls["groups"] for c in group["controls"]}
+            controls = self._read_controls()
             client.answer({"type": "hello", "controls": controls, "state": self.session.state(),
                            "limits": {"message_bytes": messages.MAX_MESSAGE_BYTES}})
             frame = self.session.latest_frame()
@@ -290,11 +307,14 @@ class StudioServer:
             client.answer({"type": "invalid", "key": key, "seq": seq, "message": _sentence(e)})
             return
         client.answer({"type": "edited", "key": key, "seq": seq, "version": version})
-        if self._structural.get(key, True):
-            self._send_controls()
-        else:
+        if self._kinds.get(key) in _VALUE_KINDS:
+            # The other tabs' control follows at once; every control (one key may set
+            # others' values: marble.period sets each material's) within a quarter second.
             self._put_all(f"value {key}", {"type": "value", "key": key, "value": value},
                           but=client)
+            self._refresh_controls(CONTROLS_DELAY)
+        else:                    # structural, a ramp: the controls themselves may change
+            self._refresh_controls(0.0)
 
     async def _on_orbit(self, client, message):
         self.session.orbit(message["dx"], message["dy"])

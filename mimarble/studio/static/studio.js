@@ -209,20 +209,29 @@ function renderBanner() {
 function onControls(controls) {
   const list = controls.groups.flatMap((g) => g.controls);
   const order = list.map((c) => c.key + ":" + c.kind).join("|");
+  const before = controlsByKey;
   controlsByKey = Object.fromEntries(list.map((c) => [c.key, c]));
   if (order === keyOrder) {                       // same controls: values only (keeps focus)
-    for (const c of list) setValue(c.key, c.value);
+    for (const c of list) {
+      if (c.kind === "colours") {                 // a ramp's editor is rebuilt when it changed
+        if (!before[c.key] || before[c.key].text !== c.text) setValue(c.key, c.value);
+      } else if (c.kind !== "stop") setValue(c.key, c.value);
+    }
     return;
   }
   keyOrder = order;
   const focused = document.activeElement && document.activeElement.id;
   const box = $("controls");
   box.replaceChildren();
-  for (const group of controls.groups) {
-    const section = el("fieldset", { class: "group" }, el("legend", { text: group.label || group.name }));
-    for (const c of group.controls) section.append(buildControl(c));
+  controls.groups.forEach((group, i) => {
+    // The first group (every marble, or the scene's only one) open; the others folded.
+    const section = el("details", { class: "group", open: i === 0 || group.kind !== "marble" },
+                       el("summary", { text: group.label || group.name }));
+    for (const c of group.controls) {
+      if (c.kind !== "stop") section.append(buildControl(c));   // stops: in the ramp editor
+    }
     box.append(section);
-  }
+  });
   if (focused && $(focused)) $(focused).focus();
   drawHistograms();
 }
@@ -339,74 +348,65 @@ function setValue(key, value) {
   else input.value = valueText(value);
   const typed = $(safeId(key) + "-typed");
   if (typed && typed !== document.activeElement) typed.value = valueText(value);
+  if (typed) clearError(key);
 }
 
 // ---- the ramp editor -----------------------------------------------------------------
 
-// A ramp's value as stops {position (null: evenly spaced), text (the colour as the scene
-// writes it), hex (for the picker)}: a ramp string "p #hex, …", a list of such strings, or
-// [colours, positions].
-function parseRamp(value) {
-  let items = value;
-  if (Array.isArray(value) && value.length === 2 && Array.isArray(value[0]) && Array.isArray(value[0][0])) {
-    return value[0].map((rgb, i) => ({ position: value[1] ? value[1][i] : null, text: rgb.join(" "), hex: hexOf(rgb) }));
-  }
-  if (typeof value === "string") items = value.split(",");
-  return (items || []).map((item) => {
-    if (Array.isArray(item)) return { position: null, text: item.join(" "), hex: hexOf(item.map(Number)) };
-    const words = String(item).replace(/[<>\[\]]/g, " ").trim().split(/\s+/);
-    const hexWord = words.findIndex((w) => w.startsWith("#"));
-    if (hexWord >= 0) {
-      return { position: hexWord === 1 ? Number(words[0]) : null, text: words[hexWord], hex: words[hexWord].toLowerCase() };
+// A ramp control as stops {position, text (the colour exactly as the scene writes it, from
+// the control's text), hex (for the picker)}; its value is {colors, positions, explicit}.
+function parseRamp(c) {
+  const v = c.value || {};
+  const colors = v.colors || [], positions = v.positions || [];
+  const items = String(c.text || "").split(",").map((item) => item.trim());
+  return colors.map((hex, i) => {
+    let text = items.length === colors.length ? items[i] : hex;
+    if (v.explicit) {               // "p r g b" or "p #rrggbb": the colour is what follows p
+      const words = text.split(/\s+/);
+      text = words.length === 4 || words.length === 2 ? words.slice(1).join(" ") : text;
     }
-    const n = words.map(Number);
-    const position = n.length === 4 ? n[0] : null;
-    const rgb = n.slice(-3);
-    return { position, text: words.slice(-3).join(" "), hex: hexOf(rgb) };
+    return { position: positions[i] ?? null, text, hex };
   });
 }
 
-function rampText(stops) {
-  const positioned = stops.some((s) => s.position !== null && s.position !== undefined);
+// Stops as the ramp's value text: positions written when the ramp had them or one moved.
+function rampText(stops, explicit) {
   return stops.map((s, i) => {
-    if (!positioned) return s.text;
+    if (!explicit) return s.text;
     const p = s.position ?? (stops.length > 1 ? i / (stops.length - 1) : 0);
-    return `${+p.toFixed(4)} ${s.text}`;
+    return `${+Number(p).toFixed(4)} ${s.text}`;
   }).join(", ");
 }
 
 function buildRamp(c) {
-  const stops = parseRamp(c.value);
+  const stops = parseRamp(c);
+  const explicit = !!(c.value && c.value.explicit);
   const prefix = c.key.replace(/\.ramp$/, "");
   const name = c.label || c.key;
   const box = el("div", { class: "ramp", "data-ramp": c.key, role: "group", "aria-label": name });
   box.append(el("span", { class: "ramp-title", id: safeId(c.key), tabindex: -1, text: name }));
+  const whole = (list, positioned) => { edit(c.key, rampText(list, positioned)); };
   stops.forEach((stop, i) => {
-    const even = stops.length > 1 ? i / (stops.length - 1) : 0;
     const position = el("input", { type: "number", min: 0, max: 1, step: 0.01, class: "position",
-                                   value: +(stop.position ?? even).toFixed(4),
+                                   value: +Number(stop.position ?? 0).toFixed(4),
                                    "aria-label": `${name} stop ${i} position` });
     const picker = el("input", { type: "color", value: stop.hex, "aria-label": `${name} stop ${i} colour` });
     const remove = el("button", { type: "button", class: "remove", text: "−",
                                   "aria-label": `${name}: remove stop ${i}`, disabled: stops.length <= 1 });
-    position.addEventListener("change", () => edit(`${c.key}.${i}`, `${position.value} ${stop.text}`));
-    picker.addEventListener("input", () => { stop.text = picker.value; edit(`${c.key}.${i}`, picker.value); });
-    remove.addEventListener("click", () => {
-      const rest = stops.filter((_, j) => j !== i);
-      c.value = rampText(rest);
-      edit(c.key, c.value);
-      box.replaceWith(buildRamp(c));
+    // A moved stop: the whole ramp with every position (the scene says all or none).
+    position.addEventListener("change", () => {
+      const list = stops.map((s, j) => (j === i ? { ...s, position: Number(position.value) } : s));
+      whole(list, true);
     });
+    // A new colour: that stop alone (its key X.ramp.N), the other stops' text untouched.
+    picker.addEventListener("input", () => edit(`${c.key}.${i}`, picker.value));
+    remove.addEventListener("click", () => whole(stops.filter((_, j) => j !== i), explicit));
     box.append(el("div", { class: "stop" }, position, picker, remove));
   });
   const add = el("button", { type: "button", class: "add", text: "+ colour", "aria-label": `${name}: add a colour` });
   add.addEventListener("click", () => {
     const last = stops[stops.length - 1];
-    const more = stops.concat([{ position: stops.some((s) => s.position != null) ? 1 : null,
-                                 text: last ? last.text : "#ffffff", hex: last ? last.hex : "#ffffff" }]);
-    c.value = rampText(more);
-    edit(c.key, c.value);
-    box.replaceWith(buildRamp(c));
+    whole(stops.concat([{ position: 1, text: last ? last.text : "#ffffff", hex: last ? last.hex : "#ffffff" }]), explicit);
   });
   box.append(add);
   box.append(el("canvas", { class: "histogram", width: 280, height: 70, "data-prefix": prefix,
