@@ -13,7 +13,7 @@
 
 const token = document.querySelector('meta[name="mimarble-token"]').content;
 const studio = window.studio = {
-  latencies: [], frames: [], problems: [], longestGap: 0, connected: false,
+  latencies: [], frames: [], problems: [], done: [], longestGap: 0, connected: false,
   version: 0, compilingSeen: false, state: null,
   resetGap() { this.longestGap = 0; },
   edit: (key, value) => edit(key, value),        // for scripts: as a control would
@@ -108,7 +108,7 @@ function onMessage(m) {
       showError(m.key, m.message);
       break;
     }
-    case "done": say(m.message); break;
+    case "done": studio.done.push(m); say(m.message); break;
     case "reload": say("the scene was reloaded from its file"); break;
     case "problem": onProblem(m); break;
     case "pong": break;
