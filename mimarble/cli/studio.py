@@ -34,8 +34,9 @@ def _studio(args) -> int:
                              f"{e.strerror or e}") from None
         server.start()
         try:
-            _say(f"mimarble studio: {path}\n    {server.url}\n"
-                 f"open that URL (it holds the page's token); Ctrl-C stops the studio")
+            _say(f"mimarble studio: {path}")
+            _say(f"    {server.url}")
+            _say("open that URL (it holds the page's token); Ctrl-C stops the studio", flush=True)
             if not args.no_browser:
                 _open_browser(server.url)
             stop = threading.Event()
@@ -56,7 +57,7 @@ def _open_browser(url: str) -> None:
     ``webbrowser`` would start a text browser in this terminal, over the server's output."""
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                  or os.environ.get("WAYLAND_DISPLAY")):
-        _say("(no display: open the URL in a browser yourself)")
+        _say("(no display: open the URL in a browser yourself)", flush=True)
         return
     import webbrowser
     threading.Thread(target=webbrowser.open, args=(url,), daemon=True,

@@ -1,0 +1,146 @@
+"""``mimarble studio`` (issue 41 item 1) and ``mimarble.studio(scene)`` in a notebook (item 7):
+the URL with its token printed, the page served, Ctrl-C → one line and exit status 0 with
+nothing left running; bad arguments and a bad scene answered in one sentence (exit 2);
+the missing extra named.
+"""
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+
+import pytest
+
+pytest.importorskip("uvicorn", reason="the studio extra is not installed")
+
+from mimarble.runtime import extras, packaged_scenes  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+#: Straight to the server: an http_proxy in the environment must not carry these requests.
+OPENER = urllib.request.build_opener(urllib.request.ProxyHandler({}))
+
+
+def small_scene(folder):
+    text = packaged_scenes.find("fig11a").read_text()
+    path = folder / "small.scene"
+    path.write_text(text.replace("width 500 height 500 samples 4", "width 32 height 32 samples 1"))
+    return path
+
+
+def start(*args):
+    env = dict(os.environ, PYTHONPATH=ROOT, PYTHONUNBUFFERED="1")
+    env.pop("DISPLAY", None)
+    return subprocess.Popen([sys.executable, "-m", "mimarble", "studio", *map(str, args)],
+                            cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def read_url(process, timeout=240.0):
+    deadline = time.time() + timeout
+    lines = []
+    while time.time() < deadline:
+        line = process.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        found = re.search(r"http://\S+\?token=\S+", line)
+        if found:
+            return found.group(0), lines
+    process.kill()
+    raise AssertionError(f"no URL printed: {lines} {process.stderr.read()}")
+
+
+def test_the_command_prints_its_url_serves_the_page_and_stops_on_ctrl_c(tmp_path):
+    process = start(small_scene(tmp_path), "--no-browser")
+    try:
+        url, _ = read_url(process)
+        assert url.startswith("http://127.0.0.1:")
+        token = url.split("token=")[1]
+        assert len(token) >= 43
+        with OPENER.open(url, timeout=30) as response:
+            assert response.status == 200 and b"mimarble studio" in response.read()
+        with pytest.raises(urllib.error.HTTPError) as refused:
+            OPENER.open(url.split("?")[0], timeout=30)
+        assert refused.value.code == 403
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, err
+    assert err.strip().splitlines() == ["mimarble: studio stopped"]
+    port = int(url.split(":")[2].split("/")[0])
+    with socket.socket() as probe:                     # nothing listens any more
+        assert probe.connect_ex(("127.0.0.1", port)) != 0
+
+
+def test_another_host_is_warned_about(tmp_path):
+    process = start(small_scene(tmp_path), "--no-browser", "--host", "0.0.0.0")
+    try:
+        read_url(process)
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert "mimarble: warning: --host 0.0.0.0: the studio is reachable from other machines" in err
+    assert process.returncode == 0
+
+
+def test_a_bad_scene_and_a_taken_port_are_one_sentence(tmp_path):
+    bad = tmp_path / "bad.scene"
+    bad.write_text("camera {\n  foo\n")
+    result = subprocess.run([sys.executable, "-m", "mimarble", "studio", str(bad), "--no-browser"],
+                            cwd=ROOT, capture_output=True, text=True, timeout=120,
+                            env=dict(os.environ, PYTHONPATH=ROOT))
+    assert result.returncode == 2 and result.stderr.startswith(f"{bad}:2:3:")
+    assert "Traceback" not in result.stderr
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        result = subprocess.run([sys.executable, "-m", "mimarble", "studio",
+                                 str(small_scene(tmp_path)), "--no-browser", "--port", str(port)],
+                                cwd=ROOT, capture_output=True, text=True, timeout=240,
+                                env=dict(os.environ, PYTHONPATH=ROOT))
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == [
+        f"mimarble: cannot listen on 127.0.0.1:{port}: Address already in use"]
+    result = subprocess.run([sys.executable, "-m", "mimarble", "studio", "x.scene", "--port",
+                             "70000"], cwd=ROOT, capture_output=True, text=True, timeout=60,
+                            env=dict(os.environ, PYTHONPATH=ROOT))
+    assert result.returncode == 2 and "a port lies in 0..65535" in result.stderr
+
+
+def test_without_the_extra_the_studio_says_how_to_install_it(monkeypatch):
+    real = extras.importlib.import_module
+
+    def without_uvicorn(name, *args):
+        if name == "uvicorn":
+            raise ImportError("No module named 'uvicorn'")
+        return real(name, *args)
+    monkeypatch.setattr(extras.importlib, "import_module", without_uvicorn)
+    sentence = extras.missing_extra("studio")
+    assert sentence == ("the marble studio's pages (mimarble studio, mimarble.studio) need "
+                        "the 'studio' extra: pip install 'mimarble[studio]'")
+    import mimarble
+    with pytest.raises(extras.MissingExtra, match=r"pip install 'mimarble\[studio\]'"):
+        mimarble.studio("fig11a")
+
+
+def test_the_notebooks_studio_is_an_iframe_of_the_same_page(tmp_path):
+    import mimarble
+    view = mimarble.studio(small_scene(tmp_path))
+    try:
+        html = view._repr_html_()
+        assert html.startswith("<iframe") and view.url.replace("&", "&amp;") in html
+        with OPENER.open(view.url, timeout=30) as response:
+            assert b'src="/static/studio.js' in response.read()
+    finally:
+        view.close()
+    assert "closed" in view._repr_html_()
