@@ -55,13 +55,17 @@ window.__drive = (key, value) => {
 
 _ONE_BY_ONE = _DRIVE + """
 const [key, values, pause, done] = arguments;
-const s = window.studio, start = s.latencies.length;
-let i = 0;
+const s = window.studio, out = [];
+let i = 0, lost = 0;
 function next() {
-  if (i >= values.length) { done(s.latencies.slice(start)); return; }
-  const before = s.latencies.length;
+  if (i >= values.length) { done({latencies: out, lost}); return; }
+  const before = s.latencies.length, t0 = performance.now();
   window.__drive(key, values[i++]);
-  const wait = () => (s.latencies.length > before ? setTimeout(next, pause) : setTimeout(wait, 1));
+  const wait = () => {
+    if (s.latencies.length > before) { out.push(s.latencies[before]); setTimeout(next, pause); }
+    else if (performance.now() - t0 > 10000) { lost++; setTimeout(next, pause); }   // never shown
+    else setTimeout(wait, 1);
+  };
   wait();
 }
 next();
@@ -122,6 +126,16 @@ def period_values(n: int) -> list:
             for i in range(1, n + 1)]
 
 
+def in_chunks(driver, script, values, *key, size=10, pause_ms=50) -> dict:
+    """``script`` over ``values`` ten at a time (each call well within Selenium's timeout)."""
+    total = {"latencies": [], "lost": 0}
+    for start in range(0, len(values), size):
+        part = driver.execute_async_script(script, *key, values[start:start + size], pause_ms)
+        total["latencies"] += part["latencies"]
+        total["lost"] += part["lost"]
+    return total
+
+
 def wait_final(session, timeout: float = 300.0):
     version = session.state()["version"]
     return session.wait_frame(version, final=True, timeout=timeout)
@@ -152,7 +166,7 @@ def measure_studio(driver, session, edits: int, drag_seconds: float, screenshot,
             time.sleep(0.05)
         wait_final(session)
         time.sleep(0.5)
-        one = driver.execute_async_script(_ONE_BY_ONE, "marble.period", period_values(edits), 50)
+        one = in_chunks(driver, _ONE_BY_ONE, period_values(edits), "marble.period")
         wait_final(session)
         drag = driver.execute_async_script(_DRAG, "marble.period",
                                            period_values(int(drag_seconds * 60)), 1000 / 60)
@@ -168,7 +182,8 @@ def measure_studio(driver, session, edits: int, drag_seconds: float, screenshot,
             wait_final(session)
             time.sleep(1.0)
             driver.save_screenshot(str(screenshot))
-        return {"one_by_one": summary(one), "latencies": [round(x, 1) for x in one],
+        return {"one_by_one": dict(summary(one["latencies"]), lost=one["lost"]),
+                "latencies": [round(x, 1) for x in one["latencies"]],
                 "drag": {**summary(drag["latencies"]),
                          "frames_per_s": round(drag["frames"] / drag["seconds"], 1),
                          "longest_gap_ms": round(drag["longest_gap"], 1)},
@@ -197,14 +212,15 @@ return true;
 _PANEL_ONE_BY_ONE = """
 const [values, pause, done] = arguments;
 const out = [];
-let i = 0;
+let i = 0, lost = 0;
 function next() {
-  if (i >= values.length) { done(out); return; }
+  if (i >= values.length) { done({latencies: out, lost}); return; }
   const before = window.__changes.length, t0 = performance.now(), value = values[i++];
   window.__slider.value = value;
   const wait = () => {    // the first frame on screen that shows this value
     const shown = window.__changes.slice(before).find((c) => Number(c.period) === value);
     if (shown) { out.push(shown.t - t0); setTimeout(next, pause); }
+    else if (performance.now() - t0 > 10000) { lost++; setTimeout(next, pause); }
     else setTimeout(wait, 1);
   };
   wait();
@@ -272,12 +288,13 @@ def measure_panel(driver, session, edits: int, drag_seconds: float) -> dict:
                 raise RuntimeError("Panel's page did not show its slider and image")
             time.sleep(0.1)
         wait_final(session)
-        one = driver.execute_async_script(_PANEL_ONE_BY_ONE, period_values(edits), 50)
+        one = in_chunks(driver, _PANEL_ONE_BY_ONE, period_values(edits))
         wait_final(session)
         drag = driver.execute_async_script(_PANEL_DRAG, period_values(int(drag_seconds * 60)),
                                            1000 / 60)
         wait_final(session)
-        return {"one_by_one": summary(one), "latencies": [round(x, 1) for x in one],
+        return {"one_by_one": dict(summary(one["latencies"]), lost=one["lost"]),
+                "latencies": [round(x, 1) for x in one["latencies"]],
                 "drag": {"frames_per_s": round(drag["frames"] / drag["seconds"], 1)},
                 "version": pn.__version__}
     finally:
