@@ -203,7 +203,7 @@ window.__pane = models.find((m) => typeof m.text === "string" && m.text.includes
 if (!window.__slider || !window.__pane) return false;
 window.__changes = [];
 window.__pane.properties.text.change.connect(() => {
-  const period = (/data-period="([^"]*)"/.exec(window.__pane.text) || [])[1];
+  const period = (/data-period=(?:"|&quot;)([^"&]*)/.exec(window.__pane.text) || [])[1];
   requestAnimationFrame(() => window.__changes.push({t: performance.now(), period}));
 });
 return true;
@@ -248,20 +248,26 @@ def measure_panel(driver, session, edits: int, drag_seconds: float) -> dict:
     import panel as pn
 
     def app():
-        doc = pn.state.curdoc
         slider = pn.widgets.FloatSlider(name="period", start=0.5, end=3.0, step=0.01, value=1.3)
         frame = session.latest_frame()
         pane = pn.pane.HTML(_img(frame), width=SIZE, height=SIZE)
 
-        def on_event(kind, payload):
-            if kind == "frame":
-                html = _img(payload)
-                doc.add_next_tick_callback(lambda: setattr(pane, "object", html))
+        # A frame from the render thread reaches the document through a periodic callback
+        # on the server's own loop (Panel's way for data made by another thread; a
+        # next-tick callback from the render thread was not flushed until the next event).
+        shown = {"frame": None}
+
+        def show_newest():
+            newest = session.latest_frame()
+            if newest is not None and newest is not shown["frame"]:
+                shown["frame"] = newest
+                pane.object = _img(newest)
+
+        pn.state.add_periodic_callback(show_newest, period=5)
 
         def on_slider(event):
             periods[session.edit("marble.period", event.new)] = event.new
 
-        session.subscribe(on_event)
         slider.param.watch(on_slider, "value")
         return pn.Row(slider, pane)
 
