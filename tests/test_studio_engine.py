@@ -43,7 +43,10 @@ SMALL = {"image.width": 48, "image.height": 48}
 
 
 def _session(scene="fig11a", **options):
+    """A session of ``scene`` at 48²; refinement held off unless ``idle_s`` says (a test
+    that reads a version's first frame would otherwise race a refinement's)."""
     options.setdefault("watch", False)
+    options.setdefault("idle_s", 3600.0)
     session = StudioSession(scene, **options)
     session.edits(SMALL)
     return session
@@ -149,11 +152,11 @@ def test_path_refinement_converges_as_a_render_does():
 
 def test_structural_edit_compiles_once(session, monkeypatch):
     from mimarble.mitsuba.rendering import loaded_scenes, passes
+    session.wait_frame()                      # the state before: loaded and rendered
     loads = []
     original = loaded_scenes.mi.load_dict
     monkeypatch.setattr(loaded_scenes.mi, "load_dict",
                         lambda d, *a, **k: (loads.append(1), original(d, *a, **k))[1])
-    session.wait_frame()
     statuses = []
     session.subscribe(lambda kind, p: statuses.append(p["compiling"]) if kind == "state" else None)
     session.wait_frame(session.edit("marble.octaves", 9))       # a new structure: loaded
@@ -261,7 +264,15 @@ def test_close_leaves_no_thread():
     assert _studio_threads() == []
 
 
-def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit(session):
+def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit():
+    session = _session(idle_s=0.05)           # the compare waits for the final frame
+    try:
+        _compare(session)
+    finally:
+        session.close()
+
+
+def _compare(session):
     results = []
     session.subscribe(lambda kind, p: results.append(p) if kind == "compare" else None)
     session.compare()
