@@ -83,6 +83,12 @@ def test_a_bad_value_keeps_the_last_valid_one(session):
         session.edit("marble.octaves", 1000)
     with pytest.raises(KeyPathError, match="mode"):
         session.edit("mode", "raytrace")
+    with pytest.raises(KeyPathError, match="image.width: width must be in 16..2048"):
+        session.edit("image.width", 16384)         # refused before anything is allocated
+    with pytest.raises(KeyPathError, match="unknown key"):
+        session.edit("marble.glitter", 1.0)
+    with pytest.raises(KeyPathError, match="scale"):
+        session.edit("marble.scale", {"not": "a number"})
     with pytest.raises(KeyPathError):          # all or nothing: the good one is not kept
         session.edits({"marble.period": 3.0, "marble.distortion": float("nan")})
     state = session.state()
@@ -404,3 +410,25 @@ def test_controls_come_from_the_registry_and_the_table(session):
     session.edit("marble.period", 2.5)
     after = {c["key"]: c for g in session.controls()["groups"] for c in g["controls"]}
     assert after["marble.period"]["value"] == 2.5
+
+
+def test_a_state_that_cannot_render_is_said_and_undone():
+    s = _session("fig11a-translucent")
+    try:
+        assert s.state()["mode"] == "path"            # translucent: whitted refuses it
+        good = s.wait_frame()
+        s.edit("mode", "whitted")
+        deadline = time.monotonic() + 60
+        while s.state()["error"] is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        state = s.state()
+        assert state["error"]["kind"] == "render" and "subsurface" in state["error"]["message"]
+        frame = s.wait_frame(state["version"])          # the last good state, again
+        assert s.state()["mode"] == "path" and frame.mode == "path"
+        assert np.array_equal(frame.pixels, good.pixels)
+        assert s.state()["error"] is not None           # said until the next edit
+        s.edit("marble.period", 1.5)
+        assert s.state()["error"] is None
+    finally:
+        s.close()
