@@ -41,6 +41,7 @@ os.environ["DRJIT_CACHE_DIR"] = tempfile.mkdtemp(prefix="studio-latency-cache-")
 import numpy as np  # noqa: E402
 
 import mimarble  # noqa: E402
+from mimarble.runtime.files import write_json  # noqa: E402
 from mimarble.runtime.machine import machine_facts, machine_line  # noqa: E402
 from mimarble.studio import StudioSession  # noqa: E402
 from mimarble.studio.frames import encode  # noqa: E402
@@ -165,8 +166,7 @@ def main() -> None:
                                            text=True).stdout.strip()
     print(json.dumps(results, indent=2))
     if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=2)
+        write_json(results, args.json)
 
 
 if __name__ == "__main__":

@@ -43,7 +43,10 @@ SMALL = {"image.width": 48, "image.height": 48}
 
 
 def _session(scene="fig11a", **options):
+    """A session of ``scene`` at 48²; refinement held off unless ``idle_s`` says (a test
+    that reads a version's first frame would otherwise race a refinement's)."""
     options.setdefault("watch", False)
+    options.setdefault("idle_s", 3600.0)
     session = StudioSession(scene, **options)
     session.edits(SMALL)
     return session
@@ -80,6 +83,12 @@ def test_a_bad_value_keeps_the_last_valid_one(session):
         session.edit("marble.octaves", 1000)
     with pytest.raises(KeyPathError, match="mode"):
         session.edit("mode", "raytrace")
+    with pytest.raises(KeyPathError, match="image.width: width must be in 16..2048"):
+        session.edit("image.width", 16384)         # refused before anything is allocated
+    with pytest.raises(KeyPathError, match="unknown key"):
+        session.edit("marble.glitter", 1.0)
+    with pytest.raises(KeyPathError, match="scale"):
+        session.edit("marble.scale", {"not": "a number"})
     with pytest.raises(KeyPathError):          # all or nothing: the good one is not kept
         session.edits({"marble.period": 3.0, "marble.distortion": float("nan")})
     state = session.state()
@@ -149,11 +158,11 @@ def test_path_refinement_converges_as_a_render_does():
 
 def test_structural_edit_compiles_once(session, monkeypatch):
     from mimarble.mitsuba.rendering import loaded_scenes, passes
+    session.wait_frame()                      # the state before: loaded and rendered
     loads = []
     original = loaded_scenes.mi.load_dict
     monkeypatch.setattr(loaded_scenes.mi, "load_dict",
                         lambda d, *a, **k: (loads.append(1), original(d, *a, **k))[1])
-    session.wait_frame()
     statuses = []
     session.subscribe(lambda kind, p: statuses.append(p["compiling"]) if kind == "state" else None)
     session.wait_frame(session.edit("marble.octaves", 9))       # a new structure: loaded
@@ -261,7 +270,15 @@ def test_close_leaves_no_thread():
     assert _studio_threads() == []
 
 
-def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit(session):
+def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit():
+    session = _session(idle_s=0.05)           # the compare waits for the final frame
+    try:
+        _compare(session)
+    finally:
+        session.close()
+
+
+def _compare(session):
     results = []
     session.subscribe(lambda kind, p: results.append(p) if kind == "compare" else None)
     session.compare()
@@ -393,3 +410,25 @@ def test_controls_come_from_the_registry_and_the_table(session):
     session.edit("marble.period", 2.5)
     after = {c["key"]: c for g in session.controls()["groups"] for c in g["controls"]}
     assert after["marble.period"]["value"] == 2.5
+
+
+def test_a_state_that_cannot_render_is_said_and_undone():
+    s = _session("fig11a-translucent")
+    try:
+        assert s.state()["mode"] == "path"            # translucent: whitted refuses it
+        good = s.wait_frame()
+        s.edit("mode", "whitted")
+        deadline = time.monotonic() + 60
+        while s.state()["error"] is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        state = s.state()
+        assert state["error"]["kind"] == "render" and "subsurface" in state["error"]["message"]
+        frame = s.wait_frame(state["version"])          # the last good state, again
+        assert s.state()["mode"] == "path" and frame.mode == "path"
+        assert np.array_equal(frame.pixels, good.pixels)
+        assert s.state()["error"] is not None           # said until the next edit
+        s.edit("marble.period", 1.5)
+        assert s.state()["error"] is None
+    finally:
+        s.close()

@@ -48,15 +48,18 @@ from mimarble.ramp_text import hex_of_linear
 from mimarble.scene.key_families import MarbleKeys, evenly_spaced
 from mimarble.scene.key_values import COLOUR, VECTOR
 from mimarble.scene.keys import scene_keys
-from mimarble.scene.limits import IMAGE_SIZE
 
 #: The view's rows: the modes the studio renders in, the image's width and height.
 MODE = Parameter("mode", CHOICE, "whitted", choices=("whitted", "path"),
                  doc="whitted: the paper's ray tracer (point lights, no secondary rays); "
                      "path: Mitsuba's path tracer (translucent marble, soft light).")
-WIDTH = Parameter("width", INTEGER, None, bounds=IMAGE_SIZE, slider=(64, 1024),
+#: The sizes the view may be set to: a frame's float64 sums are 24 bytes a pixel, so
+#: 2048² holds 100 MB (a scene file's own size is rendered as it is; only the view's
+#: edits are held to this, checked before anything is allocated).
+VIEW_SIZE = (16, 2048)
+WIDTH = Parameter("width", INTEGER, None, bounds=VIEW_SIZE, slider=(64, 1024),
                   doc="The image's width in pixels (the view: not saved).")
-HEIGHT = Parameter("height", INTEGER, None, bounds=IMAGE_SIZE, slider=(64, 1024),
+HEIGHT = Parameter("height", INTEGER, None, bounds=VIEW_SIZE, slider=(64, 1024),
                    doc="The image's height in pixels (the view: not saved).")
 
 

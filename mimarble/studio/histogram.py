@@ -114,11 +114,11 @@ class Histograms:
 
 def histogram(t: np.ndarray, marble, labels, bins: int = BINS) -> dict:
     """The JSON-able histogram of ``t`` for ``marble`` (a MarbleChannel): ``label`` (its
-    places as key-path prefixes, ``stone.diffuse``, joined), ``keys`` (those prefixes), ``bins``, ``counts``
-    over [0, 1] (t is in [0, 1] by its formula; clipped against rounding), ``stops``
-    (where the ramp's colours sit on t: its positions, else k/(K−1)), ``colors`` (the
-    stops' colours as ``#rrggbb``, sRGB-encoded), ``samples`` (points counted) and
-    ``range`` (t's least and largest value)."""
+    places as key-path prefixes, ``stone.diffuse``, joined), ``keys`` (those prefixes),
+    ``bins``, ``counts`` over [0, 1] (t is in [0, 1] by its formula; clipped against
+    rounding), ``stops`` (where the ramp's colours sit on t: its positions, else
+    k/(K−1)), ``colors`` (the stops' colours as ``#rrggbb``, sRGB-encoded), ``samples``
+    (points counted) and ``range`` (t's least and largest value)."""
     t = np.clip(np.asarray(t, dtype=np.float64), 0.0, 1.0)
     counts = np.histogram(t, bins=bins, range=(0.0, 1.0))[0]
     ramp = tuple(marble.ramp)

@@ -33,12 +33,13 @@ import time
 from pathlib import Path
 
 from mimarble import scene as scene_language
+from mimarble.parameters import ParameterError
 from mimarble.runtime import packaged_scenes
 from mimarble.scene.edits import KeyPathError, with_image_size, with_value
 from mimarble.scene.rewrite import SaveRefused, read_scene_text, rewrite, save_atomic
 from .camera import orbited_eye, zoomed_fov
 from .compare import Comparison
-from .controls import controls
+from .controls import HEIGHT, WIDTH, controls
 from .frames import FRAME_FORMAT, Frame
 from .worker import RenderThread, Request
 
@@ -163,9 +164,6 @@ class StudioSession:
                 if payload.version == self._version:
                     self._shown = (self._scene, self._mode)
                 self._status = {"compiling": False, "rendering": not payload.final}
-                if payload.version == self._version and self._error is not None \
-                        and self._error.get("kind") == "render":
-                    self._error = None
                 self._frame_ready.notify_all()
             self._emit("frame", payload)
         elif kind == "histograms":
@@ -276,12 +274,16 @@ class StudioSession:
             kept = dict(self._edits)
             for key, value in changes.items():
                 if key == "mode":
-                    if value not in MODES:
+                    if not isinstance(value, str) or value not in MODES:
                         raise KeyPathError(f"mode: {value!r:.40} is not one of "
                                            f"{', '.join(MODES)}")
                     mode = value
                 elif key in ("image.width", "image.height"):
-                    view[key] = value
+                    row = WIDTH if key == "image.width" else HEIGHT
+                    try:
+                        view[key] = row.check(value, text=True)
+                    except ParameterError as e:
+                        raise KeyPathError(f"{key}: {e}") from None
                     try:
                         scene = with_image_size(scene, width=view.get("image.width"),
                                                 height=view.get("image.height"))
@@ -292,6 +294,8 @@ class StudioSession:
                     kept.pop(key, None)                # the latest value last
                     kept[key] = value
             self._scene, self._mode, self._view, self._edits = scene, mode, view, kept
+            if self._error is not None and self._error["kind"] == "render":
+                self._error = None         # said until the next edit
             return self._submit()
 
     def _submit(self) -> int:

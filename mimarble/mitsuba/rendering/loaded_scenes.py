@@ -25,7 +25,7 @@ import json
 import os
 
 from mimarble.runtime import environment
-from mimarble.parameters import IN_PLACE
+from mimarble.parameters import IN_PLACE, single_precision
 from mimarble.mitsuba.plugins.sphere_hit import SphereTable
 from mimarble.mitsuba.translate.scene_dict import checked_samples, to_mitsuba
 
@@ -163,6 +163,10 @@ def _structure(scene_dict, digests=()) -> tuple[str, dict, list]:
                         item[key] = {"type": "rgb"}
                         key, value = "intensity.value", value["value"]
                     values[f"{name}.{key}"] = value
+            if item.get("type") == "perspective" and not _double_precision():
+                # The clip planes as the sensor holds them (ScalarFloat: float32): an orbit's
+                # eye, rotated in float64, moves them in their 16th digit, not their float32.
+                item = {**item, **{k: single_precision(item[k]) for k in _CLIPS if k in item}}
         masked[name] = item
     files = _files_read(scene_dict)
     return json.dumps([masked, files, list(digests)], sort_keys=True, default=_exact), values, \
@@ -175,6 +179,15 @@ def _structure(scene_dict, digests=()) -> tuple[str, dict, list]:
 #: the traced code. The sensor's clip planes and fov, a light's kind, are structure.
 _IN_PLACE_OF = {"marble": IN_PLACE, "perspective": ("to_world",),
                 "point": ("position", "intensity")}
+
+
+#: The sensor's clip planes: structure (literals of the traced code), compared as it holds them.
+_CLIPS = ("near_clip", "far_clip")
+
+
+def _double_precision() -> bool:
+    """Whether the variant holds scalars in double precision (``*_double``)."""
+    return "double" in mi.variant()
 
 
 def _rgb(value) -> bool:
