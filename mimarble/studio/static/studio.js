@@ -294,7 +294,7 @@ function buildControl(c) {
       const box = el("input", { type: "checkbox", id });
       box.checked = !!c.value;
       box.addEventListener("change", () => edit(c.key, box.checked));
-      row.append(box, label);
+      row.append(label, box);
       break;
     }
     case "colour": {
