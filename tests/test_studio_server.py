@@ -334,3 +334,61 @@ def test_stopping_leaves_no_thread(tmp_path):
     assert left() == []
     with pytest.raises(OSError):
         http.client.HTTPConnection("127.0.0.1", server.port, timeout=5).request("GET", "/")
+
+
+# ---- the buttons: snapshot, export, save as, compare ----------------------------------------
+
+
+def test_snapshot_export_and_save_as_write_the_files_the_user_names(studio, tmp_path):
+    tab = Tab(studio)
+    try:
+        tab.wait(lambda m: m["type"] == "hello")
+        for kind, path, extra in (("snapshot", tmp_path / "shot.png", {}),
+                                  ("export", tmp_path / "scene.xml", {}),
+                                  ("export", tmp_path / "scene.py", {"python": True})):
+            tab.send({"type": kind, "path": str(path), **extra})
+            done = tab.wait(lambda m: m["type"] == "done" and str(path) in m["message"],
+                            what=f"{kind} done")
+            assert done["action"] == kind and path.stat().st_size > 0
+        assert (tmp_path / "shot.png").read_bytes()[:4] == b"\x89PNG"
+        assert "<scene" in (tmp_path / "scene.xml").read_text()
+        tab.send({"type": "snapshot", "path": str(tmp_path / "no-such-folder" / "x.png")})
+        problem = tab.wait(lambda m: m["type"] == "problem" and m["action"] == "snapshot")
+        assert "\n" not in problem["message"]
+        assert not (tmp_path / "no-such-folder").exists()
+    finally:
+        tab.close()
+
+
+def test_save_as_writes_a_copy_relative_to_the_scene_and_the_session_follows_it(tmp_path):
+    session = StudioSession(small_scene(tmp_path))
+    server = StudioServer(session).start()
+    tab = Tab(server)
+    try:
+        tab.wait(lambda m: m["type"] == "hello")
+        tab.send({"type": "edit", "key": "marble.distortion", "value": 2.25, "seq": 1})
+        tab.wait(lambda m: m["type"] == "edited")
+        tab.send({"type": "save_as", "path": "copy.scene"})
+        tab.wait(lambda m: m["type"] == "done" and m["action"] == "save_as", what="saved as")
+        copy = tmp_path / "copy.scene"
+        assert "distortion 2.25" in copy.read_text()
+        assert "distortion 2.25" not in (tmp_path / "small.scene").read_text()
+        assert session.state()["path"] == str(copy)
+    finally:
+        tab.close()
+        server.stop()
+        session.close()
+
+
+def test_compare_shows_the_difference_and_psnr(studio):
+    tab = Tab(studio)
+    try:
+        tab.wait(lambda m: m["type"] == "hello")
+        tab.send({"type": "compare"})
+        tab.wait(lambda m: m["type"] == "done" and m["action"] == "compare")
+        result = tab.wait(lambda m: m["type"] == "compare", timeout=300, what="the compare")
+        assert result["status"] == "done", result
+        assert result["psnr"] > 100                 # whitted against the float64 reference
+        assert result["image_bytes"] > 0            # the difference image came with it
+    finally:
+        tab.close()

@@ -40,6 +40,7 @@ from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from mimarble.studio import messages
+from mimarble.studio.session import StudioError
 from mimarble.studio.guard import LOOPBACK_NAMES, Guard, host_names, new_token
 
 #: The page's files, read from the package (the only files a request can get).
@@ -296,7 +297,7 @@ class StudioServer:
             await getattr(self, f"_on_{kind}")(client, message)
         except Exception as e:                     # the server outlives any message
             client.answer({"type": "problem", "action": kind, "message": _sentence(e)})
-            if not isinstance(e, (ValueError, OSError, TypeError, KeyError)):
+            if not isinstance(e, (StudioError, ValueError, OSError, TypeError, KeyError)):
                 print(f"mimarble studio: {kind}: {type(e).__name__}: {e}", file=sys.stderr)
 
     async def _on_edit(self, client, message):

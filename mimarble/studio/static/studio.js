@@ -178,6 +178,7 @@ function onCompare(header, blob) {
   $("compare-figures").textContent = header.status === "done"
     ? `PSNR ${f(header.psnr, 2)} dB, RMSE ${f(header.rmse, 6)}, max ${f(header.max_abs, 5)} (${f(header.seconds, 1)} s)`
     : `compare ${header.status}` + (header.message ? `: ${header.message}` : "");
+  if (header.note) $("compare-figures").textContent += ` — ${header.note}`;
   if (blob.size) $("compare-image").src = URL.createObjectURL(blob);
 }
 
