@@ -169,6 +169,10 @@ function onState(s) {
     showBanner("parse", `${e.where || ""}: ${e.message}` + (e.hint ? ` — ${e.hint}` : "") +
                " (the last good render stays)");
   } else hideBanner("parse");
+  if (s.disk_changed) {
+    showBanner("disk", "The scene file changed on disk while you had unsaved edits (Save refuses).",
+               "Reload from disk (drops the edits)", () => send({ type: "reload" }));
+  } else hideBanner("disk");
   if (s.compare === "running") say("rendering the float64 reference…");
 }
 
