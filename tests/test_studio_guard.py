@@ -156,3 +156,20 @@ def test_a_frame_message_carries_its_header_and_image():
     (length,) = struct.unpack(">I", data[:4])
     assert json.loads(data[4:4 + length]) == {"type": "frame", "version": 7}
     assert data[4 + length:] == b"\x89PNG..."
+
+
+def test_the_page_and_the_server_name_no_parameter():
+    """Controls come from the engine's controls() (the parameter table): no parameter's name
+    is written in the page's files or the server as a string of its own."""
+    from pathlib import Path
+
+    from mimarble.parameters import PARAMETERS
+    folder = Path(messages.__file__).parent
+    texts = {path.name: path.read_text() for path in
+             [folder / "server.py", folder / "messages.py", *(folder / "static").iterdir()]}
+    assert {"studio.js", "index.html", "studio.css", "server.py"} <= set(texts)
+    for parameter in PARAMETERS:
+        for quoted in (f'"{parameter.name}"', f"'{parameter.name}'", f"`{parameter.name}`",
+                       f'"marble.{parameter.name}"'):
+            found = [name for name, text in texts.items() if quoted in text]
+            assert found == [], f"{quoted} written in {found}"
