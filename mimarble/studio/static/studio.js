@@ -388,7 +388,7 @@ function buildRamp(c) {
   const explicit = !!(c.value && c.value.explicit);
   const prefix = c.key.replace(/\.ramp$/, "");
   const name = c.label || c.key;
-  const box = el("div", { class: "ramp", "data-ramp": c.key, role: "group", "aria-label": name });
+  const box = el("div", { class: "ramp-editor", "data-ramp": c.key, role: "group", "aria-label": name });
   box.append(el("span", { class: "ramp-title", id: safeId(c.key), tabindex: -1, text: name }));
   const whole = (list, positioned) => { edit(c.key, rampText(list, positioned)); };
   stops.forEach((stop, i) => {
