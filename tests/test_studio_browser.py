@@ -166,6 +166,45 @@ def test_the_file_edited_on_disk_reloads_and_a_parse_error_is_shown(studio, scen
     wait(driver, "return document.getElementById('banner').hidden", what="the banner gone")
 
 
+def test_a_stop_colour_picked_edits_that_stop_and_the_histogram_is_drawn(studio):
+    driver, server, session = studio
+    picker = driver.find_element("css selector", f"[aria-label='{KEY.replace('period', 'ramp')} stop 0 colour']")
+    driver.execute_script("arguments[0].value = '#0000ff';"
+                          "arguments[0].dispatchEvent(new Event('input', {bubbles: true}))", picker)
+    deadline = time.time() + 30
+    while session.edits_made.get("marble.ramp.0") != "#0000ff" and time.time() < deadline:
+        time.sleep(0.05)
+    assert session.edits_made.get("marble.ramp.0") == "#0000ff"
+    # the histogram of t under the ramp: bars drawn above the ramp's gradient strip
+    painted = wait(driver, """
+        const c = document.querySelector("canvas.histogram[data-prefix='marble']");
+        if (!c) return 0;
+        const d = c.getContext('2d').getImageData(0, 0, c.width, c.height - 12).data;
+        let n = 0; for (let i = 3; i < d.length; i += 4) if (d[i] > 0) n++;
+        return n;""", what="the histogram drawn")
+    assert painted > 100
+
+
+def test_dragging_the_image_orbits_and_the_wheel_zooms(studio):
+    from selenium.webdriver.common.action_chains import ActionChains
+    driver, server, session = studio
+    camera = session.scene.camera
+    image = driver.find_element("id", "frame")
+    ActionChains(driver).move_to_element(image).click_and_hold().move_by_offset(60, 0) \
+        .move_by_offset(60, 10).release().perform()
+    deadline = time.time() + 30
+    while session.scene.camera == camera and time.time() < deadline:
+        time.sleep(0.05)
+    orbited = session.scene.camera
+    assert orbited != camera
+    driver.execute_script("arguments[0].dispatchEvent(new WheelEvent('wheel', "
+                          "{deltaY: -200, bubbles: true, cancelable: true}))", image)
+    deadline = time.time() + 30
+    while session.scene.camera == orbited and time.time() < deadline:
+        time.sleep(0.05)
+    assert session.scene.camera != orbited
+
+
 def test_the_browser_console_has_no_errors(studio):
     driver, _, _ = studio
     from mimarble.studio.headless import console_errors

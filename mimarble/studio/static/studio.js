@@ -280,9 +280,10 @@ function buildControl(c) {
       });
       typed.addEventListener("change", () => {
         const text = typed.value.trim();
+        if (text === "") return;                  // an emptied box is no value yet
         const number = Number(text);
-        if (text !== "" && Number.isFinite(number)) slider.value = number;
-        edit(c.key, text !== "" && Number.isFinite(number) ? number : text);
+        if (Number.isFinite(number)) slider.value = number;
+        edit(c.key, Number.isFinite(number) ? number : text);
       });
       row.append(label, slider, typed);
       break;
