@@ -46,12 +46,16 @@ class Key:
     group: str
     parameter: Parameter
     value: object
-    text: str
     stop: int | None = None
     count: int = 1
     #: The family that knows the key, and what the key names in the scene (its own form).
     family: KeyFamily = dataclasses.field(default=None, compare=False, repr=False)
     target: object = dataclasses.field(default=None, compare=False, repr=False)
+
+    @property
+    def text(self) -> str:
+        """The current value in the value syntax (key_values.py): what ``--set`` takes."""
+        return current_text(self.parameter, self.value, self.stop)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -82,6 +86,10 @@ class KeyFamily:
         """Where the value of ``key`` stands in the text ``scene`` was parsed from."""
         raise NotImplementedError
 
+    def find(self, scene, path: str) -> Key | None:
+        """The key ``path`` of ``scene``, or None (:meth:`keys`, searched)."""
+        return next((key for key in self.keys(scene) if key.path == path), None)
+
     def written(self, key: Key, value: Value) -> str:
         """The text a value is written as at its place."""
         return value.text
@@ -101,8 +109,7 @@ class KeyFamily:
         return [f"{prefix}.{'|'.join(names)}" for prefix, names in groups.items()]
 
     def _key(self, path, group, parameter, value, stop=None, count=1, target=None) -> Key:
-        return Key(path, group, parameter, value, current_text(parameter, value, stop), stop,
-                   count, self, target)
+        return Key(path, group, parameter, value, stop, count, self, target)
 
 
 def _replaced(node, **changes):
@@ -210,20 +217,34 @@ class MarbleKeys(KeyFamily):
 
     def keys(self, scene):
         for group, prefix, selection in self.groups(scene):
-            marbles = self.selected(scene, selection)
-            if not marbles:
-                continue
-            first, count = marbles[0], len(marbles)
-            for p in self.ROWS:
-                yield self._key(f"{prefix}.{p.name}", group, p, getattr(first, p.name),
-                                count=count, target=selection)
-            yield self._key(f"{prefix}.ramp", group, self.RAMP,
-                            (first.ramp, first.ramp_positions), count=count, target=selection)
-            for n in range(min(len(m.ramp) for m in marbles)):
-                position = None if first.ramp_positions is None else first.ramp_positions[n]
-                yield self._key(f"{prefix}.ramp.{n}", group, self.RAMP,
-                                (position, first.ramp[n]), stop=n, count=count,
-                                target=selection)
+            yield from self.group_keys(scene, group, prefix, selection)
+
+    def find(self, scene, path):
+        # Only the groups whose prefix the path starts with are listed (a sweep's frames
+        # each look up their keys: 10 000 frames).
+        for group, prefix, selection in self.groups(scene):
+            if path.startswith(prefix + "."):
+                for key in self.group_keys(scene, group, prefix, selection):
+                    if key.path == path:
+                        return key
+        return None
+
+    def group_keys(self, scene, group, prefix, selection):
+        """The keys of one group (none when it holds no marble)."""
+        marbles = self.selected(scene, selection)
+        if not marbles:
+            return
+        first, count = marbles[0], len(marbles)
+        for p in self.ROWS:
+            yield self._key(f"{prefix}.{p.name}", group, p, getattr(first, p.name),
+                            count=count, target=selection)
+        yield self._key(f"{prefix}.ramp", group, self.RAMP,
+                        (first.ramp, first.ramp_positions), count=count, target=selection)
+        for n in range(min(len(m.ramp) for m in marbles)):
+            position = None if first.ramp_positions is None else first.ramp_positions[n]
+            yield self._key(f"{prefix}.ramp.{n}", group, self.RAMP,
+                            (position, first.ramp[n]), stop=n, count=count,
+                            target=selection)
 
     def change(self, key: Key, value: Value):
         """The marble → marble change of ``key`` set to ``value``."""

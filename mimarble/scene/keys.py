@@ -40,10 +40,12 @@ def scene_keys(scene) -> dict[str, Key]:
 def key_of(scene, path: str) -> Key:
     """The key ``path`` of ``scene``; :class:`KeyPathError` (one sentence: the scene's keys
     in short, grouped, and the closest one) when it has none."""
+    if isinstance(path, str):
+        for family in FAMILIES:           # the first family's, as scene_keys keeps it
+            key = family.find(scene, path)
+            if key is not None:
+                return key
     keys = scene_keys(scene)
-    key = keys.get(path) if isinstance(path, str) else None
-    if key is not None:
-        return key
     import difflib
     from .rules import shortened
     shown = shortened(repr(path), 60) if not isinstance(path, str) else shortened(path, 60)
