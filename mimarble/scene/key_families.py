@@ -112,11 +112,6 @@ class KeyFamily:
         return Key(path, group, parameter, value, stop, count, self, target)
 
 
-def _replaced(node, **changes):
-    """``dataclasses.replace`` keeping the node's source (a field with ``init``)."""
-    return dataclasses.replace(node, **changes)
-
-
 # ---------------------------------------------------------------------------
 # Marbles
 
@@ -169,11 +164,11 @@ def _rebuilt(channel, change, memo: dict):
         w = channel.weight if isinstance(channel.weight, float) else \
             _rebuilt(channel.weight, change, memo)
         if a is not channel.a or b is not channel.b or w is not channel.weight:
-            out = _replaced(channel, a=a, b=b, weight=w)
+            out = dataclasses.replace(channel, a=a, b=b, weight=w)
     elif isinstance(channel, EXPRESSIONS):
         operands = tuple(_rebuilt(c, change, memo) for c in channel.operands)
         if any(x is not y for x, y in zip(operands, channel.operands)):
-            out = _replaced(channel, operands=operands)
+            out = dataclasses.replace(channel, operands=operands)
     memo[id(channel)] = (channel, out)          # the channel kept alive: its id stays its own
     return out
 
@@ -250,10 +245,10 @@ class MarbleKeys(KeyFamily):
         """The marble → marble change of ``key`` set to ``value``."""
         name = key.parameter.name
         if name != "ramp":
-            return lambda m: _replaced(m, **{name: value.value})
+            return lambda m: dataclasses.replace(m, **{name: value.value})
         if key.stop is None:
             colours, positions = value.value
-            return lambda m: _replaced(m, ramp=colours, ramp_positions=positions)
+            return lambda m: dataclasses.replace(m, ramp=colours, ramp_positions=positions)
         n, (position, rgb) = key.stop, value.value
 
         def stop(m):
@@ -270,7 +265,7 @@ class MarbleKeys(KeyFamily):
                 if problem:
                     raise KeyPathError(f"{key.path}: {problem[1]}")
                 positions = tuple(positions)
-            return _replaced(m, ramp=colours, ramp_positions=positions)
+            return dataclasses.replace(m, ramp=colours, ramp_positions=positions)
         return stop
 
     def apply(self, scene, key: Key, value: Value):
@@ -297,8 +292,8 @@ class MarbleKeys(KeyFamily):
                 inside = {k: _rebuilt(c, each, memo)
                           for k, c in material.subsurface.channels().items()
                           if wanted in (None, k)}
-                own["subsurface"] = _replaced(material.subsurface, **inside)
-            materials[name] = _replaced(material, **own)
+                own["subsurface"] = dataclasses.replace(material.subsurface, **inside)
+            materials[name] = dataclasses.replace(material, **own)
         return dataclasses.replace(scene, materials=FrozenMap(materials), textures=textures)
 
     def places(self, scene, key: Key) -> list[Place]:
@@ -374,7 +369,7 @@ class CameraKeys(KeyFamily):
             yield self._key(f"camera.{p.name}", "camera", p, getattr(scene.camera, p.name))
 
     def apply(self, scene, key, value):
-        return dataclasses.replace(scene, camera=_replaced(scene.camera, **{
+        return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, **{
             key.parameter.name: value.value}))
 
     def places(self, scene, key):
@@ -382,8 +377,8 @@ class CameraKeys(KeyFamily):
 
 
 class LightKeys(KeyFamily):
-    """``light.N.intensity`` (its colour, grey), ``light.N.color``, ``light.N.position``:
-    light N of the file, from 0."""
+    """``light.N.intensity`` (its colour as one grey; its value: the colour's mean),
+    ``light.N.color``, ``light.N.position``: light N of the file, from 0."""
 
     ROWS = (INTENSITY, COLOR, POSITION)
 
@@ -397,7 +392,7 @@ class LightKeys(KeyFamily):
         lights = list(scene.lights)
         name = key.parameter.name
         held = (value.value,) * 3 if name == "intensity" else value.value
-        lights[key.target] = _replaced(lights[key.target], **{
+        lights[key.target] = dataclasses.replace(lights[key.target], **{
             "color" if name == "intensity" else name: held})
         return dataclasses.replace(scene, lights=tuple(lights))
 
@@ -432,7 +427,7 @@ class ImageKeys(KeyFamily):
             samples_per_axis(value.value)
         except ValueError as e:
             raise KeyPathError(f"{key.path}: {e}") from None
-        return dataclasses.replace(scene, image=_replaced(scene.image, samples=value.value))
+        return dataclasses.replace(scene, image=dataclasses.replace(scene.image, samples=value.value))
 
     def places(self, scene, key):
         return [Place(scene.image.source, "samples", "image")]
