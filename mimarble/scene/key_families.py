@@ -427,7 +427,8 @@ class ImageKeys(KeyFamily):
             samples_per_axis(value.value)
         except ValueError as e:
             raise KeyPathError(f"{key.path}: {e}") from None
-        return dataclasses.replace(scene, image=dataclasses.replace(scene.image, samples=value.value))
+        image = dataclasses.replace(scene.image, samples=value.value)
+        return dataclasses.replace(scene, image=image)
 
     def places(self, scene, key):
         return [Place(scene.image.source, "samples", "image")]
