@@ -173,6 +173,10 @@ def _rebuilt(channel, change, memo: dict):
     return out
 
 
+#: Groups of a kind (textures, materials) named in an unknown key's sentence at most.
+SHOWN = 8
+
+
 class MarbleKeys(KeyFamily):
     """``marble.K`` (every marble, in expressions, named textures and subsurfaces too),
     ``TEXTURE.K`` (a named texture's marbles, wherever it is used), ``MATERIAL.K`` and
@@ -330,7 +334,8 @@ class MarbleKeys(KeyFamily):
                 kind = key.group.split(" ", 1)[0] if key.group != "every marble" else ""
                 prefixes.setdefault(kind, []).append(f"{prefix}.K")
         rows = ", ".join(p.name for p in self.ROWS)
-        return [(f"{kind} " if kind else "") + ", ".join(names)
+        return [(f"{kind} " if kind else "") + ", ".join(names[:SHOWN]) +
+                (f" and {len(names) - SHOWN} more" if len(names) > SHOWN else "")
                 for kind, names in prefixes.items()] + \
             [f"K: {rows}, ramp (whole) or ramp.N (stop N)"] * bool(prefixes)
 

@@ -55,6 +55,9 @@ def rewrite(text: str, edits, filename: str = "<string>", source: str | None = N
     messages; ``source``: the file's path, where its meshes and image maps are found.
     SceneError when ``text`` does not parse; KeyPathError for an unknown key, a value it
     cannot take, or an edit the text cannot say alone."""
+    if not isinstance(text, str):
+        raise TypeError(f"rewrite: the scene text must be str (read_scene_text reads a "
+                        f"file's), found {type(text).__name__}")
     edits = dict(edits)
     if len(edits) > MAX_EDITS:
         raise KeyPathError(f"{len(edits)} edits at once; a save writes at most {MAX_EDITS}")
