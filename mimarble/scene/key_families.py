@@ -72,7 +72,27 @@ class Place:
 
 
 class KeyFamily:
-    """A family of keys. Subclasses give :meth:`keys`, :meth:`apply` and :meth:`places`."""
+    """A family of keys. Subclasses give :meth:`keys`, :meth:`apply` and :meth:`places`;
+    a new family — the environment's ``environment.intensity``, say — is::
+
+        class EnvironmentKeys(KeyFamily):
+            ROW = Parameter("intensity", NUMBER, 1.0, at_least=0.0, doc="…")
+
+            def keys(self, scene):
+                if scene.environment is not None:
+                    yield self._key("environment.intensity", "environment", self.ROW,
+                                    scene.environment.intensity)
+
+            def apply(self, scene, key, value):
+                return dataclasses.replace(scene, environment=dataclasses.replace(
+                    scene.environment, intensity=value.value))
+
+            def places(self, scene, key):
+                return [Place(scene.environment.source, "intensity")]
+
+    and one entry in ``keys.FAMILIES``; its builder gives the node
+    ``source=source_of(st, f)`` (build_values.py), and its model class a ``source`` field
+    (``_source()``, nodes.py), as the camera's."""
 
     def keys(self, scene) -> Iterator[Key]:
         """Every key of this family that ``scene`` has."""
