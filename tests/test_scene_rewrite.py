@@ -133,6 +133,10 @@ def test_ramps_keep_their_layout():
     # a stop whose value is as it was keeps its text (< 0 0 0 > is 0 0 0)
     assert rewrite(text, {"m.ramp": "0 #fefefe, 0.5 #808080, 1 0 0 0"}) == \
         text.replace("< 1 1 1 >", "#fefefe")
+    unplaced = rewrite(text, {"m.ramp": "#ffffff, #808080, 0 0 0"})       # positions gone
+    assert unplaced == text.replace("0   < 1 1 1 >", "< 1 1 1 >").replace(
+        "0.5 #808080", "#808080").replace("1   < 0 0 0 >", "< 0 0 0 >")
+    assert parse(unplaced) == with_value(parse(text), "m.ramp", "#ffffff, #808080, 0 0 0")
     three_to_two = rewrite(text, {"m.ramp": "#ffffff, #000000"})
     assert three_to_two == text.replace(
         "0   < 1 1 1 >\n        0.5 #808080\n        1   < 0 0 0 >",
