@@ -80,6 +80,14 @@ class Preset:
     written: dict[str, Any]
 
 
+def _checked(parameter, value, context: str):
+    """``value`` checked by its row of the parameter table, or a :class:`PresetError`."""
+    try:
+        return checked(parameter, value, context)
+    except ParameterError as e:
+        raise PresetError(str(e)) from None
+
+
 def _entry(name: str, table, where: str) -> Preset:
     """One table of the file as a :class:`Preset`, every value checked by its row."""
     context = f"{where}: [{name}]"
@@ -110,19 +118,17 @@ def _entry(name: str, table, where: str) -> Preset:
                 colours, positions = parse_positioned_ramp(table[row], row)
             except ParameterError as e:
                 raise PresetError(f"{context}: {e}") from None
-            values[row] = checked(p, colours, context)
+            values[row] = _checked(p, colours, context)
             if positions is not None:
                 if "ramp_positions" in table:
                     raise PresetError(f"{context}: give the ramp's positions in the ramp "
                                       f"string or in ramp_positions, not both")
-                values["ramp_positions"] = positions
+                values["ramp_positions"] = _checked(BY_NAME["ramp_positions"], positions,
+                                                    context)
         elif row == "ramp_positions" and row in values:
             continue
         else:
-            try:
-                values[row] = checked(p, table[row], context)
-            except ParameterError as e:
-                raise PresetError(str(e)) from None
+            values[row] = _checked(p, table[row], context)
     problem = ramp_count_problem(values.get("ramp", BY_NAME["ramp"].default),
                                  values.get("ramp_positions"))
     if problem:
