@@ -94,6 +94,10 @@ POVRAY_HINTS: dict[str, str] = {
     "global_settings": "the ambient light is the statement ambient < r g b >; there are no "
                        "other global settings",
     "background": "the background is in the image statement: image { background < r g b > }",
+    # textures.inc's marbles: presets of the marble library (mimarble/presets.toml).
+    **{name: f"POV-Ray's {name} (textures.inc) is a preset here: marble {{ preset "
+             f"\"{name.lower()}\" }} (docs/presets.md)"
+       for name in ("White_Marble", "Red_Marble", "Blood_Marble", "Jade")},
 }
 
 #: The channels, in the sentences that expect one.
