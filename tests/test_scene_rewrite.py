@@ -185,3 +185,15 @@ def test_save_is_atomic_and_refuses_a_file_changed_on_disk(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.scene"]   # no temporary left
     save_atomic(tmp_path / "new.scene", "camera { fov 50 }\n", None)   # "Save as"
     assert (tmp_path / "new.scene").read_text() == "camera { fov 50 }\n"
+
+
+def test_a_preset_marble_gets_the_preset_values_it_did_not_write():
+    """A value a preset gives is not in the block: an edit writes it after the preset (which
+    comes first); a stop of the preset's ramp writes the preset's ramp with that stop."""
+    text = 'material "m" { diffuse { marble { preset "carrara" period 1.5 } } }\n' \
+           'sphere { material "m" }\n'
+    scene = parse(text)
+    for key, value in (("m.scale", 3), ("m.ramp.1", "#ffffff"), ("m.ramp", "#ffffff, #000000")):
+        new = rewrite(text, {key: value})
+        assert new.startswith('material "m" { diffuse { marble { preset "carrara" period 1.5 ')
+        assert parse(new) == with_value(scene, key, value), key

@@ -28,10 +28,9 @@ import os
 import stat
 import tempfile
 
-from mimarble.parameters import FIG5_RAMP
 from .comments import blanked
 from .key_families import MarbleKeys, Place, evenly_spaced
-from .key_values import KeyPathError, Value, number_text, read
+from .key_values import KeyPathError, Value, number_text, read, vector_text
 from .keys import key_of, with_value
 from .limits import MAX_SCENE_BYTES
 from .parser import parse
@@ -180,9 +179,8 @@ class _Text:
                for k, rgb in enumerate(marble.ramp)]
         texts = [(self.body[p[0]:p[1]] if p else None, self.body[c[0]:c[1]])
                  for p, c in source.stops]
-        if "ramp" not in source.values:           # the default ramp, unwritten
-            texts = [(None, "< " + " ".join(number_text(x) for x in rgb) + " >")
-                     for rgb in FIG5_RAMP]
+        if "ramp" not in source.values:           # unwritten: the default's, or a preset's
+            texts = [(None if p is None else number_text(p), vector_text(rgb)) for p, rgb in old]
         if key.stop is None:
             new = list(zip(value.value[1] or [None] * len(value.value[0]), value.value[0]))
             new_texts = list(value.stops)
