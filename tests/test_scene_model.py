@@ -266,6 +266,7 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
         "area": "{ radius 1 }", "axis1": "<1 0 0> axis2 <0 1 0>", "axis2": "<0 1 0> axis1 <1 0 0>",
         "material": '"m"',
         "transform": "{ }", "translate": "<1 0 0>", "rotate": "<0 0 90>", "space": "object",
+        "preset": '"jade"',
         "point": "<0 0 0>", "normal": "<0 0 1>", "min": "<0 0 0>", "max": "<1 1 1>",
         "file": f'"{tmp_path / "a.obj"}"',
         "subsurface": "{ albedo color <1 1 1> mean_free_path 1 }",

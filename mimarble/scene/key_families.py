@@ -46,12 +46,16 @@ class Key:
     group: str
     parameter: Parameter
     value: object
-    text: str
     stop: int | None = None
     count: int = 1
     #: The family that knows the key, and what the key names in the scene (its own form).
     family: KeyFamily = dataclasses.field(default=None, compare=False, repr=False)
     target: object = dataclasses.field(default=None, compare=False, repr=False)
+
+    @property
+    def text(self) -> str:
+        """The current value in the value syntax (key_values.py): what ``--set`` takes."""
+        return current_text(self.parameter, self.value, self.stop)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -68,7 +72,27 @@ class Place:
 
 
 class KeyFamily:
-    """A family of keys. Subclasses give :meth:`keys`, :meth:`apply` and :meth:`places`."""
+    """A family of keys. Subclasses give :meth:`keys`, :meth:`apply` and :meth:`places`;
+    a new family — the environment's ``environment.intensity``, say — is::
+
+        class EnvironmentKeys(KeyFamily):
+            ROW = Parameter("intensity", NUMBER, 1.0, at_least=0.0, doc="…")
+
+            def keys(self, scene):
+                if scene.environment is not None:
+                    yield self._key("environment.intensity", "environment", self.ROW,
+                                    scene.environment.intensity)
+
+            def apply(self, scene, key, value):
+                return dataclasses.replace(scene, environment=dataclasses.replace(
+                    scene.environment, intensity=value.value))
+
+            def places(self, scene, key):
+                return [Place(scene.environment.source, "intensity")]
+
+    and one entry in ``keys.FAMILIES``; its builder gives the node
+    ``source=source_of(st, f)`` (build_values.py), and its model class a ``source`` field
+    (``_source()``, nodes.py), as the camera's."""
 
     def keys(self, scene) -> Iterator[Key]:
         """Every key of this family that ``scene`` has."""
@@ -81,6 +105,10 @@ class KeyFamily:
     def places(self, scene, key: Key) -> list[Place]:
         """Where the value of ``key`` stands in the text ``scene`` was parsed from."""
         raise NotImplementedError
+
+    def find(self, scene, path: str) -> Key | None:
+        """The key ``path`` of ``scene``, or None (:meth:`keys`, searched)."""
+        return next((key for key in self.keys(scene) if key.path == path), None)
 
     def written(self, key: Key, value: Value) -> str:
         """The text a value is written as at its place."""
@@ -101,13 +129,7 @@ class KeyFamily:
         return [f"{prefix}.{'|'.join(names)}" for prefix, names in groups.items()]
 
     def _key(self, path, group, parameter, value, stop=None, count=1, target=None) -> Key:
-        return Key(path, group, parameter, value, current_text(parameter, value, stop), stop,
-                   count, self, target)
-
-
-def _replaced(node, **changes):
-    """``dataclasses.replace`` keeping the node's source (a field with ``init``)."""
-    return dataclasses.replace(node, **changes)
+        return Key(path, group, parameter, value, stop, count, self, target)
 
 
 # ---------------------------------------------------------------------------
@@ -162,13 +184,17 @@ def _rebuilt(channel, change, memo: dict):
         w = channel.weight if isinstance(channel.weight, float) else \
             _rebuilt(channel.weight, change, memo)
         if a is not channel.a or b is not channel.b or w is not channel.weight:
-            out = _replaced(channel, a=a, b=b, weight=w)
+            out = dataclasses.replace(channel, a=a, b=b, weight=w)
     elif isinstance(channel, EXPRESSIONS):
         operands = tuple(_rebuilt(c, change, memo) for c in channel.operands)
         if any(x is not y for x, y in zip(operands, channel.operands)):
-            out = _replaced(channel, operands=operands)
+            out = dataclasses.replace(channel, operands=operands)
     memo[id(channel)] = (channel, out)          # the channel kept alive: its id stays its own
     return out
+
+
+#: Groups of a kind (textures, materials) named in an unknown key's sentence at most.
+SHOWN = 8
 
 
 class MarbleKeys(KeyFamily):
@@ -210,29 +236,43 @@ class MarbleKeys(KeyFamily):
 
     def keys(self, scene):
         for group, prefix, selection in self.groups(scene):
-            marbles = self.selected(scene, selection)
-            if not marbles:
-                continue
-            first, count = marbles[0], len(marbles)
-            for p in self.ROWS:
-                yield self._key(f"{prefix}.{p.name}", group, p, getattr(first, p.name),
-                                count=count, target=selection)
-            yield self._key(f"{prefix}.ramp", group, self.RAMP,
-                            (first.ramp, first.ramp_positions), count=count, target=selection)
-            for n in range(min(len(m.ramp) for m in marbles)):
-                position = None if first.ramp_positions is None else first.ramp_positions[n]
-                yield self._key(f"{prefix}.ramp.{n}", group, self.RAMP,
-                                (position, first.ramp[n]), stop=n, count=count,
-                                target=selection)
+            yield from self.group_keys(scene, group, prefix, selection)
+
+    def find(self, scene, path):
+        # Only the groups whose prefix the path starts with are listed (a sweep's frames
+        # each look up their keys: 10 000 frames).
+        for group, prefix, selection in self.groups(scene):
+            if path.startswith(prefix + "."):
+                for key in self.group_keys(scene, group, prefix, selection):
+                    if key.path == path:
+                        return key
+        return None
+
+    def group_keys(self, scene, group, prefix, selection):
+        """The keys of one group (none when it holds no marble)."""
+        marbles = self.selected(scene, selection)
+        if not marbles:
+            return
+        first, count = marbles[0], len(marbles)
+        for p in self.ROWS:
+            yield self._key(f"{prefix}.{p.name}", group, p, getattr(first, p.name),
+                            count=count, target=selection)
+        yield self._key(f"{prefix}.ramp", group, self.RAMP,
+                        (first.ramp, first.ramp_positions), count=count, target=selection)
+        for n in range(min(len(m.ramp) for m in marbles)):
+            position = None if first.ramp_positions is None else first.ramp_positions[n]
+            yield self._key(f"{prefix}.ramp.{n}", group, self.RAMP,
+                            (position, first.ramp[n]), stop=n, count=count,
+                            target=selection)
 
     def change(self, key: Key, value: Value):
         """The marble → marble change of ``key`` set to ``value``."""
         name = key.parameter.name
         if name != "ramp":
-            return lambda m: _replaced(m, **{name: value.value})
+            return lambda m: dataclasses.replace(m, **{name: value.value})
         if key.stop is None:
             colours, positions = value.value
-            return lambda m: _replaced(m, ramp=colours, ramp_positions=positions)
+            return lambda m: dataclasses.replace(m, ramp=colours, ramp_positions=positions)
         n, (position, rgb) = key.stop, value.value
 
         def stop(m):
@@ -249,7 +289,7 @@ class MarbleKeys(KeyFamily):
                 if problem:
                     raise KeyPathError(f"{key.path}: {problem[1]}")
                 positions = tuple(positions)
-            return _replaced(m, ramp=colours, ramp_positions=positions)
+            return dataclasses.replace(m, ramp=colours, ramp_positions=positions)
         return stop
 
     def apply(self, scene, key: Key, value: Value):
@@ -276,8 +316,8 @@ class MarbleKeys(KeyFamily):
                 inside = {k: _rebuilt(c, each, memo)
                           for k, c in material.subsurface.channels().items()
                           if wanted in (None, k)}
-                own["subsurface"] = _replaced(material.subsurface, **inside)
-            materials[name] = _replaced(material, **own)
+                own["subsurface"] = dataclasses.replace(material.subsurface, **inside)
+            materials[name] = dataclasses.replace(material, **own)
         return dataclasses.replace(scene, materials=FrozenMap(materials), textures=textures)
 
     def places(self, scene, key: Key) -> list[Place]:
@@ -314,7 +354,8 @@ class MarbleKeys(KeyFamily):
                 kind = key.group.split(" ", 1)[0] if key.group != "every marble" else ""
                 prefixes.setdefault(kind, []).append(f"{prefix}.K")
         rows = ", ".join(p.name for p in self.ROWS)
-        return [(f"{kind} " if kind else "") + ", ".join(names)
+        return [(f"{kind} " if kind else "") + ", ".join(names[:SHOWN]) +
+                (f" and {len(names) - SHOWN} more" if len(names) > SHOWN else "")
                 for kind, names in prefixes.items()] + \
             [f"K: {rows}, ramp (whole) or ramp.N (stop N)"] * bool(prefixes)
 
@@ -329,18 +370,33 @@ def evenly_spaced(count: int) -> tuple:
 
 _CAMERA, _LIGHT, _IMAGE = Camera(), Light((0.0, 0.0, 0.0)), Image()
 
+
+@dataclasses.dataclass(frozen=True)
+class KeyRow(Parameter):
+    """A row for a key that is no marble parameter: the table's fields, and the kinds
+    ``vector`` and ``colour`` said in words too."""
+
+    @property
+    def requirement(self) -> str:
+        if self.kind == VECTOR:
+            return "must be three finite numbers 'x y z'"
+        if self.kind == COLOUR:
+            return "must be a colour '#rrggbb' or 'r g b', each component ≥ 0"
+        return super().requirement
+
+
 #: The rows of the keys that are no marble's: declared here, once.
-FOV = Parameter("fov", NUMBER, _CAMERA.fov, above=0.0, below=180.0,
-                doc="The camera's full vertical field of view, in degrees.")
-EYE = Parameter("eye", VECTOR, _CAMERA.eye, doc="Where the camera is.")
-LOOKAT = Parameter("lookat", VECTOR, _CAMERA.lookat, doc="The point seen at the image's centre.")
-UP = Parameter("up", VECTOR, _CAMERA.up, doc="The camera's up direction, not along the view.")
-INTENSITY = Parameter("intensity", NUMBER, 1.0, at_least=0.0,
-                      doc="A light's colour as one grey level (r = g = b).")
-COLOR = Parameter("color", COLOUR, _LIGHT.color, doc="A light's colour, linear RGB (or #rrggbb).")
-POSITION = Parameter("position", VECTOR, None, doc="Where a light is (an area light's centre).")
-SAMPLES = Parameter("samples", INTEGER, _IMAGE.samples, bounds=(1, MAX_IMAGE_SAMPLES),
-                    doc="Samples per pixel, a square n·n (whitted mode's n×n grid).")
+FOV = KeyRow("fov", NUMBER, _CAMERA.fov, above=0.0, below=180.0,
+             doc="The camera's full vertical field of view, in degrees.")
+EYE = KeyRow("eye", VECTOR, _CAMERA.eye, doc="Where the camera is.")
+LOOKAT = KeyRow("lookat", VECTOR, _CAMERA.lookat, doc="The point seen at the image's centre.")
+UP = KeyRow("up", VECTOR, _CAMERA.up, doc="The camera's up direction, not along the view.")
+INTENSITY = KeyRow("intensity", NUMBER, 1.0, at_least=0.0,
+                   doc="A light's colour as one grey level (r = g = b).")
+COLOR = KeyRow("color", COLOUR, _LIGHT.color, doc="A light's colour, linear RGB (or #rrggbb).")
+POSITION = KeyRow("position", VECTOR, None, doc="Where a light is (an area light's centre).")
+SAMPLES = KeyRow("samples", INTEGER, _IMAGE.samples, bounds=(1, MAX_IMAGE_SAMPLES),
+                 doc="Samples per pixel, a square n·n (whitted mode's n×n grid).")
 
 
 class CameraKeys(KeyFamily):
@@ -353,7 +409,7 @@ class CameraKeys(KeyFamily):
             yield self._key(f"camera.{p.name}", "camera", p, getattr(scene.camera, p.name))
 
     def apply(self, scene, key, value):
-        return dataclasses.replace(scene, camera=_replaced(scene.camera, **{
+        return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, **{
             key.parameter.name: value.value}))
 
     def places(self, scene, key):
@@ -361,8 +417,8 @@ class CameraKeys(KeyFamily):
 
 
 class LightKeys(KeyFamily):
-    """``light.N.intensity`` (its colour, grey), ``light.N.color``, ``light.N.position``:
-    light N of the file, from 0."""
+    """``light.N.intensity`` (its colour as one grey; its value: the colour's mean),
+    ``light.N.color``, ``light.N.position``: light N of the file, from 0."""
 
     ROWS = (INTENSITY, COLOR, POSITION)
 
@@ -376,7 +432,7 @@ class LightKeys(KeyFamily):
         lights = list(scene.lights)
         name = key.parameter.name
         held = (value.value,) * 3 if name == "intensity" else value.value
-        lights[key.target] = _replaced(lights[key.target], **{
+        lights[key.target] = dataclasses.replace(lights[key.target], **{
             "color" if name == "intensity" else name: held})
         return dataclasses.replace(scene, lights=tuple(lights))
 
@@ -411,7 +467,8 @@ class ImageKeys(KeyFamily):
             samples_per_axis(value.value)
         except ValueError as e:
             raise KeyPathError(f"{key.path}: {e}") from None
-        return dataclasses.replace(scene, image=_replaced(scene.image, samples=value.value))
+        image = dataclasses.replace(scene.image, samples=value.value)
+        return dataclasses.replace(scene, image=image)
 
     def places(self, scene, key):
         return [Place(scene.image.source, "samples", "image")]

@@ -28,10 +28,9 @@ import os
 import stat
 import tempfile
 
-from mimarble.parameters import FIG5_RAMP
 from .comments import blanked
 from .key_families import MarbleKeys, Place, evenly_spaced
-from .key_values import KeyPathError, Value, number_text, read
+from .key_values import KeyPathError, Value, number_text, read, vector_text
 from .keys import key_of, with_value
 from .limits import MAX_SCENE_BYTES
 from .parser import parse
@@ -39,6 +38,10 @@ from .parser import parse
 __all__ = ["rewrite", "save_atomic", "read_scene_text", "SaveRefused"]
 
 _BOM = "\ufeff"
+#: Edits one :func:`rewrite` writes at most: each is two parses of the text (8–12 ms for the
+#: shipped scenes), so 1024 take seconds; a studio's save holds the keys edited since the
+#: file was loaded, a few dozen.
+MAX_EDITS = 1024
 
 
 class SaveRefused(OSError):
@@ -46,12 +49,25 @@ class SaveRefused(OSError):
 
 
 def rewrite(text: str, edits, filename: str = "<string>", source: str | None = None) -> str:
-    """``text`` with each edit of ``edits`` (key path → value, as ``with_value`` takes
-    them; applied in order) written into it, every other byte kept. ``filename``: for
-    messages; ``source``: the file's path, where its meshes and image maps are found.
+    """``text`` with each edit written into it, every other byte kept.
+
+    ========== ===========================================================================
+    text       a scene file's text (:func:`read_scene_text`), a byte order mark kept
+    edits      key path → value, as ``with_value`` takes them, applied in order (at most
+               :data:`MAX_EDITS`)
+    filename   the name messages give the text
+    source     the file's path: its meshes and image maps are found beside it
+    ========== ===========================================================================
+
     SceneError when ``text`` does not parse; KeyPathError for an unknown key, a value it
     cannot take, or an edit the text cannot say alone."""
-    for path, value in dict(edits).items():
+    if not isinstance(text, str):
+        raise TypeError(f"rewrite: the scene text must be str (read_scene_text reads a "
+                        f"file's), found {type(text).__name__}")
+    edits = dict(edits)
+    if len(edits) > MAX_EDITS:
+        raise KeyPathError(f"{len(edits)} edits at once; a save writes at most {MAX_EDITS}")
+    for path, value in edits.items():
         text = _rewritten(text, path, value, filename, source)
     return text
 
@@ -74,19 +90,18 @@ def _rewritten(text: str, path: str, value, filename: str, source: str | None) -
 
 
 def _why_not(scene, key) -> str:
-    """Why an edit's text, parsed again, is not the edited scene: its marble is a named
-    texture's, used elsewhere too."""
-    if isinstance(key.family, MarbleKeys) and key.target[0] in ("material", "channel"):
-        for group, prefix, selection in key.family.groups(scene):
-            if selection[0] == "texture" and any(
-                    m.source.block in {n.source.block for n in
-                                       key.family.selected(scene, key.target)}
-                    for m in key.family.selected(scene, selection)):
-                name = key.path.rsplit(".", 1)[-1] if key.stop is None else \
-                    "ramp." + str(key.stop)
-                return (f"its marble is written in {group}, which is used elsewhere too, so "
-                        f"the file cannot change it here alone; edit {prefix}.{name} (every "
-                        f"use of the texture)")
+    """Why an edit's text, parsed again, is not the edited scene: a material's (or a
+    channel's) marble written in a named texture, which the file can only change for every
+    use of the texture (and the scene's ``textures``) at once."""
+    family = key.family
+    if isinstance(family, MarbleKeys) and key.target[0] in ("material", "channel"):
+        blocks = {m.source.block for m in family.selected(scene, key.target)}
+        for group, prefix, selection in family.groups(scene):
+            if selection[0] == "texture" and any(m.source.block in blocks for m in
+                                                 family.selected(scene, selection)):
+                name = key.parameter.name + ("" if key.stop is None else f".{key.stop}")
+                return (f"its marble is written in {group}, so the file cannot change it for "
+                        f"this material alone; edit {prefix}.{name} (every use of the texture)")
     return "the file cannot say this edit alone (its text, read again, is not the edited scene)"
 
 
@@ -164,9 +179,8 @@ class _Text:
                for k, rgb in enumerate(marble.ramp)]
         texts = [(self.body[p[0]:p[1]] if p else None, self.body[c[0]:c[1]])
                  for p, c in source.stops]
-        if "ramp" not in source.values:           # the default ramp, unwritten
-            texts = [(None, "< " + " ".join(number_text(x) for x in rgb) + " >")
-                     for rgb in FIG5_RAMP]
+        if "ramp" not in source.values:           # unwritten: the default's, or a preset's
+            texts = [(None if p is None else number_text(p), vector_text(rgb)) for p, rgb in old]
         if key.stop is None:
             new = list(zip(value.value[1] or [None] * len(value.value[0]), value.value[0]))
             new_texts = list(value.stops)
@@ -231,11 +245,18 @@ def read_scene_text(path) -> str:
 
 
 def save_atomic(path, text: str, loaded_text: str | None) -> None:
-    """Write ``text`` to the scene file ``path`` whole or not at all: a temporary file in
-    the same folder, synced, then renamed over it (``os.replace``), with the file's
-    permission bits. :class:`SaveRefused`, nothing written, when the file on disk is no
-    longer ``loaded_text`` (:func:`read_scene_text`'s text when it was loaded; None: no
-    check, for "Save as"). A link is written through, to the file it names."""
+    """Write ``text`` to a scene file whole or not at all: a temporary file in the same
+    folder, synced, then renamed over it (``os.replace``), with the file's permission bits.
+
+    =========== ==========================================================================
+    path        the file (a link is written through, to the file it names)
+    text        the new text (:func:`rewrite`'s)
+    loaded_text the file's text when it was loaded (:func:`read_scene_text`); None: no
+                check ("Save as" a new name)
+    =========== ==========================================================================
+
+    :class:`SaveRefused`, nothing written, when the file on disk is no longer
+    ``loaded_text``; OSError as the system says it (a folder not writable)."""
     path = os.path.realpath(os.fspath(path))
     if loaded_text is not None:
         try:
