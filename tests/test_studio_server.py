@@ -392,3 +392,31 @@ def test_compare_shows_the_difference_and_psnr(studio):
         assert result["image_bytes"] > 0            # the difference image came with it
     finally:
         tab.close()
+
+
+def test_a_preset_picked_sets_the_groups_marbles_as_the_scene_language_would(tmp_path):
+    from mimarble import scene as scene_language
+    path = small_scene(tmp_path)
+    session = StudioSession(path)
+    server = StudioServer(session).start()
+    tab = Tab(server)
+    try:
+        hello = tab.wait(lambda m: m["type"] == "hello")
+        assert "carrara" in {p["name"] for p in hello["presets"]}
+        tab.send({"type": "preset", "prefix": "marble", "name": "carrara"})
+        tab.wait(lambda m: m["type"] == "done" and m["action"] == "preset", what="preset")
+        # the same marble written with the scene language's preset
+        text = path.read_text()
+        start = text.index("marble {", text.index("diffuse {"))
+        end = text.index("}", text.index("ramp {", start)) + 1
+        expected = scene_language.parse(text[:start] + 'marble { preset "carrara" ' +
+                                        text[end:], filename=str(path))
+        got = session.scene.materials["marble"].diffuse
+        assert got == expected.materials["marble"].diffuse
+        tab.send({"type": "preset", "prefix": "marble", "name": "carara"})
+        problem = tab.wait(lambda m: m["type"] == "problem" and m["action"] == "preset")
+        assert "carrara" in problem["message"]                  # the closest name
+    finally:
+        tab.close()
+        server.stop()
+        session.close()

@@ -37,6 +37,7 @@ FIELDS = {
     "snapshot": {"path": (str,)},
     "export": {"path": (str,), "python": (bool,)},
     "compare": {},
+    "preset": {"prefix": (str,), "name": (str,)},
     "reload": {},
     "ping": {"seq": _NUMBER},
 }

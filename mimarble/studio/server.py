@@ -261,6 +261,7 @@ class StudioServer:
         try:
             controls = self._read_controls()
             client.answer({"type": "hello", "controls": controls, "state": self.session.state(),
+                           "presets": preset_list(),
                            "limits": {"message_bytes": messages.MAX_MESSAGE_BYTES}})
             frame = self.session.latest_frame()
             if frame is not None:
@@ -358,6 +359,16 @@ class StudioServer:
         client.answer({"type": "done", "action": "reload",
                        "message": "reloaded" if result else "the file is unchanged on disk"})
 
+    async def _on_preset(self, client, message):
+        """A preset of the marble library applied to the marbles a group's keys set
+        (``prefix``: ``marble``, ``stone.diffuse``, …): the rows the preset states, and the
+        table's defaults for the others — what ``marble { preset "NAME" }`` means."""
+        edits = preset_edits(message["prefix"], message["name"], set(self._kinds))
+        version = self.session.edits(edits)
+        self._refresh_controls(0.0)
+        client.answer({"type": "done", "action": "preset", "version": version,
+                       "message": f"{message['prefix']}: preset {message['name']}"})
+
     async def _on_ping(self, client, message):
         client.answer({"type": "pong", "seq": message.get("seq")})
 
@@ -375,6 +386,31 @@ class StudioServer:
 #: the page's own CSP, and no referrer (the token must not leak in one).
 _HEADERS = {"Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
             "Content-Security-Policy": CSP, "Referrer-Policy": "no-referrer"}
+
+
+def preset_list() -> list:
+    """The marble library's presets for the page's picker: name, title, one line."""
+    from mimarble.presets import presets
+    return [{"name": p.name, "title": p.title, "about": p.about} for p in presets().values()]
+
+
+def preset_edits(prefix: str, name: str, keys) -> dict:
+    """The edits that make the marbles under ``prefix`` preset ``name``: each row a preset
+    may set (``PRESET_ROWS``) whose key ``PREFIX.ROW`` the scene has, with the preset's
+    value as the library writes it, else the parameter table's default. A prefix with no
+    such key, or an unknown preset: ValueError (the library's sentence)."""
+    from mimarble.parameters import BY_NAME
+    from mimarble.presets import PRESET_ROWS, preset
+    chosen = preset(name)
+    edits = {}
+    for row in PRESET_ROWS:
+        key = f"{prefix}.{row}"
+        value = chosen.written.get(row, BY_NAME[row].default)
+        if key in keys and value is not None:
+            edits[key] = value
+    if not edits:
+        raise ValueError(f"{prefix!r:.60} names no marble of this scene")
+    return edits
 
 
 def compare_message(result: dict) -> bytes:

@@ -27,6 +27,7 @@ let keyOrder = "";           // the controls' keys, joined: same keys -> update 
 let histograms = [];
 let frameUrl = null;
 let scenePath = "";
+let presets = [];             // the marble library: [{name, title, about}]
 
 // ---- helpers -------------------------------------------------------------------------
 
@@ -88,7 +89,7 @@ function onBinary(buffer) {
 
 function onMessage(m) {
   switch (m.type) {
-    case "hello": onControls(m.controls); onState(m.state); break;
+    case "hello": presets = m.presets || []; keyOrder = ""; onControls(m.controls); onState(m.state); break;
     case "controls": onControls(m.controls); break;
     case "state": onState(m.state); break;
     case "histograms":
@@ -232,6 +233,7 @@ function onControls(controls) {
     // The first group (every marble, or the scene's only one) open; the others folded.
     const section = el("details", { class: "group", open: i === 0 || group.kind !== "marble" },
                        el("summary", { text: group.label || group.name }));
+    if (group.kind === "marble" && presets.length) section.append(buildPresetPicker(group));
     for (const c of group.controls) {
       if (c.kind !== "stop") section.append(buildControl(c));   // stops: in the ramp editor
     }
@@ -317,6 +319,24 @@ function buildControl(c) {
     }
   }
   row.append(errorBox(c.key));
+  return row;
+}
+
+// The marble library's picker of a marble group: the group's key prefix is its controls'
+// keys less their parameter's name ("stone.diffuse.period" → "stone.diffuse").
+function buildPresetPicker(group) {
+  const first = group.controls.find((c) => c.name && c.key.endsWith("." + c.name));
+  const row = el("div", { class: "control" });
+  if (!first) return row;
+  const prefix = first.key.slice(0, -(first.name.length + 1));
+  const id = safeId(prefix + ".preset");
+  const select = el("select", { id });
+  select.append(el("option", { value: "", text: "—" }));
+  for (const p of presets) select.append(el("option", { value: p.name, text: p.title, title: p.about }));
+  select.addEventListener("change", () => {
+    if (select.value) send({ type: "preset", prefix, name: select.value });
+  });
+  row.append(el("label", { for: id, text: `${prefix} preset` }), select);
   return row;
 }
 
