@@ -420,3 +420,29 @@ def test_a_preset_picked_sets_the_groups_marbles_as_the_scene_language_would(tmp
         tab.close()
         server.stop()
         session.close()
+
+
+def test_save_refuses_a_file_changed_on_disk_and_reload_takes_the_files(tmp_path):
+    path = small_scene(tmp_path)
+    session = StudioSession(path)
+    server = StudioServer(session).start()
+    tab = Tab(server)
+    try:
+        tab.wait(lambda m: m["type"] == "hello")
+        tab.send({"type": "edit", "key": "marble.distortion", "value": 2.25, "seq": 1})
+        tab.wait(lambda m: m["type"] == "edited")
+        theirs = path.read_text().replace("period 1.3", "period 1.9")
+        path.write_text(theirs)                       # an editor saved meanwhile
+        tab.wait(lambda m: m["type"] == "state" and m["state"]["disk_changed"],
+                 what="disk_changed")
+        tab.send({"type": "save"})
+        problem = tab.wait(lambda m: m["type"] == "problem" and m["action"] == "save")
+        assert "changed on disk" in problem["message"]
+        assert path.read_text() == theirs             # nothing written
+        tab.send({"type": "reload"})
+        tab.wait(lambda m: m["type"] == "done" and m["action"] == "reload")
+        assert session.edits_made == {} and session.text == theirs
+    finally:
+        tab.close()
+        server.stop()
+        session.close()
