@@ -32,6 +32,7 @@ import json
 import socket
 import sys
 import threading
+import time
 from pathlib import Path
 
 from starlette.applications import Starlette
@@ -162,8 +163,13 @@ class StudioServer:
         self._thread = threading.Thread(target=serve, name="mimarble-studio-server", daemon=True)
         self._thread.start()
         ready.wait(timeout)
-        while not self._server.started and self._thread.is_alive():
+        deadline = time.monotonic() + timeout
+        while not self._server.started and self._thread.is_alive() \
+                and time.monotonic() < deadline:
             threading.Event().wait(0.01)
+        if not self._server.started:
+            self.stop()
+            raise OSError(f"the studio's server did not start on {self.host}:{self.port}")
         return self
 
     def stop(self, timeout: float = 10.0) -> None:
