@@ -28,11 +28,10 @@ def _studio(args) -> int:
     session = StudioSession(path, mode=args.mode)
     try:
         try:
-            server = StudioServer(session, host=args.host, port=args.port)
+            server = StudioServer(session, host=args.host, port=args.port).start()
         except OSError as e:
             raise UsageError(f"cannot listen on {args.host}:{args.port}: "
                              f"{e.strerror or e}") from None
-        server.start()
         try:
             _say(f"mimarble studio: {path}")
             _say(f"    {server.url}")
