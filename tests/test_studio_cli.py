@@ -111,6 +111,12 @@ def test_a_bad_scene_and_a_taken_port_are_one_sentence(tmp_path):
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == [
         f"mimarble: cannot listen on 127.0.0.1:{port}: Address already in use"]
+    result = subprocess.run([sys.executable, "-m", "mimarble", "studio", str(bad.with_name(
+                             "small.scene")), "--mode", "preview", "--no-browser"], cwd=ROOT,
+                            capture_output=True, text=True, timeout=240,
+                            env=dict(os.environ, PYTHONPATH=ROOT))
+    assert result.returncode == 2 and result.stderr.strip().splitlines() == [
+        "mimarble: --mode preview: mode 'preview' is not one of whitted, path"]
     result = subprocess.run([sys.executable, "-m", "mimarble", "studio", "x.scene", "--port",
                              "70000"], cwd=ROOT, capture_output=True, text=True, timeout=60,
                             env=dict(os.environ, PYTHONPATH=ROOT))

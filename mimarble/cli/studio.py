@@ -25,7 +25,10 @@ def _studio(args) -> int:
     _start(args)
     from mimarble.studio import StudioSession
     from mimarble.studio.server import StudioServer
-    session = StudioSession(path, mode=args.mode)
+    try:
+        session = StudioSession(path, mode=args.mode)
+    except ValueError as e:                    # a mode the studio does not render
+        raise UsageError(f"--mode {args.mode}: {e}") from None
     try:
         try:
             server = StudioServer(session, host=args.host, port=args.port).start()
