@@ -57,7 +57,7 @@ CONTROLS_DELAY = 0.25
 #: The page's Content-Security-Policy: its own scripts and styles only, images from the
 #: frames' blobs, the websocket back to this server; nothing from elsewhere.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
-       "connect-src 'self' ws: wss:; base-uri 'none'; form-action 'none'")
+       "connect-src 'self'; base-uri 'none'; form-action 'none'")
 
 
 class _Mailbox:
