@@ -79,7 +79,11 @@ class MeshFacts:
     position the file lists (used by a face or not), in the file's coordinates (None
     where not known: facts built by hand); ``uv_extent``: the largest |u| or |v| of the
     texture coordinates as Mitsuba stores them (None: none); ``digest``: SHA-256 of the
-    file's bytes (hex), what tells two versions of one file apart."""
+    file's bytes (hex), what tells two versions of one file apart; ``has_normals``:
+    vertex normals Mitsuba reads (PLY: ``nx ny nz``; OBJ: ``vn`` lines and every face
+    corner naming one); ``normals_problem``: why the file's normals cannot be used, where
+    it has some and they are incomplete (an OBJ face whose corners name no ``vn``: Mitsuba
+    would leave those normals unset), a sentence beginning with its line, else None."""
 
     format: str
     vertices: int
@@ -88,6 +92,8 @@ class MeshFacts:
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     uv_extent: float | None = field(default=None, compare=False)
     digest: str | None = field(default=None, compare=False)
+    has_normals: bool = field(default=False, compare=False)
+    normals_problem: str | None = field(default=None, compare=False)
 
 
 def mesh_facts(path: str) -> MeshFacts:
@@ -134,7 +140,8 @@ def _read_facts(f, fmt: str, size: int) -> MeshFacts:
         header = ply_header(f, size)
         bounds, uv_extent = ply_body(f, header, size)
         facts = MeshFacts("ply", header.element("vertex").count, header.element("face").count,
-                          header.uv is not None, bounds, uv_extent=uv_extent)
+                          header.uv is not None, bounds, uv_extent=uv_extent,
+                          has_normals=header.normals)
     else:
         facts = _obj_facts(f)
     f.seek(0)
@@ -150,7 +157,9 @@ def _obj_facts(f) -> MeshFacts:
     x0 = y0 = z0 = math.inf
     x1 = y1 = z1 = -math.inf
     uv_extent = 0.0
-    for kind, value in obj_statements(f):
+    normals = 0
+    notes: dict = {}
+    for kind, value in obj_statements(f, notes=notes):
         if kind == "v":
             vertices += 1
             x, y, z = value                  # plain comparisons: the fastest here
@@ -168,12 +177,20 @@ def _obj_facts(f) -> MeshFacts:
                 z1 = z
         elif kind == "f":
             triangles += len(value) - 2
-            has_uv = has_uv and all(t >= 0 for _, t in value)
+            has_uv = has_uv and all(t >= 0 for _, t, _ in value)
+        elif kind == "vn":
+            normals += 1
         else:                                # vt: as Mitsuba stores it, v flipped (1 − v)
             u, v = value
             uv_extent = max(uv_extent, abs(u), abs(1.0 - v))
+    without = notes.get("face_without_normal")
+    problem = None if not normals or without is None else (
+        f"line {without}: a face whose corners name no normal (v//vn) in a file with vn "
+        f"lines; Mitsuba would leave those vertices' normals unset (give every corner a "
+        f"normal, or shade the mesh with smooth false)")
     return MeshFacts("obj", vertices, triangles, has_uv, ((x0, y0, z0), (x1, y1, z1)),
-                     uv_extent=uv_extent if has_uv else None)
+                     uv_extent=uv_extent if has_uv else None,
+                     has_normals=bool(normals) and without is None, normals_problem=problem)
 
 
 def mesh_bounds(path):
