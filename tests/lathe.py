@@ -109,3 +109,12 @@ def steps_against_the_slope(profile) -> float:
     right = np.diff(profile[top:])               # outward to the right
     rises = np.concatenate([left, right, [0.0]])
     return float(rises.max())
+
+
+def band_ratio(profile) -> float:
+    """The largest step between neighbouring pixels over the mean of the steps on either
+    side of it (those below 10⁻³ counted as 10⁻³): about 1 where the shading is smooth,
+    tens at a flat facet's edge (a jump between two near-constant runs)."""
+    steps = np.abs(np.diff(profile))
+    beside = np.maximum(0.5 * (steps[:-2] + steps[2:]), 1e-3)
+    return float(np.max(steps[1:-1] / beside))

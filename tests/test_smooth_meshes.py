@@ -55,15 +55,6 @@ def load(folder, mesh, smooth="", size=64, extra=""):
     return scene_language.load(str(path))
 
 
-def band_ratio(profile) -> float:
-    """The largest step between neighbouring pixels over the mean of the steps on either
-    side of it (those below 10⁻³ counted as 10⁻³): about 1 where the shading is smooth,
-    tens at a flat facet's edge (a jump between two near-constant runs)."""
-    steps = np.abs(np.diff(profile))
-    beside = np.maximum(0.5 * (steps[:-2] + steps[2:]), 1e-3)
-    return float(np.max(steps[1:-1] / beside))
-
-
 SMOOTH_CASES = {
     "computed normals": ("v.ply", "smooth true", ""),
     "the PLY's normals": ("vn.ply", "", ""),
@@ -85,7 +76,7 @@ def test_a_smooth_vase_has_no_facet_bands_and_agrees_with_the_reference(llvm, va
     profile = lathe.belly_profile(image)
     assert len(profile) > 20
     assert lathe.steps_against_the_slope(profile) <= 1e-6
-    assert band_ratio(profile) < 3.0
+    assert lathe.band_ratio(profile) < 3.0
 
 
 @pytest.mark.parametrize("mesh, smooth", [("v.ply", ""), ("vn.ply", "smooth false"),
@@ -94,7 +85,7 @@ def test_the_same_vase_shaded_flat_shows_its_facets(llvm, vases, mesh, smooth):
     scene = load(vases, mesh, smooth)
     image = mimarble.render(scene)
     assert image_metrics(image, reference.render(scene))["psnr"] >= 60.0
-    assert band_ratio(lathe.belly_profile(image)) > 10.0
+    assert lathe.band_ratio(lathe.belly_profile(image)) > 10.0
 
 
 @pytest.mark.parametrize("mesh, smooth, face_normals", [
