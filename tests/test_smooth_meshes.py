@@ -183,10 +183,13 @@ def test_an_obj_whose_faces_lack_normals_is_shaded_flat_by_default(tmp_path):
     assert to_mitsuba(scene)["mesh_0"]["face_normals"] is True
 
 
-def test_smooth_takes_true_or_false_only(tmp_path, vases):
+@pytest.mark.parametrize("value, found", [("yes", "'yes'"), ("1", "number 1"),
+                                          ('"true"', 'string "true"')])
+def test_smooth_takes_true_or_false_only(tmp_path, vases, value, found):
     with pytest.raises(SceneError) as info:
-        parse(lathe.scene_text(str(vases / "v.ply"), "smooth yes"), str(tmp_path / "s.scene"))
-    assert info.value.message == "smooth is true or false, found 'yes'"
+        parse(lathe.scene_text(str(vases / "v.ply"), f"smooth {value}"),
+              str(tmp_path / "s.scene"))
+    assert info.value.message == f"smooth is true or false, found {found}"
     assert info.value.line == MESH_LINE
 
 

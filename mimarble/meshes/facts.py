@@ -19,7 +19,9 @@ What is read (and what is refused, in one sentence each):
   the property types Mitsuba 3.9's ``ply`` plugin knows): ``element vertex`` with float or
   double ``x y z`` and optionally ``u v``, ``texture_u texture_v`` or ``s t`` (Mitsuba's
   order of preference; a lone ``u`` or ``v`` beside another pair is refused: Mitsuba
-  renames the pair onto it), other properties skipped; ``element face`` with an integer
+  renames the pair onto it) and ``nx ny nz`` (vertex normals, all three, float or double,
+  each finite within float32 and not zero: ``limits.MIN_NORMAL``), other properties
+  skipped; ``element face`` with an integer
   ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference), the
   file's only list (Mitsuba reads every list as a length and 3 values, so another list, on
   any element, is refused); other elements skipped. The header's lines are ``ply``,
@@ -41,7 +43,9 @@ What is read (and what is refused, in one sentence each):
   ``f``; polygons as fans, as Mitsuba splits them), negative (relative) indices refused
   (Mitsuba 3.9 reads indices with ``strtoul``: −1 becomes 2³² − 1, "an invalid vertex"),
   read by the reference tracer's reader (:func:`~mimarble.meshes.obj_lines.obj_statements`
-  with ``relative``). ``has_uv`` when every corner of every face names a ``vt``.
+  with ``relative``). ``has_uv`` when every corner of every face names a ``vt``;
+  ``has_normals`` when there are ``vn`` lines and every corner names one (some but not
+  all: ``normals_problem``, refused where the mesh is shaded smooth).
 
 So the files :func:`mesh_facts` accepts, Mitsuba 3.9.1's ``ply`` and ``obj`` plugins and the
 reference tracer read alike in fans, (u, v), indices, coordinates and triangles (checked on
