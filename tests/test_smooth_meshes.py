@@ -239,3 +239,17 @@ def test_an_objs_normals_leave_its_texture_coordinates_and_bake_as_they_were(vas
     baked = [bake.bake_image(scene, "mesh_0", size=32, channel="diffuse") for scene in scenes]
     assert np.ptp(baked[0]) > 0.1                    # a pattern, not one colour
     np.testing.assert_array_equal(baked[0], baked[1])
+
+
+@pytest.mark.parametrize("ranges", [(50, 41, 31), (1 << 21, 1 << 21, 1 << 21)])
+def test_an_objs_corners_become_vertices_as_numpys_unique_rows_make_them(ranges):
+    """Both ways the OBJ reader numbers its (v, vt, vn) triples — one int64 key, or a sort
+    where the key would overflow — give np.unique's rows and inverse."""
+    from mimarble.meshes.arrays import _distinct_rows
+    rng = np.random.default_rng(7)
+    triples = np.stack([rng.integers(0, ranges[0], 5000), rng.integers(-1, ranges[1] - 1, 5000),
+                        rng.integers(-1, ranges[2] - 1, 5000)], axis=1)
+    rows, inverse = _distinct_rows(triples, ranges)
+    expected_rows, expected_inverse = np.unique(triples, axis=0, return_inverse=True)
+    np.testing.assert_array_equal(rows, expected_rows)
+    np.testing.assert_array_equal(inverse, expected_inverse.reshape(-1))
