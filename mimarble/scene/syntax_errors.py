@@ -17,7 +17,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 from mimarble.parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
 from .keywords import BARE_CHANNEL_KEYS, BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
-from .model import SPACES
+from .channels import SPACES
 from .rules import shortened
 
 __all__ = ["syntax_error", "decoded", "POVRAY_HINTS", "povray_hint"]
