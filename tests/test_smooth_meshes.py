@@ -215,16 +215,23 @@ def test_the_command_refuses_a_nan_normal_in_one_sentence_and_writes_nothing(tmp
     assert not (tmp_path / "out.png").exists()
 
 
-def test_export_writes_the_smooth_mesh_and_it_renders_as_the_dict(llvm, vases, tmp_path):
-    scene_dict = to_mitsuba(load(vases, "v.ply", "smooth true", size=24))
+@pytest.mark.parametrize("mesh, smooth, tolerance", [
+    ("vn.ply", "", 0.0),
+    # Mitsuba sums computed normals with atomic adds in JIT variants: two loads of one
+    # file may differ in the last bit of a normal (docs/design-decisions.md)
+    ("v.ply", "smooth true", 1e-5)])
+def test_export_writes_the_smooth_mesh_and_it_renders_as_the_dict(llvm, vases, tmp_path, mesh,
+                                                                  smooth, tolerance):
+    scene_dict = to_mitsuba(load(vases, mesh, smooth, size=24))
     xml = export.to_xml(scene_dict, tmp_path)
     assert '<boolean name="face_normals" value="false"/>' in xml
     assert '<boolean name="shading_normals" value="true"/>' in xml
     (tmp_path / "scene.xml").write_text(xml, encoding="utf-8")
     from test_export import with_xml_inverses
-    np.testing.assert_array_equal(
+    np.testing.assert_allclose(
         np.array(mi.render(mi.load_file(str(tmp_path / "scene.xml")), seed=0)),
-        np.array(mi.render(mi.load_dict(with_xml_inverses(scene_dict)), seed=0)))
+        np.array(mi.render(mi.load_dict(with_xml_inverses(scene_dict)), seed=0)),
+        rtol=0.0, atol=tolerance)
 
 
 def test_an_objs_normals_leave_its_texture_coordinates_and_bake_as_they_were(vases):
