@@ -14,7 +14,7 @@ from mimarble import parameters as marble_parameters
 from mimarble import presets
 from mimarble.parameters import BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter, ParameterError
 from mimarble.scene import rules
-from .build_values import ValueReader, pos_of, unquoted
+from .build_values import ValueReader, pos_of, source_of, unquoted
 from .image_header import image_file_sentence
 from .model import (SPACES, Add, ColorChannel, ImageChannel, MarbleChannel, Material, Mix,
                     Multiply, Pos, Subsurface, walk)
@@ -294,7 +294,8 @@ class MaterialBuilder(ValueReader):
                         f"a marble's space is {' or '.join(SPACES)}")
         if preset is not None:          # the preset's values, those written on top
             values = presets.resolved(preset, values)
-        return MarbleChannel(**values, transform=steps, space=space, pos=pos_of(st))
+        return MarbleChannel(**values, transform=steps, space=space, pos=pos_of(st),
+                             source=source_of(st, f))
 
     def marble_preset(self, st: Tree, key: Tree) -> str:
         """``preset "NAME"``: the name of a preset of the library (mimarble/presets.py),
