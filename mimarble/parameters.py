@@ -84,6 +84,9 @@ class Parameter:
     bounds: tuple[int, int] | None = None   # integer: lo..hi; colours: count lo..hi
     choices: tuple[str, ...] = ()       # choice
     keyword: bool = True
+    #: number, integer: the span a slider covers (the studio's controls), where the range
+    #: is open or wider than a user tunes in; a value outside it is typed. None: the range.
+    slider: tuple[float, float] | None = None
 
     @property
     def in_place(self) -> bool:
@@ -196,15 +199,15 @@ def _listed(words) -> str:
 
 
 PARAMETERS: tuple[Parameter, ...] = (
-    Parameter("scale", NUMBER, 1.0, above=0.0, role=DIFFERENTIABLE,
+    Parameter("scale", NUMBER, 1.0, above=0.0, role=DIFFERENTIABLE, slider=(0.05, 8.0),
               doc="Texture-space scale applied to the point before anything else: "
                   "larger is finer."),
-    Parameter("period", NUMBER, 1.0, role=DIFFERENTIABLE,
+    Parameter("period", NUMBER, 1.0, role=DIFFERENTIABLE, slider=(0.0, 8.0),
               doc="Stripe frequency along ``axis`` (unused by ``cosine``, whose paper "
                   "formula has none)."),
-    Parameter("distortion", NUMBER, 1.0, role=DIFFERENTIABLE,
+    Parameter("distortion", NUMBER, 1.0, role=DIFFERENTIABLE, slider=(0.0, 12.0),
               doc="Weight of the fractal noise in the phase."),
-    Parameter("octaves", INTEGER, 8, bounds=(0, MAX_OCTAVES), traversed=True,
+    Parameter("octaves", INTEGER, 8, bounds=(0, MAX_OCTAVES), traversed=True, slider=(0, 25),
               doc="Number of noise octaves K. Octaves below float32 resolution are not "
                   "evaluated: from 25 on at the paper's gain 0.5 (at gain ω, from the "
                   "first k with ω^k/(1−ω) ≤ 2^−24; all 64 from ω ≈ 0.755 on)."),
@@ -237,7 +240,7 @@ PARAMETERS: tuple[Parameter, ...] = (
                   "(pbrt-v4's FBm clamp); ``prefilter``, the colour averaged over the "
                   "pixel's interval of phase, exactly (mimarble/texture/filters.py). Without "
                   "differentials every filter is ``none``."),
-    Parameter("tolerance", NUMBER, None, at_least=0.0,
+    Parameter("tolerance", NUMBER, None, at_least=0.0, slider=(0.0, 0.05),
               doc="Colour error allowed for leaving out fine octaves (a proven bound, "
                   "mimarble/texture/error_budget.py); 0 evaluates every octave. Default: the "
                   "scene's, half an 8-bit sRGB code value through its lighting; the plugin "

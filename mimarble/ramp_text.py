@@ -15,7 +15,7 @@ import re
 __all__ = ["ParameterError", "MAX_RAMP_COLOURS", "HEX_FORM", "srgb_to_linear",
            "hex_colour_problem", "hex_colour", "parse_ramp", "parse_positioned_ramp",
            "parse_positions", "positions_problem", "ramp_count_problem", "positions_text",
-           "ramp_text"]
+           "ramp_text", "hex_of_linear"]
 
 #: The most colours a ramp may hold.
 MAX_RAMP_COLOURS = 256
@@ -65,6 +65,18 @@ def hex_colour(text: str) -> tuple[float, float, float]:
     if problem:
         raise ParameterError(problem)
     return tuple(srgb_to_linear(int(text[i:i + 2], 16) / 255.0) for i in (1, 3, 5))
+
+
+def hex_of_linear(rgb) -> str:
+    """``#rrggbb`` of a linear RGB colour: each component clamped to [0, 1], encoded with
+    the exact sRGB curve (the inverse of :func:`srgb_to_linear`) and rounded to the
+    nearest byte — what a colour picker shows for it. :func:`hex_colour` of the result
+    is within half a code value of the colour (exactly it for colours read from hex)."""
+    def code(c: float) -> int:
+        c = min(max(float(c), 0.0), 1.0)
+        encoded = 12.92 * c if c <= 0.0031308 else 1.055 * c ** (1.0 / 2.4) - 0.055
+        return int(round(encoded * 255.0))
+    return "#" + "".join(f"{code(c):02x}" for c in rgb)
 
 
 # ---------------------------------------------------------------------------

@@ -174,3 +174,49 @@ def test_scenes_that_differ_in_place_render_as_from_nothing_in_path_mode(llvm, m
     assert loads == [1]
     for t, image in zip(texts + texts[:1], images):
         np.testing.assert_array_equal(image, fresh(t, monkeypatch, mode="path", spp=4))
+
+
+@pytest.mark.parametrize("mode", ["whitted", "path"])
+def test_a_camera_orbited_and_a_light_moved_and_dimmed_reuse_the_loaded_scene(llvm, monkeypatch,
+                                                                              mode):
+    # The studio's orbit and light controls (issue 41): the camera's placement and a point
+    # light's position and intensity are written in place; the image is a fresh load's.
+    # The eye keeps its distance to the sphere: the clip planes (structure) stay.
+    # A marble's default tolerance follows the scene's lighting (the error budget): a
+    # tolerance of its own keeps a dimmed light from changing the marble's structure.
+    text = SCENE.replace("PERIOD", "1.3").replace("octaves 3", "octaves 3 tolerance 0.001")
+    moved = text.replace("eye < 0 0 9 >", "eye < 5.4 0 7.2 >").replace(
+        "position < 10 10 10 > color < 1 1 1 >", "position < 8 12 9 > color < 0.6 0.6 0.6 >")
+    assert moved.count("<") == text.count("<") and moved != text
+    scenes = [scene_language.parse(t) for t in (text, moved, text)]
+    LOADED.clear()
+    loads = counting_loads(monkeypatch)
+    images = [mimarble.render(s, mode=mode, spp=4) for s in scenes]
+    assert loads == [1]
+    np.testing.assert_array_equal(images[0], images[2])
+    assert not np.array_equal(images[0], images[1])
+    np.testing.assert_array_equal(images[1], fresh(moved, monkeypatch, mode=mode, spp=4))
+
+
+def test_clip_planes_that_differ_past_float32_share_the_loaded_scene(llvm, monkeypatch):
+    # An orbit's eye, rotated in float64, moves the clip planes in their 16th digit: the
+    # sensor holds them in float32, so the loaded scene is the same one (issue 41's orbit).
+    from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+    from mimarble.scene.keys import with_value
+    from mimarble.studio.camera import orbited_eye
+    scene = scene_language.parse(SCENE.replace("PERIOD", "1.3"))
+    orbited = scene
+    for _ in range(3):
+        orbited = with_value(orbited, "camera.eye", orbited_eye(orbited.camera, 2.0, 1.0))
+    near = (to_mitsuba(scene)["sensor"]["near_clip"], to_mitsuba(orbited)["sensor"]["near_clip"])
+    assert near[0] != near[1] and np.float32(near[0]) == np.float32(near[1])
+    LOADED.clear()
+    loads = counting_loads(monkeypatch)
+    mimarble.render(scene)
+    image = mimarble.render(orbited)
+    assert loads == [1]
+    LOADED.clear()
+    with monkeypatch.context() as m:
+        m.setenv("MIMARBLE_FREEZE", "0")
+        np.testing.assert_array_equal(image, mimarble.render(orbited))
+    LOADED.clear()

@@ -5,12 +5,15 @@ the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
 :data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
 in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, times and
 inode of every image map and mesh file it reads, and the content digest of every mesh
-file the parser read (``Mesh.digest``) — matches a loaded one gets that loaded ``mi.Scene``,
+file the parser read (``Mesh.digest``); also masked: the camera's placement and a point
+light's position and intensity (:data:`_IN_PLACE_OF`) — matches a loaded one gets that
+loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
 ``mi.traverse`` and told to their marble as values the host holds (``Marble.hold``: the
 same decisions, and bits, as a fresh load); anything else is loaded anew (``mi.load_dict``). So repeated renders
 of one scene, and frames that differ only in a marble's scale, period or distortion,
-re-use the loaded scene, its compiled kernels and its recorded passes
+re-use the loaded scene, its compiled kernels and its recorded passes (so do an orbit of
+the camera that keeps its clip planes, and a point light moved or dimmed)
 (mimarble/mitsuba/rendering/replay.py); an edited scene file, image map or mesh file is seen,
 because its new text, file facts or digest make another structure (a file rewritten with
 its old modification time put back has a new change time).
@@ -22,7 +25,7 @@ import json
 import os
 
 from mimarble.runtime import environment
-from mimarble.parameters import IN_PLACE
+from mimarble.parameters import IN_PLACE, single_precision
 from mimarble.mitsuba.plugins.sphere_hit import SphereTable
 from mimarble.mitsuba.translate.scene_dict import checked_samples, to_mitsuba
 
@@ -53,6 +56,16 @@ class LoadedScenes:
         seeded per pass), so the ``spp`` option is checked and the scene loaded at 1 spp:
         renders of one scene at any spp share one loaded scene (the scalar variant renders
         through ``mi.render``, which reads it)."""
+        return self._loaded(*self._translated(scene, options)[:3])
+
+    def is_loaded(self, scene, **options) -> bool:
+        """Whether :meth:`scene_of` with these arguments would find its structure loaded
+        (an edit in place, no ``mi.load_dict``): translated, not loaded."""
+        return (mi.variant(), self._translated(scene, options)[1]) in self.scenes
+
+    def _translated(self, scene, options) -> tuple:
+        """(scene dict, structure, in-place values, files read) of ``to_mitsuba(scene,
+        **options)``, kept for the same model and options (:meth:`scene_of`)."""
         if dr.is_jit_v(mi.Float):
             checked_samples(scene, options.get("mode", "whitted"), options.get("spp"))
             options = {**options, "spp": 1}
@@ -60,7 +73,8 @@ class LoadedScenes:
             memo = (mi.variant(), scene, tuple(sorted(options.items())))
             hash(memo)
         except TypeError:            # a model built in Python with unhashable parts
-            return self.scene_for(to_mitsuba(scene, **options))
+            scene_dict = to_mitsuba(scene, **options)
+            return (scene_dict, *_structure(scene_dict))
         kept = self.translated.get(memo)
         if kept is None or _files_read(kept[0]) != kept[3]:
             scene_dict = to_mitsuba(scene, **options)
@@ -68,7 +82,7 @@ class LoadedScenes:
                 self.translated.pop(next(iter(self.translated)))
             digests = [mesh.digest for mesh in scene.meshes]
             kept = self.translated[memo] = (scene_dict, *_structure(scene_dict, digests))
-        return self._loaded(kept[0], kept[1], kept[2])
+        return kept
 
     def scene_for(self, scene_dict: dict):
         """The loaded scene of ``scene_dict`` (a ``to_mitsuba`` dict): a kept one of the
@@ -86,7 +100,8 @@ class LoadedScenes:
             entry = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
         else:
             mitsuba_scene, params, held = entry
-            changed = {name: value for name, value in values.items() if held.get(name) != value}
+            changed = {name: value for name, value in values.items()
+                       if name not in held or _exact(held[name]) != _exact(value)}
             if changed:            # should this raise, the entry stays out: never half-updated
                 try:
                     for name, value in changed.items():
@@ -134,20 +149,51 @@ def forget(mitsuba_scene) -> None:
 
 
 def _structure(scene_dict, digests=()) -> tuple[str, dict, list]:
-    """(the dict with in-place marble values masked and the facts of the files it reads
+    """(the dict with in-place values (:data:`_IN_PLACE_OF`) masked and the facts of the files it reads
     added, and the mesh files' ``digests`` as the parser read them, as JSON; those values
     by traverse key; the files' facts, :func:`_files_read`)."""
     values, masked = {}, {}
     for name, item in scene_dict.items():
-        if isinstance(item, dict) and item.get("type") == "marble":
-            item = dict(item)
-            for key in IN_PLACE:
-                if key in item:
-                    values[f"{name}.{key}"] = item.pop(key)
+        if isinstance(item, dict):
+            for key in _IN_PLACE_OF.get(item.get("type"), ()):
+                if key in item and (key != "intensity" or _rgb(item[key])):
+                    item = dict(item)
+                    value = item.pop(key)
+                    if key == "intensity":         # {"type": "rgb", "value": […]}
+                        item[key] = {"type": "rgb"}
+                        key, value = "intensity.value", value["value"]
+                    values[f"{name}.{key}"] = value
+            if item.get("type") == "perspective" and not _double_precision():
+                # The clip planes as the sensor holds them (ScalarFloat: float32): an orbit's
+                # eye, rotated in float64, moves them in their 16th digit, not their float32.
+                item = {**item, **{k: single_precision(item[k]) for k in _CLIPS if k in item}}
         masked[name] = item
     files = _files_read(scene_dict)
     return json.dumps([masked, files, list(digests)], sort_keys=True, default=_exact), values, \
         files
+
+
+#: What each plugin type of a scene dict has written in place (its traverse key is its
+#: path in the dict): a marble's IN_PLACE values; the camera's placement; a point light's
+#: position and (rgb) intensity — Dr.Jit variables of the loaded scene, not constants of
+#: the traced code. The sensor's clip planes and fov, a light's kind, are structure.
+_IN_PLACE_OF = {"marble": IN_PLACE, "perspective": ("to_world",),
+                "point": ("position", "intensity")}
+
+
+#: The sensor's clip planes: structure (literals of the traced code), compared as it holds them.
+_CLIPS = ("near_clip", "far_clip")
+
+
+def _double_precision() -> bool:
+    """Whether the variant holds scalars in double precision (``*_double``)."""
+    return "double" in mi.variant()
+
+
+def _rgb(value) -> bool:
+    """Whether ``value`` is an ``rgb`` spectrum dict with a ``value``."""
+    return isinstance(value, dict) and value.get("type") == "rgb" and "value" in value \
+        and len(value) == 2
 
 
 def _exact(item):

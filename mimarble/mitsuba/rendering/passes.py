@@ -176,6 +176,42 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
                          Estimates(*traced[3:]) if estimates is not None else None)
 
 
+def trace_samples(target: Target, spp: int, first_sample: int, count: int, *,
+                  seed: int = 0, key: tuple | None = None) -> np.ndarray:
+    """The radiance of samples ``first_sample … first_sample + count − 1`` of ``spp`` in
+    every pixel of ``target``, summed per pixel: float64 (pixels, 3), not divided.
+
+    What progressive refinement adds up (the studio, mimarble/studio/): a render of
+    ``spp`` samples made a run of samples at a time, each run its own passes. Sample
+    ``k`` is the one a render at ``spp`` takes there — whitted mode the centre of stratum
+    ``k`` of the n×n grid, with the ray differentials of ``spp`` — so the runs'
+    sums added up over ``0 … spp − 1`` and divided by ``spp`` are that render's image to
+    float64 rounding of the per-run sums (the render sums all of a pixel's samples in
+    one compensated float32 sum; each run here is one such sum, the runs added in
+    float64). Path mode draws each run from the sampler seeded with ``seed`` (each run
+    wants its own), per pass. Passes of whole pixels of at most :data:`PASS_SAMPLES`
+    lanes, recorded and replayed as :func:`trace_in_passes`' (keys with ``split``: the
+    sums come back undivided)."""
+    if not (0 <= first_sample and count >= 1 and first_sample + count <= spp):
+        raise ValueError(f"samples {first_sample}..{first_sample + count - 1} are not "
+                         f"among a pixel's {spp}")
+    pixels = target.width * target.height
+    key, inputs = scene_facts(target.scene, target.params) if key is None else key
+    sums = np.empty((pixels, 3), dtype=np.float64)
+    step = max(PASS_SAMPLES // count, 1)
+    for index, p0 in enumerate(range(0, pixels, step)):
+        n_pixels = min(step, pixels - p0)
+        numbers = PassNumbers(p0, first_sample, count, spp,
+                              (seed * 0x9E3779B1 + index) & 0xFFFFFFFF, target.mode == "whitted")
+        lanes = n_pixels * count
+        values = _pass_function(target.scene)(
+            (key, target.mode, lanes, count, True, True, False, False, True), target.scene,
+            inputs, target.sampler, lanes, count, numbers, None, True, False, False, True,
+            target.mode)[0]
+        sums[p0:p0 + n_pixels] = values.numpy().T
+    return sums
+
+
 def padded_count(count: int, most: int) -> int:
     """``count`` pixels rounded up to one of a few sizes — 16, then steps of a quarter
     octave (at most 19 % more) — but not above ``most`` (nor below ``count``): passes

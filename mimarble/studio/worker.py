@@ -1,0 +1,209 @@
+"""The studio's render thread: the newest state only, then progressive refinement.
+
+One thread does every Dr.Jit and Mitsuba call of a studio session, so that a page's
+request never waits for a render or a compile. Its contract:
+
+* **Newest state only.** :meth:`RenderThread.submit` replaces the state waiting to be
+  rendered (a :class:`Request`); a state that was replaced before the thread took it is
+  never rendered, and none is queued. A frame being rendered when edits arrive is
+  finished and shown (the page sees the drag move), then the newest state is taken.
+* **1 spp while edits come.** A new state is first rendered at 1 sample per pixel (the
+  pixel centre in whitted mode): one recorded pass, a few milliseconds warm.
+* **Refinement when idle.** Once no edit has come for ``idle_s``, the same state is
+  rendered again towards the scene's ``samples``, a run of samples at a time
+  (:func:`~mimarble.mitsuba.rendering.passes.trace_samples`: samples 0–3, 4–7, 8–15, …,
+  at most :data:`RUN_LANES` lanes a run), their sums **accumulated**: each frame shows all
+  the samples so far. Whitted mode's sample k is the render's own (stratum k of n×n, with
+  the differentials of the target spp), so the last frame is the render at that spp to
+  float64 rounding of the runs' sums (tests/test_studio_engine.py); path mode's runs are
+  seeded one by one (run r: seed r + 1), so its frames converge as the render does.
+  A new edit stops refinement between runs.
+* **Compiling.** Before a state whose structure no loaded scene holds, or whose passes
+  have no recording, is rendered, ``compiling`` is published as True, then False with
+  its frame: a structure rendered before (octaves 9 → 8) is loaded and recorded already.
+
+Failures of a render (a mode that cannot render the scene, Mitsuba's own errors) are
+published as the state's ``error``; the last good frame stays, and the session goes back
+to the state it showed (:meth:`StudioSession._render_failed`).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from typing import Callable, NamedTuple
+
+import numpy as np
+
+from mimarble.runtime import environment
+from mimarble.mitsuba.rendering.loaded_scenes import LoadedScenes
+from mimarble.mitsuba.rendering.passes import Target, trace_samples, _traced_pass
+from mimarble.mitsuba.rendering.replay import enabled as replay_enabled, scene_facts
+from .frames import FRAME_FORMAT, Frame, encode
+from .histogram import Histograms
+
+dr, mi = environment.import_drjit_and_mitsuba()
+
+#: Most lanes (pixels × samples) of one refinement run: 2²¹, 8 spp at 512² — about 80 ms
+#: of fig11a on the AMD EPYC, the longest an edit waits behind refinement.
+RUN_LANES = 1 << 21
+#: Samples of the first refinement run: the scene's 4 spp (the paper scenes') in one run,
+#: a frame at 4, 8, 16, … spp for more (runs of 4, 4, 8, …; docs/benchmarks.md, "Studio").
+FIRST_RUN = 4
+#: Loaded scenes a session keeps: its structures (octaves 8 and 9, both modes, …), so
+#: that going back to one reuses its loaded scene and its recorded passes.
+KEPT_SCENES = 6
+
+
+class Request(NamedTuple):
+    """A state to render: ``version`` (the session's edit counter), the scene model and
+    the mode."""
+    version: int
+    scene: object
+    mode: str
+
+
+class RenderThread(threading.Thread):
+    """The render thread (module docstring). ``publish(kind, payload)`` is called from
+    this thread with ``("frame", Frame)``, ``("histograms", dict)`` (a version's
+    histograms of t, after its first frame, whose ``histograms`` were None) and
+    ``("status", dict)``; ``failed(request, error)`` when a state cannot be rendered.
+    ``frame_format``: ``auto``, ``png`` or ``jpeg`` (mimarble/studio/frames.py)."""
+
+    def __init__(self, publish: Callable, failed: Callable, frame_format: str = FRAME_FORMAT,
+                 idle_s: float = 0.15):
+        super().__init__(name="mimarble-studio-render", daemon=True)
+        self.publish, self.failed = publish, failed
+        self.frame_format, self.idle_s = frame_format, idle_s
+        self.loaded = LoadedScenes(KEPT_SCENES)
+        self.histograms = Histograms()
+        self._condition = threading.Condition()
+        self._pending: Request | None = None
+        self._last_submit = 0.0
+        self._stopping = False
+        #: Versions rendered (their first frame), in order: what a test of dropping reads.
+        self.rendered: list[int] = []
+        #: (structure, mode) → seconds of its first render, for the benchmark.
+        self.compile_seconds: dict = {}
+        self._loads = 0              # scenes loaded so far
+        self._recorded: dict = {}    # a 1 spp pass's key → self._loads when it last ran
+
+    # -- Called from other threads ---------------------------------------------------
+
+    def submit(self, request: Request) -> None:
+        """Make ``request`` the state to render next, replacing any waiting one."""
+        with self._condition:
+            self._pending = request
+            self._last_submit = time.monotonic()
+            self._condition.notify()
+
+    def stop(self, timeout: float | None = 30.0) -> None:
+        """Stop after the run in progress; wait up to ``timeout`` seconds for it."""
+        with self._condition:
+            self._stopping = True
+            self._condition.notify()
+        if self.is_alive() and threading.current_thread() is not self:
+            self.join(timeout)
+
+    # -- The thread ----------------------------------------------------------------------
+
+    def run(self) -> None:
+        while True:
+            with self._condition:
+                while self._pending is None and not self._stopping:
+                    self._condition.wait()
+                if self._stopping:
+                    return
+                request, self._pending = self._pending, None
+            try:
+                self._render(request)
+            except Exception as error:       # a state that cannot render: said, not fatal
+                self.publish("status", {"compiling": False, "rendering": False})
+                self.failed(request, error)
+
+    def _newer(self) -> bool:
+        with self._condition:
+            return self._pending is not None or self._stopping
+
+    def _wait_idle(self) -> bool:
+        """Wait until no edit has come for ``idle_s``; False if a new state (or stop)
+        came first."""
+        with self._condition:
+            while self._pending is None and not self._stopping:
+                left = self._last_submit + self.idle_s - time.monotonic()
+                if left <= 0:
+                    return True
+                self._condition.wait(left)
+            return False
+
+    def _render(self, request: Request) -> None:
+        scene, mode = request.scene, request.mode
+        options = {"mode": mode, "spp": None, "tolerance": None, "filter": None}
+        new_structure = not self.loaded.is_loaded(scene, **options)
+        if new_structure:
+            self.publish("status", {"compiling": True, "rendering": True})
+        start = time.perf_counter()
+        mitsuba_scene = self.loaded.scene_of(scene, **options)
+        target = Target.of(mitsuba_scene, mode, self.loaded.parameters_of(mitsuba_scene))
+        facts = scene_facts(target.scene, target.params)
+        pixels = target.width * target.height
+        first_key = (facts.key, mode, pixels, 1, True, True, False, False, True)
+        # A recording is made again when its key is new, or when the loaded scenes have
+        # changed since it was made (Dr.Jit checks the registry of instances it saw:
+        # going back to octaves 8 after 9 was loaded records 8's pass once more).
+        if new_structure:
+            self._loads += 1
+        compiling = new_structure or (replay_enabled() and (
+            first_key not in _traced_pass.frozen or self._recorded.get(first_key) != self._loads))
+        self._recorded[first_key] = self._loads
+        if compiling and not new_structure:
+            self.publish("status", {"compiling": True, "rendering": True})
+        # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
+        sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
+        elapsed = time.perf_counter() - start
+        if compiling:
+            self.compile_seconds[(facts.key[1:], mode)] = elapsed
+        self.rendered.append(request.version)
+        histograms = self.histograms.cached(scene)
+        target_spp = scene.image.samples
+        self._show(request, sums, 1, target_spp, elapsed, histograms)
+        if histograms is None:          # after the frame is out, unless it is stale already
+            # Let the threads that wait for the frame (a server's loop) take the GIL now,
+            # not after the NumPy below (up to Python's switch interval, 5 ms, later).
+            time.sleep(0.001)
+            if self._newer():
+                return
+            histograms = self.histograms.of(scene)
+            self.publish("histograms", {"version": request.version,
+                                        "histograms": list(histograms)})
+        if target_spp <= 1 or not self._wait_idle():
+            return
+        # Refinement: runs of samples, accumulated; the first of FIRST_RUN samples, then
+        # each as many as all before it (the frames' spp double), up to RUN_LANES lanes.
+        total = np.zeros_like(sums)
+        done, run, index = 0, max(1, min(FIRST_RUN, RUN_LANES // pixels)), 0
+        start = time.perf_counter()
+        while done < target_spp:
+            if self._newer():
+                return
+            count = min(run, target_spp - done)
+            total += trace_samples(target, target_spp, done, count, seed=index + 1, key=facts)
+            done, index = done + count, index + 1
+            self._show(request, total, done, target_spp, time.perf_counter() - start,
+                       histograms)
+            run = max(1, min(done, RUN_LANES // pixels))
+
+    def _show(self, request: Request, sums: np.ndarray, spp: int, target_spp: int,
+              seconds: float, histograms: tuple | None) -> None:
+        """Publish the frame of ``sums`` (pixels, 3) over ``spp`` samples: JPEG while it
+        is not final (``frame_format`` ``auto``), else the format asked for."""
+        scene = request.scene
+        pixels = (sums / spp).astype(np.float32).reshape(scene.image.height,
+                                                          scene.image.width, 3)
+        fmt = self.frame_format
+        if fmt == "auto":
+            fmt = "png" if spp >= target_spp else "jpeg"
+        image, mime, encode_ms = encode(pixels, fmt)
+        self.publish("frame", Frame(request.version, image, mime, scene.image.width,
+                                    scene.image.height, spp, target_spp, request.mode,
+                                    seconds * 1e3, encode_ms, histograms, pixels))

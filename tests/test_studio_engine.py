@@ -1,0 +1,434 @@
+"""The studio's engine (mimarble/studio/, issue 41): edits → frames on a thread of its own.
+
+What is checked, and against what:
+
+* an edit gives a new frame, different where the marble changed; a bad value is refused
+  with the parameter table's sentence and the state keeps its last valid value;
+* stale states are dropped: while the render thread is held inside one frame, twenty
+  edits arrive; it then renders the last only (the held frame and the newest, nothing
+  between);
+* refinement accumulates: whitted mode's last frame equals ``mimarble.render`` of the
+  same scene at the target spp (its own sample positions and differentials; the runs'
+  sums are added in float64, the render's sum is one compensated float32 sum: equal to
+  float32 rounding), and the frames' spp count 1, 4, 8, 16 for 16 spp; path mode's
+  accumulated frame is as far from a path render at that spp as a render of another seed;
+* a structural edit (octaves) says ``compiling``; going back to the earlier structure loads
+  nothing (its pass is recorded once more, and that is said), and after that, going back
+  and forth records nothing;
+* the histogram of t: the hits counted are the sphere's disk on the grid, and with no
+  noise t is |sin(π·period·x)| at hit points the test finds with its own ray–sphere
+  intersection;
+* the file watched: an edit on disk reloads, a parse error is said at FILE:LINE:COL and
+  the last good frame stays;
+* close leaves no thread of the session running.
+"""
+
+from __future__ import annotations
+
+import math
+import shutil
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble.scene.edits import KeyPathError
+from mimarble.studio import StudioSession
+
+SCENES = Path(__file__).resolve().parent.parent / "scenes"
+SMALL = {"image.width": 48, "image.height": 48}
+
+
+def _session(scene="fig11a", **options):
+    """A session of ``scene`` at 48²; refinement held off unless ``idle_s`` says (a test
+    that reads a version's first frame would otherwise race a refinement's)."""
+    options.setdefault("watch", False)
+    options.setdefault("idle_s", 3600.0)
+    session = StudioSession(scene, **options)
+    session.edits(SMALL)
+    return session
+
+
+def _studio_threads():
+    return [t for t in threading.enumerate() if t.name.startswith("mimarble-studio")]
+
+
+@pytest.fixture
+def session():
+    s = _session()
+    yield s
+    s.close()
+
+
+def test_edit_gives_a_new_frame(session):
+    first = session.wait_frame()
+    assert first.width == first.height == 48 and first.spp == 1
+    assert first.mime in ("image/jpeg", "image/png") and first.image[:2] in (b"\xff\xd8", b"\x89P")
+    version = session.edit("marble.period", 2.5)
+    frame = session.wait_frame(version)
+    assert frame.version >= version
+    assert np.abs(frame.pixels - first.pixels).max() > 0.05
+    assert session.state()["dirty"] and session.edits_made == {"marble.period": 2.5}
+
+
+def test_a_bad_value_keeps_the_last_valid_one(session):
+    session.edit("marble.scale", 2.0)
+    version = session.state()["version"]
+    with pytest.raises(KeyPathError, match="scale must be > 0"):
+        session.edit("marble.scale", -1.0)
+    with pytest.raises(KeyPathError, match="octaves must be in 0..64"):
+        session.edit("marble.octaves", 1000)
+    with pytest.raises(KeyPathError, match="mode"):
+        session.edit("mode", "raytrace")
+    with pytest.raises(KeyPathError, match="image.width: width must be in 16..2048"):
+        session.edit("image.width", 16384)         # refused before anything is allocated
+    with pytest.raises(KeyPathError, match="unknown key"):
+        session.edit("marble.glitter", 1.0)
+    with pytest.raises(KeyPathError, match="scale"):
+        session.edit("marble.scale", {"not": "a number"})
+    with pytest.raises(KeyPathError):          # all or nothing: the good one is not kept
+        session.edits({"marble.period": 3.0, "marble.distortion": float("nan")})
+    state = session.state()
+    assert state["version"] == version
+    marble = session.scene.materials["marble"].diffuse
+    assert (marble.scale, marble.period) == (2.0, 1.3)
+
+
+def test_stale_states_are_dropped(session):
+    session.wait_frame()
+    held, release = threading.Event(), threading.Event()
+    before = session.state()["version"]
+
+    def hold(kind, payload):                  # runs on the render thread: holds it there
+        if kind == "frame" and payload.version > before and not held.is_set():
+            held.set()
+            release.wait(30)
+
+    session.subscribe(hold)
+    first = session.edit("marble.period", 1.0)
+    assert held.wait(30)
+    last = None
+    for k in range(20):
+        last = session.edit("marble.period", 1.1 + 0.05 * k)
+    release.set()
+    frame = session.wait_frame(last)
+    assert frame.version == last
+    worker = session._worker
+    after = worker.rendered[worker.rendered.index(first):]
+    assert after[:2] == [first, last], after
+
+
+def _accumulated(mode, samples):
+    s = _session(mode=mode, idle_s=0.0)
+    counts = []
+    s.subscribe(lambda kind, p: counts.append(p.spp) if kind == "frame" else None)
+    version = s.edit("image.samples", samples)
+    frame = s.wait_frame(version, final=True, timeout=120)
+    scene = s.scene
+    s.close()
+    return frame, counts, scene
+
+
+def test_whitted_refinement_is_the_render_at_its_spp():
+    frame, counts, scene = _accumulated("whitted", 25)
+    assert frame.spp == frame.target_spp == 25 and counts[-5:] == [1, 4, 8, 16, 25]
+    rendered = mimarble.render(scene, spp=25)
+    assert np.allclose(frame.pixels, rendered, rtol=2 ** -22, atol=1e-30)
+    frame, counts, scene = _accumulated("whitted", 16)
+    assert frame.spp == frame.target_spp == 16 and frame.mime == "image/png"
+    assert counts[-4:] == [1, 4, 8, 16]
+    rendered = mimarble.render(scene, spp=16)
+    assert np.allclose(frame.pixels, rendered, rtol=2 ** -22, atol=1e-30)
+    assert np.mean(frame.pixels == rendered) > 0.999
+
+
+def test_path_refinement_converges_as_a_render_does():
+    frame, counts, scene = _accumulated("path", 16)
+    assert frame.spp == 16 and counts[-1] == 16
+    reference = mimarble.render(scene, spp=16, mode="path", seed=7)
+    other = mimarble.render(scene, spp=16, mode="path", seed=8)
+
+    def rmse(a, b):
+        return float(np.sqrt(np.mean((a.astype(np.float64) - b) ** 2)))
+    assert 0.0 < rmse(frame.pixels, reference) < 1.5 * rmse(other, reference)
+
+
+def test_structural_edit_compiles_once(session, monkeypatch):
+    from mimarble.mitsuba.rendering import loaded_scenes, passes
+    session.wait_frame()                      # the state before: loaded and rendered
+    loads = []
+    original = loaded_scenes.mi.load_dict
+    monkeypatch.setattr(loaded_scenes.mi, "load_dict",
+                        lambda d, *a, **k: (loads.append(1), original(d, *a, **k))[1])
+    statuses = []
+    session.subscribe(lambda kind, p: statuses.append(p["compiling"]) if kind == "state" else None)
+    session.wait_frame(session.edit("marble.octaves", 9))       # a new structure: loaded
+    assert True in statuses and loads == [1]
+    statuses.clear()
+    # Back to 12: its loaded scene is kept, no load; its pass is recorded once more
+    # (Dr.Jit's recordings check the registry of instances, which the load of 9 changed),
+    # and the studio says so.
+    session.wait_frame(session.edit("marble.octaves", 12))
+    assert loads == [1] and True in statuses
+    statuses.clear()
+    recordings = passes._traced_pass.recordings
+    for octaves in (9, 12, 9):                  # both recorded now: nothing new
+        session.wait_frame(session.edit("marble.octaves", octaves))
+    assert loads == [1] and True not in statuses
+    assert passes._traced_pass.recordings == recordings
+
+
+def _hits(scene, grid):
+    """(points on the sphere hit by the grid's pixel centres): the test's own camera and
+    ray–sphere intersection."""
+    camera, sphere = scene.camera, scene.spheres[0]
+    eye, lookat, up = (np.array(v, dtype=float) for v in (camera.eye, camera.lookat, camera.up))
+    f = (lookat - eye) / np.linalg.norm(lookat - eye)
+    r = np.cross(f, up) / np.linalg.norm(np.cross(f, up))
+    u = np.cross(r, f)
+    half = math.tan(math.radians(camera.fov) / 2)
+    x, y = np.meshgrid((np.arange(grid) + 0.5) / grid, (np.arange(grid) + 0.5) / grid)
+    d = f + ((2 * x.ravel() - 1) * half)[:, None] * r + ((1 - 2 * y.ravel()) * half)[:, None] * u
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    oc = eye - np.array(sphere.center)
+    b = d @ oc
+    disc = b * b - (oc @ oc - sphere.radius ** 2)
+    hit = disc >= 0
+    t = -b[hit] - np.sqrt(disc[hit])
+    return eye + t[:, None] * d[hit]
+
+
+def test_histogram_of_t_without_noise(session):
+    version = session.edits({"marble.distortion": 0.0, "marble.period": 0.7})
+    session.wait_frame(version)
+    deadline = time.monotonic() + 30
+    while (session.latest_histograms() or {}).get("version", -1) < version:
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
+    (histogram,) = session.latest_histograms()["histograms"]
+    assert histogram["label"] == "material.marble.ambient, material.marble.diffuse"
+    assert histogram["keys"] == ["material.marble.ambient", "material.marble.diffuse"]
+    points = _hits(session.scene, 96)
+    expected = np.histogram(np.abs(np.sin(math.pi * 0.7 * points[:, 0])), bins=64,
+                            range=(0, 1))[0]
+    assert histogram["samples"] == len(points)
+    assert histogram["counts"] == expected.tolist()
+    assert histogram["stops"] == [k / 7 for k in range(8)]
+    assert histogram["colors"][0] == "#ff0000" and len(histogram["colors"]) == 8
+
+
+def test_watch_reloads_and_keeps_the_last_good_frame(tmp_path):
+    path = tmp_path / "stone.scene"
+    shutil.copy(SCENES / "fig11a.scene", path)
+    s = _session(str(path))
+    try:
+        good = s.wait_frame()
+        assert s.poll_file() is None
+        text = path.read_text()
+        path.write_text(text.replace("period 1.3", "period <"))
+        result = s.poll_file()
+        assert result["reloaded"] is False
+        error = s.state()["error"]
+        assert error["kind"] == "parse" and error["file"] == str(path) and error["line"] > 1
+        assert error["where"] == f"{path}:{error['line']}:{error['column']}"
+        assert s.latest_frame() is good or s.latest_frame().version == good.version
+        path.write_text(text.replace("period 1.3", "period 2.9"))
+        assert s.poll_file() == {"reloaded": True}
+        frame = s.wait_frame()
+        assert s.state()["error"] is None
+        assert s.scene.materials["marble"].diffuse.period == 2.9
+        assert frame.width == 48               # the view (image size) stays
+    finally:
+        s.close()
+
+
+def test_unsaved_edits_are_not_reloaded_over(tmp_path):
+    path = tmp_path / "stone.scene"
+    shutil.copy(SCENES / "fig11a.scene", path)
+    s = _session(str(path))
+    try:
+        s.edit("marble.period", 2.0)
+        path.write_text(path.read_text().replace("period 1.3", "period 2.9"))
+        assert s.poll_file() == {"reloaded": False, "disk_changed": True}
+        assert s.state()["disk_changed"] and s.scene.materials["marble"].diffuse.period == 2.0
+        assert s.reload() == {"reloaded": True}
+        assert s.scene.materials["marble"].diffuse.period == 2.9 and not s.state()["dirty"]
+    finally:
+        s.close()
+
+
+def test_close_leaves_no_thread():
+    s = _session(watch=True)
+    s.wait_frame()
+    s.edit("marble.period", 1.7)
+    assert _studio_threads()
+    s.close()
+    s.close()                                 # idempotent
+    assert _studio_threads() == []
+
+
+def test_compare_measures_against_the_reference_and_is_cancelled_by_an_edit():
+    session = _session(idle_s=0.05)           # the compare waits for the final frame
+    try:
+        _compare(session)
+    finally:
+        session.close()
+
+
+def _compare(session):
+    results = []
+    session.subscribe(lambda kind, p: results.append(p) if kind == "compare" else None)
+    session.compare()
+    deadline = time.monotonic() + 120
+    while not results:
+        assert time.monotonic() < deadline
+        time.sleep(0.05)
+    (result,) = results
+    assert result["status"] == "done", result
+    assert result["spp"] == 4 and result["psnr"] > 40.0     # float32 against float64
+    assert result["difference_png"][:4] == b"\x89PNG" and result["reference_png"][:4] == b"\x89PNG"
+    assert session.compare_result() is result or session.compare_result() == result
+    session.compare()
+    comparison = session._compare
+    assert comparison.process.poll() is None
+    session.edit("marble.period", 1.9)           # the next edit cancels it
+    assert comparison.process.poll() is not None and comparison.status == "cancelled"
+    folder = comparison._folder
+    comparison._thread.join(60)
+    assert not folder.exists()
+    assert len(results) == 1
+
+
+def test_compare_is_refused_in_path_mode(session):
+    from mimarble.studio import StudioError
+    session.edit("mode", "path")
+    with pytest.raises(StudioError, match="whitted"):
+        session.compare()
+
+
+def test_snapshot_and_export(session, tmp_path):
+    frame = session.wait_frame(session.edit("marble.period", 2.2))
+    written = session.snapshot(tmp_path / "frame.png")
+    from PIL import Image
+    pixels = np.asarray(Image.open(tmp_path / "frame.png"))
+    assert pixels.shape == (48, 48, 3) and written.version >= frame.version
+    text = session.export(tmp_path / "scene.xml")
+    assert (tmp_path / "scene.xml").read_text() == text and 'name="period" value="2.2"' in text
+    session.export(tmp_path / "scene_export.py", python=True)
+    assert "2.2" in (tmp_path / "scene_export.py").read_text()
+
+
+def _copy(tmp_path, name="stone.scene"):
+    path = tmp_path / name
+    shutil.copy(SCENES / "fig11a.scene", path)
+    return path
+
+
+def test_save_changes_only_the_edited_values(tmp_path):
+    path = _copy(tmp_path)
+    before = path.read_text()
+    s = _session(str(path))
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        s.orbit(15.0, 0.0)
+        s.save()
+        after = path.read_text()
+        changed = [(a, b) for a, b in zip(before.splitlines(), after.splitlines()) if a != b]
+        assert len(before.splitlines()) == len(after.splitlines())
+        assert len(changed) == 2, changed
+        assert changed[0][1].strip().startswith("camera") and "eye" in changed[0][1]
+        assert changed[1] == ("      period 1.3", "      period 2.25")
+        reparsed = mimarble.scene.parse(after)
+        assert reparsed.materials["marble"].diffuse.period == 2.25
+        assert reparsed.materials["marble"].ambient.period == 1.3
+        assert reparsed.camera == mimarble.scene.parse(after).camera
+        assert np.allclose(reparsed.camera.eye, s.scene.camera.eye, rtol=1e-12)
+        assert not s.state()["dirty"] and s.poll_file() is None    # its own save: no reload
+        s.save()                                                    # nothing edited: same bytes
+        assert path.read_text() == after
+    finally:
+        s.close()
+
+
+def test_save_refuses_a_file_changed_on_disk_and_a_packaged_scene(tmp_path):
+    from mimarble.studio import StudioError
+    path = _copy(tmp_path)
+    s = _session(str(path))
+    try:
+        s.edit("marble.period", 2.0)
+        path.write_text(path.read_text() + "\n// an editor's line\n")
+        with pytest.raises(StudioError, match="changed on disk"):
+            s.save()
+        assert path.read_text().endswith("// an editor's line\n")
+    finally:
+        s.close()
+    s = _session("fig11a")
+    try:
+        s.edit("marble.period", 2.0)
+        with pytest.raises(StudioError, match="packaged scene"):
+            s.save()
+        copy = tmp_path / "mine.scene"
+        s.save_as(copy)
+        assert mimarble.scene.load(copy).materials["marble"].diffuse.period == 2.0
+        assert s.state()["path"] == str(copy) and not s.state()["packaged"]
+    finally:
+        s.close()
+
+
+def test_controls_come_from_the_registry_and_the_table(session):
+    import json
+    from mimarble.parameters import BY_NAME
+    from mimarble.scene.keys import scene_keys
+    groups = session.controls()["groups"]
+    json.dumps(groups)
+    by_key = {c["key"]: c for g in groups for c in g["controls"]}
+    names = [g["name"] for g in groups]
+    # fig11a: every marble, then each channel's; material "marble" sets what every marble
+    # does, so its group is left out.
+    assert names == ["every marble", 'material "marble", ambient', 'material "marble", diffuse',
+                     "camera", "light 0", "image", "view"]
+    assert set(by_key) - {"mode", "image.width", "image.height"} <= set(scene_keys(session.scene))
+    period = by_key["marble.period"]
+    assert period["kind"] == "number" and period["value"] == 1.3 and period["name"] == "period"
+    assert period["slider"] == list(BY_NAME["period"].slider) and not period["structural"]
+    scale = by_key["marble.scale"]
+    assert scale["min"] == 0.0 and scale["exclusive_min"] and scale["max"] is None
+    octaves = by_key["marble.octaves"]
+    assert octaves["kind"] == "integer" and octaves["structural"] and octaves["max"] == 64
+    assert by_key["marble.function"]["choices"] == list(BY_NAME["function"].choices)
+    ramp = by_key["material.marble.diffuse.ramp"]
+    assert ramp["kind"] == "colours" and ramp["structural"]
+    assert ramp["value"]["colors"][0] == "#ff0000" and len(ramp["value"]["positions"]) == 8
+    stop = by_key["marble.ramp.7"]
+    assert stop["kind"] == "stop" and stop["value"]["position"] is None and not stop["structural"]
+    assert by_key["camera.eye"]["value"] == [0.0, 0.0, 9.0]
+    assert by_key["light.0.color"]["value"] == "#ffffff"
+    assert by_key["mode"]["choices"] == ["whitted", "path"] and by_key["mode"]["value"] == "whitted"
+    session.edit("marble.period", 2.5)
+    after = {c["key"]: c for g in session.controls()["groups"] for c in g["controls"]}
+    assert after["marble.period"]["value"] == 2.5
+
+
+def test_a_state_that_cannot_render_is_said_and_undone():
+    s = _session("fig11a-translucent")
+    try:
+        assert s.state()["mode"] == "path"            # translucent: whitted refuses it
+        good = s.wait_frame()
+        s.edit("mode", "whitted")
+        deadline = time.monotonic() + 60
+        while s.state()["error"] is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        state = s.state()
+        assert state["error"]["kind"] == "render" and "subsurface" in state["error"]["message"]
+        frame = s.wait_frame(state["version"])          # the last good state, again
+        assert s.state()["mode"] == "path" and frame.mode == "path"
+        assert np.array_equal(frame.pixels, good.pixels)
+        assert s.state()["error"] is not None           # said until the next edit
+        s.edit("marble.period", 1.5)
+        assert s.state()["error"] is None
+    finally:
+        s.close()
