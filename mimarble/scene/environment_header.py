@@ -36,7 +36,8 @@ from .limits import MAX_IMAGE_MAP_PIXELS
 
 __all__ = ["ENVIRONMENT_FORMATS", "EXR_HEADER_MOST", "EXR_COMPRESSIONS", "ExrLayout",
            "HdrLayout", "EnvironmentFileProblem", "environment_file_problem",
-           "environment_file_sentence", "exr_layout", "hdr_layout", "walk_hdr"]
+           "environment_file_sentence", "check_environment", "exr_layout", "hdr_layout",
+           "walk_hdr"]
 
 #: What an environment file may be, in words.
 ENVIRONMENT_FORMATS = "OpenEXR, Radiance HDR, 8-bit PNG or JPEG"
@@ -124,6 +125,19 @@ def environment_file_sentence(name: str, path: str) -> str | None:
     if problem is None:
         return None
     return f"environment file '{shortened(name, 256)}': {problem}"
+
+
+def check_environment(scene) -> None:
+    """The scene's environment file passes the header check, else a SceneError at its
+    ``file`` string in the parser's own sentence: for a scene built in Python, which the
+    parser never saw, before Mitsuba or the reference decodes it."""
+    environment = scene.environment
+    if environment is None or environment.file is None:
+        return
+    from .errors import SceneError
+    sentence = environment_file_sentence(environment.file, environment.location)
+    if sentence:
+        raise SceneError.in_file(scene.source, environment.pos, sentence)
 
 
 def _size(kind: str, width: int, height: int) -> None:
