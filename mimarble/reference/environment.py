@@ -29,22 +29,32 @@ import zlib
 
 import numpy as np
 
-from mimarble.runtime.reading import open_regular
+from mimarble.runtime.reading import open_regular, shortened
 from mimarble.scene.environment_header import (EXR_COMPRESSIONS, EXR_TYPES, EnvironmentFileProblem,
                                               environment_file_problem, exr_layout, hdr_layout,
                                               walk_hdr)
+from mimarble.scene.errors import SceneError
 from mimarble.scene.model import Environment
 
-__all__ = ["EnvironmentLookup", "load_environment", "direction_uv", "lookup"]
+__all__ = ["EnvironmentLookup", "Unreadable", "load_environment", "direction_uv", "lookup"]
 
 #: The OpenEXR compressions the reference decodes.
 _DECODED = ("NONE", "ZIPS", "ZIP")
 
 
+class Unreadable(ValueError):
+    """An environment file the reference cannot read; ``reason`` says why (the parser's
+    words for a file it refuses)."""
+
+    def __init__(self, where: str, reason: str) -> None:
+        super().__init__(f"environment file {where!r}: {reason}")
+        self.reason = reason
+
+
 def load_environment(path) -> np.ndarray:
     """The environment image in ``path`` as linear RGB: a read-only float64 (H, W, 3), row
     0 the top (v = 0, straight up). Cached by (absolute path, modification time, size).
-    Raises ValueError naming the file when it cannot be read."""
+    Raises :class:`Unreadable` (a ValueError naming the file) when it cannot be read."""
     where = os.path.abspath(os.fspath(path))
     try:
         st = os.stat(where)
@@ -57,7 +67,7 @@ def load_environment(path) -> np.ndarray:
 def _load(where: str, stamp) -> np.ndarray:
     problem = environment_file_problem(where)
     if problem:
-        raise ValueError(f"environment file {where!r}: {problem}")
+        raise Unreadable(where, problem)
     try:
         with open_regular(where) as f:
             head = f.read(4)
@@ -68,7 +78,7 @@ def _load(where: str, stamp) -> np.ndarray:
             else:
                 image = None
     except EnvironmentFileProblem as p:
-        raise ValueError(f"environment file {where!r}: {p}") from None
+        raise Unreadable(where, str(p)) from None
     if image is None:           # a PNG or JPEG: as an image map
         from .image_map import load_image
         image = np.array(load_image(where))
@@ -80,9 +90,9 @@ def _exr(f, where: str) -> np.ndarray:
     layout = exr_layout(f)
     name = EXR_COMPRESSIONS[layout.compression][0]
     if name not in _DECODED:
-        raise ValueError(f"environment file {where!r}: the reference tracer reads OpenEXR "
-                         f"files compressed with {', '.join(_DECODED)}, not {name} (path and "
-                         f"whitted modes read it; save it with ZIP to compare)")
+        raise Unreadable(where, f"the reference tracer reads OpenEXR files compressed with "
+                                f"{', '.join(_DECODED)}, not {name} (path and whitted modes "
+                                f"read it; save it with ZIP to compare)")
     width, height, lines = layout.width, layout.height, layout.lines_per_chunk
     sizes = [EXR_TYPES[kind][1] for _, kind in layout.channels]
     line_bytes = width * sum(sizes)
@@ -95,8 +105,8 @@ def _exr(f, where: str) -> np.ndarray:
         count = min(lines, layout.y_min + height - int(y))
         first = int(y) - layout.y_min
         if not 0 <= first < height or count <= 0:
-            raise ValueError(f"environment file {where!r}: a damaged OpenEXR file (chunk "
-                             f"{chunk} is at row {int(y)})")
+            raise Unreadable(where, f"a damaged OpenEXR file (chunk {chunk} is at row "
+                                    f"{int(y)})")
         data = f.read(int(length))
         expected = count * line_bytes
         if len(data) != expected:
@@ -118,10 +128,10 @@ def _unzip(data: bytes, expected: int, where: str) -> bytes:
     try:
         raw = zlib.decompress(data)
     except zlib.error as e:
-        raise ValueError(f"environment file {where!r}: a damaged OpenEXR file ({e})") from None
+        raise Unreadable(where, f"a damaged OpenEXR file ({e})") from None
     if len(raw) != expected:
-        raise ValueError(f"environment file {where!r}: a damaged OpenEXR file (a chunk "
-                         f"holds {len(raw)} bytes, not {expected})")
+        raise Unreadable(where, f"a damaged OpenEXR file (a chunk holds {len(raw)} bytes, "
+                                f"not {expected})")
     t = np.frombuffer(raw, np.uint8).astype(np.int64)
     t[1:] -= 128
     t = (np.cumsum(t) % 256).astype(np.uint8)
@@ -171,11 +181,19 @@ def lookup(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 class EnvironmentLookup:
     """A scene's :class:`~mimarble.scene.model.Environment`, loaded: :meth:`radiance` of
-    world directions."""
+    world directions. A file it cannot read is a SceneError at the file's string of the
+    scene file ``source`` (None: a scene built in Python), in one sentence."""
 
-    def __init__(self, environment: Environment) -> None:
+    def __init__(self, environment: Environment, source: str | None = None) -> None:
         self.environment = environment
-        self.image = None if environment.file is None else load_environment(environment.location)
+        self.image = None
+        if environment.file is not None:
+            try:
+                self.image = load_environment(environment.location)
+            except Unreadable as e:
+                raise SceneError.in_file(source, environment.pos, f"environment file "
+                                         f"'{shortened(environment.file, 256)}': {e.reason}") \
+                    from None
         self.from_world = np.array(environment.rotation(), dtype=np.float64).T   # R⁻¹ = Rᵀ
 
     def radiance(self, d: np.ndarray) -> np.ndarray:

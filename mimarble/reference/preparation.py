@@ -236,7 +236,8 @@ def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
         kinds=tuple(kinds),
         meshes=_mesh_arrays(scene, meshes, first["mesh"]),
         from_world=_object_space(scene, tuple(channels)),
-        environment=None if scene.environment is None else EnvironmentLookup(scene.environment),
+        environment=None if scene.environment is None else EnvironmentLookup(scene.environment,
+                                                                            scene.source),
     )
 
 

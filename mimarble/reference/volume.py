@@ -276,7 +276,7 @@ def _sky(scene):
     directions)."""
     if scene.environment is None:
         return np.array(scene.ambient, dtype=np.float64)
-    return EnvironmentLookup(scene.environment).radiance
+    return EnvironmentLookup(scene.environment, scene.source).radiance
 
 
 def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps=None):

@@ -154,6 +154,8 @@ def _size(kind: str, width: int, height: int) -> None:
 # -- OpenEXR ------------------------------------------------------------------------
 def _cstring(head: bytes, at: int, most: int) -> tuple[str, int]:
     end = head.find(b"\0", at, at + most + 1)
+    if end < 0 and at + most + 1 > len(head):
+        raise EnvironmentFileProblem("a truncated OpenEXR file (in its header)")
     if end < 0:
         raise EnvironmentFileProblem("a damaged OpenEXR file: a header name is not "
                                      "terminated")

@@ -122,14 +122,18 @@ def ambient_dict(scene: model.Scene, mode: str) -> dict | None:
 
 def environment_rotation(rotate):
     """``rotate < a b c >`` (degrees about x, then y, then z) as Mitsuba's own
-    ``ScalarTransform4f``: R = R_z(c)·R_y(b)·R_x(a), made by Mitsuba's ``rotate`` as a
-    hand-written scene makes it (so that such a scene is the same, bit for bit)."""
+    ``ScalarTransform4f``: R = R_z(c)·R_y(b)·R_x(a), made by Mitsuba's ``rotate`` and
+    multiplied as a hand-written scene writes it, ``T().rotate([0, 0, 1], c) @
+    T().rotate([0, 1, 0], b) @ T().rotate([1, 0, 0], a)`` — left to right, the zero angles
+    left out (float32 products are not associative: so such a scene is the same, bit for
+    bit)."""
     import mitsuba as mi   # imported here: the module itself stays importable without it
     a, b, c = rotate
-    transform = mi.ScalarTransform4f()
-    for axis, angle in (([1, 0, 0], a), ([0, 1, 0], b), ([0, 0, 1], c)):
-        if angle != 0:
-            transform = mi.ScalarTransform4f().rotate(axis=axis, angle=angle) @ transform
+    turns = [mi.ScalarTransform4f().rotate(axis=axis, angle=angle)
+             for axis, angle in (([0, 0, 1], c), ([0, 1, 0], b), ([1, 0, 0], a)) if angle != 0]
+    transform = turns[0]
+    for turn in turns[1:]:
+        transform = transform @ turn
     return transform
 
 
