@@ -305,6 +305,13 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
                     inner = f"{block} {{ {operands} }}"
                 parse(texture + f'material "m" {{ diffuse {{ {inner} }} }}')
             continue
+        if block == "environment":      # exactly one of file and color; rotate a file's
+            alone = {"file": f'file "{PNG}"', "color": "color <1 1 1>",
+                     "intensity": "color <1 1 1> intensity 2",
+                     "rotate": f'file "{PNG}" rotate <0 90 0>'}
+            for key in keys:
+                parse(f"environment {{ {alone[key]} }}")
+            continue
         for key in keys:
             if (block, key) in (("light", "position"), ("subsurface", "albedo"),
                                 ("subsurface", "mean_free_path")) \
