@@ -194,8 +194,7 @@ class Whitted:
     @staticmethod
     def _lights(scene):
         # The environment (Mitsuba holds at most one) is the background, not a light.
-        lights = [light for light in scene.emitters()
-                  if not mi.has_flag(light.flags(), mi.EmitterFlags.Infinite)]
+        lights = [light for light in scene.emitters() if not light.is_environment()]
         for light in lights:
             if not isinstance(light, StratifiedArea) and \
                     not mi.has_flag(light.flags(), mi.EmitterFlags.DeltaPosition):
