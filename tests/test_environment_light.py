@@ -280,6 +280,17 @@ def test_whitted_sees_the_sky_in_the_right_place(files, llvm):
     assert mimarble.reference.render(turned)[4, 4, 0] < 1.0
 
 
+def test_a_rewritten_environment_file_is_seen(tmp_path, llvm):
+    """The loaded scene is kept by its structure, which holds the environment file's facts:
+    the same scene after its file changed renders the new sky."""
+    write_exr(tmp_path / "sky.exr", sky())
+    scene = load(tmp_path, scene_text('environment { file "sky.exr" }'))
+    first = mimarble.render(scene)
+    write_exr(tmp_path / "sky.exr", 2 * sky())
+    second = mimarble.render(scene)
+    assert np.allclose(second[0, 0], 2 * first[0, 0])
+
+
 def test_the_ambient_term_stays_the_papers(files, llvm):
     """Whitted mode: the environment lights nothing; a hit is ka·A + the lights, as without it."""
     folder, _ = files

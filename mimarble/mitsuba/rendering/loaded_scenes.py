@@ -4,7 +4,7 @@
 the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
 :data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
 in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, times and
-inode of every image map and mesh file it reads, and the content digest of every mesh
+inode of every image map, mesh and environment file it reads, and the content digest of every mesh
 file the parser read (``Mesh.digest``) — matches a loaded one gets that loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
 ``mi.traverse`` and told to their marble as values the host holds (``Marble.hold``: the
@@ -161,13 +161,14 @@ def _exact(item):
     return str(item)
 
 
-#: The plugins that read a file named by their ``filename``: image maps and meshes.
-_FILE_PLUGINS = ("bitmap", "ply", "obj")
+#: The plugins that read a file named by their ``filename``: image maps, meshes and the
+#: environment.
+_FILE_PLUGINS = ("bitmap", "ply", "obj", "envmap")
 
 
 def _files_read(item) -> list:
     """(path, size, modification and change times, inode) of every file a ``bitmap``,
-    ``ply`` or ``obj`` of the dict reads, nested. The change time is the kernel's: a
+    ``ply``, ``obj`` or ``envmap`` of the dict reads, nested. The change time is the kernel's: a
     rewrite that puts the modification time back (``cp -p``, ``rsync -t``, ``touch -r``)
     still changes it."""
     found = []
