@@ -5,22 +5,17 @@ samples, an environment's file or colour), at the key at fault.
 
 from __future__ import annotations
 
-import os
-
 from lark import Tree
 
 from mimarble.scene import rules
-from .build_values import ValueReader, pos_of, unquoted
+from .build_values import ValueReader, pos_of
 from .environment_header import environment_file_sentence
 from .limits import MAX_IMAGE_SAMPLES
 from .model import AREA_SAMPLES, Camera, Environment, Image, Light, Pos, RectangleArea, SphereArea
 
 
 class ViewBuilder(ValueReader):
-    """The image, the camera, the lights and the environment; ``folder``: where an
-    environment's file is found."""
-
-    folder: str
+    """The image, the camera, the lights and the environment."""
 
     def image(self, st: Tree) -> Image:
         f = self.fields(st, "'image' block")
@@ -125,11 +120,6 @@ class ViewBuilder(ValueReader):
             color = self.color(f["color"].children[0], "environment color")
             return Environment(color=color, intensity=intensity, pos=pos_of(st))
         tok = f["file"].children[0]
-        name = unquoted(tok)
-        self.file_name(tok, "an environment")
-        path = os.path.normpath(os.path.join(self.folder, name))
-        problem = environment_file_sentence(name, path)
-        if problem:
-            raise self.error(tok, problem)
+        name, path = self.found_file(tok, "an environment", environment_file_sentence)
         return Environment(file=name, path=path, intensity=intensity, rotate=rotate,
                            pos=Pos(tok.line, tok.column))
