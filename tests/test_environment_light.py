@@ -382,3 +382,32 @@ def test_export_includes_the_environment(files, block, mode, tmp_path, llvm):
     assert_both_render_as_the_dict(scene_dict, tmp_path)
     xml = (tmp_path / "scene.xml").read_text()
     assert '<emitter type="envmap"' in xml or '<emitter type="constant"' in xml
+
+
+# ---------------------------------------------------------------------------
+# Sweep keys
+
+def test_the_environment_has_sweep_keys(files):
+    from mimarble.scene.keys import KeyPathError, keys_listing, scene_keys, with_value
+    from mimarble.scene.rewrite import rewrite
+    folder, _ = files
+    text = scene_text('environment { file "sky.exr" intensity 1.5 }')
+    scene = load(folder, text)
+    keys = scene_keys(scene)
+    assert keys["environment.intensity"].value == 1.5
+    assert keys["environment.rotate"].value == (0.0, 0.0, 0.0)
+    assert "environment.rotate" in keys_listing(scene)
+    turned = with_value(scene, "environment.rotate", "0 90 0")
+    assert turned.environment.rotate == (0.0, 90.0, 0.0) and turned.environment.file == "sky.exr"
+    assert with_value(scene, "environment.intensity", 3).environment.intensity == 3.0
+    for path, value in (("environment.rotate", "0 90 0"), ("environment.intensity", "2")):
+        rewritten = rewrite(text, {path: value}, source=str(folder / "scene.scene"))
+        assert parse(rewritten, source=str(folder / "scene.scene")) == with_value(scene, path, value)
+    with pytest.raises(KeyPathError, match="environment.intensity"):
+        with_value(scene, "environment.intensity", "-1")
+    colour = parse(scene_text("environment { color < 1 1 1 > }"))
+    assert "environment.rotate" not in scene_keys(colour)
+    with pytest.raises(KeyPathError, match="it has no rotate"):
+        with_value(colour, "environment.rotate", "0 1 0")
+    with pytest.raises(KeyPathError, match="the scene has no environment"):
+        with_value(parse(scene_text("")), "environment.intensity", "2")

@@ -205,7 +205,7 @@ def test_values_are_checked_and_numpy_values_taken(llvm, tmp_path):
     for key, value, words in (("marble.function", "cosin", "function must be one of"),
                               ("marble.scale", 0.0, "scale must be > 0, found 0.0"),
                               ("marble.octaves", 70, "octaves must be in 0..64"),
-                              ("camera.fov", 200.0, "below 180"),
+                              ("camera.fov", 200.0, r"fov must be in \(0, 180\) degrees"),
                               ("image.samples", 3, "perfect square")):
         with pytest.raises(sweep_settings.SweepError, match=words):
             sweep_frames.frames(scene, sweep_settings.settings_from({key: [value]}))

@@ -233,13 +233,17 @@ def _sweep_command(sub) -> None:
                               "\"mimarble: interrupted\", exit status 130.")
     p.add_argument("scene", help=f"scene file, {PACKAGED_NAME}")
     p.add_argument("--set", action="append", metavar="KEY=VALUES",
-                   help="a parameter and its values: v1,v2,… or start:stop:count; KEY is "
-                        "marble.K, MATERIAL.K or MATERIAL.CHANNEL.K "
-                        f"(K: {', '.join(SWEEPABLE)}), "
-                        "camera.fov, image.samples or light.N.intensity; repeat for a grid")
-    p.add_argument("-o", "--output", required=True, help="folder for the images, sweep.json "
-                                                         "and contact.png (resumed if it holds "
-                                                         "this sweep)")
+                   help="a parameter and its values: v1,v2,… or start:stop:count (a whole "
+                        "ramp's values: separated by ';'); KEY is "
+                        "marble.K, TEXTURE.K, MATERIAL.K or MATERIAL.CHANNEL.K "
+                        f"(K: {', '.join(SWEEPABLE)}, ramp or ramp.N), camera.fov|eye|lookat|up, "
+                        "light.N.intensity|color|position or image.samples "
+                        "(--keys lists the scene's); repeat for a grid")
+    p.add_argument("--keys", action="store_true",
+                   help="print the scene's keys, grouped, with their values, and exit")
+    p.add_argument("-o", "--output", help="folder for the images, sweep.json "
+                                          "and contact.png (resumed if it holds "
+                                          "this sweep); required unless --keys")
     p.add_argument("--spp", type=int, help="samples per pixel (default: the scene's)")
     group = p.add_mutually_exclusive_group()
     group.add_argument("--workers", type=int,

@@ -14,8 +14,15 @@ def _sweep(args) -> int:
     from mimarble.sweeps.cluster import check_workers
     from mimarble.sweeps.frames import frames
     from mimarble.sweeps.settings import SweepError, settings_from
+    if args.keys:                                   # the scene's keys, and no sweep
+        from mimarble.scene.keys import keys_listing
+        for line in keys_listing(_load_scene(args)).splitlines():
+            _say(line)                              # names from the file, shown escaped
+        return 0
     if not args.set:
         raise UsageError("a sweep needs at least one --set KEY=VALUES")
+    if args.output is None:
+        raise UsageError("a sweep needs -o FOLDER (its images, sweep.json and contact.png)")
     out = Path(_checked_name(args.output, "-o"))
     try:
         if out.exists() and not out.is_dir():

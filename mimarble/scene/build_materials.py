@@ -11,7 +11,7 @@ from lark import Token, Tree
 from mimarble import parameters as marble_parameters
 from mimarble.parameters import BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter, ParameterError
 from mimarble.scene import rules
-from .build_values import ValueReader, pos_of, unquoted
+from .build_values import ValueReader, pos_of, source_of, unquoted
 from .image_header import image_file_sentence
 from .model import (SPACES, Add, ColorChannel, ImageChannel, MarbleChannel, Material, Mix,
                     Multiply, Pos, Subsurface, walk)
@@ -283,7 +283,8 @@ class MaterialBuilder(ValueReader):
             space = str(tok)
             self.refuse(tok, None if space in SPACES else
                         f"a marble's space is {' or '.join(SPACES)}")
-        return MarbleChannel(**values, transform=steps, space=space, pos=pos_of(st))
+        return MarbleChannel(**values, transform=steps, space=space, pos=pos_of(st),
+                             source=source_of(st, f))
 
     def marble_value(self, p: Parameter, key: Tree):
         """The value of a marble key as written, for ``p.check``, and where to point at

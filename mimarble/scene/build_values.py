@@ -13,7 +13,7 @@ from lark import Token, Tree
 from mimarble.parameters import hex_colour
 from mimarble.scene import rules, transforms
 from .errors import SceneError
-from .model import Pos
+from .model import Pos, Source
 
 # Rule names whose keyword differs from the rule name.
 _RULE_KEYWORD = {"shape_material": "material", "ambient_light": "ambient", "image_map": "image",
@@ -27,6 +27,34 @@ def keyword_of(tree: Tree) -> str:
 
 def pos_of(tree: Tree) -> Pos:
     return Pos(tree.meta.line, tree.meta.column)
+
+
+def span_of(node: Tree | Token) -> tuple[int, int]:
+    """Where a tree or a token stands in the parsed text: offsets [start, end)."""
+    if isinstance(node, Token):
+        return node.start_pos, node.end_pos
+    return node.meta.start_pos, node.meta.end_pos
+
+
+def source_of(st: Tree, f: dict[str, Tree]) -> Source:
+    """Where the block ``st`` and the values of its keys ``f`` (its fields) stand: each
+    key's value (its one child), or, for a ``ramp``, the whole key and each stop's
+    position and colour (model.Source)."""
+    values, stops = {}, ()
+    for key, tree in f.items():
+        if key == "ramp":
+            values[key] = span_of(tree)
+            stops, before = [], None
+            for child in tree.children:
+                if isinstance(child, Token) and child.type == "NUMBER":
+                    before = span_of(child)
+                else:
+                    stops.append((before, span_of(child)))
+                    before = None
+            stops = tuple(stops)
+        elif len(tree.children) == 1:
+            values[key] = span_of(tree.children[0])
+    return Source(span_of(st), values, stops)
 
 
 def unquoted(tok: Token) -> str:

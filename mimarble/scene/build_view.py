@@ -8,7 +8,7 @@ from __future__ import annotations
 from lark import Tree
 
 from mimarble.scene import rules
-from .build_values import ValueReader, pos_of
+from .build_values import ValueReader, pos_of, source_of
 from .environment_header import environment_file_sentence
 from .limits import MAX_IMAGE_SAMPLES
 from .model import AREA_SAMPLES, Camera, Environment, Image, Light, Pos, RectangleArea, SphereArea
@@ -33,7 +33,7 @@ class ViewBuilder(ValueReader):
         if problem:
             raise self.error(f.get("samples") or f.get("width") or f.get("height") or st, problem)
         background = self.color(f["background"].children[0], "background") if "background" in f else d.background
-        return Image(width, height, samples, background, pos=pos_of(st))
+        return Image(width, height, samples, background, pos=pos_of(st), source=source_of(st, f))
 
     def camera(self, st: Tree) -> Camera:
         f = self.fields(st, "'camera' block")
@@ -52,7 +52,7 @@ class ViewBuilder(ValueReader):
         problem = rules.up_problem(eye, lookat, up)
         if problem:
             raise self.error(f.get("up") or st, problem)
-        return Camera(eye, lookat, up, fov, pos=pos_of(st))
+        return Camera(eye, lookat, up, fov, pos=pos_of(st), source=source_of(st, f))
 
     def light(self, st: Tree) -> Light:
         f = self.fields(st, "'light' block")
@@ -61,7 +61,7 @@ class ViewBuilder(ValueReader):
         position = self.point(f["position"].children[0], "position")
         color = self.color(f["color"].children[0], "light color") if "color" in f else Light(position).color
         area = self.area(f["area"]) if "area" in f else None
-        return Light(position, color, area, pos=pos_of(st))
+        return Light(position, color, area, pos=pos_of(st), source=source_of(st, f))
 
     def area(self, st: Tree) -> RectangleArea | SphereArea:
         """``area { axis1 <> axis2 <> samples N }`` (a rectangle) or ``area { radius R
@@ -118,8 +118,9 @@ class ViewBuilder(ValueReader):
         rotate = self.point(f["rotate"].children[0], "rotate") if "rotate" in f else (0.0,) * 3
         if "color" in f:
             color = self.color(f["color"].children[0], "environment color")
-            return Environment(color=color, intensity=intensity, pos=pos_of(st))
+            return Environment(color=color, intensity=intensity, pos=pos_of(st),
+                               source=source_of(st, f))
         tok = f["file"].children[0]
         name, path = self.found_file(tok, "an environment", environment_file_sentence)
         return Environment(file=name, path=path, intensity=intensity, rotate=rotate,
-                           pos=Pos(tok.line, tok.column))
+                           pos=Pos(tok.line, tok.column), source=source_of(st, f))

@@ -10,7 +10,7 @@ from typing import Union
 
 from mimarble import parameters as marble_parameters
 from . import rules, transforms
-from .nodes import AXES, RGB, Pos, _number, _pos, _shown, _store, _vector
+from .nodes import AXES, RGB, Pos, Source, _number, _pos, _shown, _source, _store, _vector
 
 
 @dataclass(frozen=True)
@@ -66,6 +66,7 @@ class MarbleChannel(marble_parameters.MarbleParameters):
     """
 
     pos: Pos | None = _pos()
+    source: Source | None = _source()
     transform: tuple = field(default=(), kw_only=True)
     space: str = field(default="world", kw_only=True)
 

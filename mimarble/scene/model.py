@@ -9,7 +9,10 @@ are tuples of three Python floats; counts are ints.
 Each node may carry ``pos``, the :class:`Pos` (1-based line and column) of the
 keyword that introduced it in the source file, so that later stages can point
 at it in their own messages. ``pos`` takes no part in equality, hashing or
-``repr``: two scenes that differ only in layout or comments are equal.
+``repr``: two scenes that differ only in layout or comments are equal. The image,
+camera, lights and marbles also carry ``source`` (:class:`~mimarble.scene.nodes.Source`):
+where their values' text stands, for rewriting a file in place (rewrite.py); it takes
+no part in equality either.
 
 The defaults of the constructors are the language's defaults (see
 docs/scene-language.md), so ``MarbleChannel()`` is the marble of a
@@ -41,13 +44,15 @@ from .channels import (CHANNEL_TYPES, EXPRESSIONS, SPACES, Add, Channel, ColorCh
                        MarbleChannel, Mix, Multiply, depth, in_object_space, replace_marbles, size, walk)
 from .limits import MAX_IMAGE_SAMPLES
 from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis, FrozenMap, MarbleFunction,
-                    Pos, Vec3, _colour, _instances, _integer, _number, _pos, _refuse, _shown, _store, _vector)
+                    Pos, Source, Vec3, _colour, _instances, _integer, _number, _pos, _refuse, _shown,
+                    _source, _store, _vector)
 from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
 
 __all__ = [
     "Vec3",
     "RGB",
     "Pos",
+    "Source",
     "Image",
     "Camera",
     "Light",
@@ -116,6 +121,7 @@ class Image:
     samples: int = 1
     background: RGB = (0.0, 0.0, 0.0)
     pos: Pos | None = _pos()
+    source: Source | None = _source()
 
     def __post_init__(self) -> None:
         lo, hi = rules.IMAGE_SIZE
@@ -152,6 +158,7 @@ class Camera:
     up: Vec3 = (0.0, 1.0, 0.0)
     fov: float = 30.0
     pos: Pos | None = _pos()
+    source: Source | None = _source()
 
     def __post_init__(self) -> None:
         eye, lookat, up = (_vector(getattr(self, name), name) for name in ("eye", "lookat", "up"))
@@ -222,6 +229,7 @@ class Light:
     color: RGB = (1.0, 1.0, 1.0)
     area: RectangleArea | SphereArea | None = None
     pos: Pos | None = _pos()
+    source: Source | None = _source()
 
     def __post_init__(self) -> None:
         if self.area is not None and not isinstance(self.area, (RectangleArea, SphereArea)):
@@ -258,6 +266,7 @@ class Environment:
     rotate: Vec3 = (0.0, 0.0, 0.0)
     path: str | None = None
     pos: Pos | None = _pos()
+    source: Source | None = _source()
 
     def __post_init__(self) -> None:
         if self.file is not None and (not isinstance(self.file, str) or not self.file):

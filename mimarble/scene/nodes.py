@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 import numbers
 from collections.abc import Iterator, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Literal, NamedTuple
 
 from mimarble import parameters as marble_parameters
@@ -39,6 +39,31 @@ class Pos(NamedTuple):
 
 
 def _pos() -> Pos | None:
+    return field(default=None, compare=False, repr=False, kw_only=True)  # type: ignore[return-value]
+
+
+#: A stretch of the parsed text: offsets [start, end) into it (its byte order mark removed).
+Span = tuple[int, int]
+
+
+@dataclass(frozen=True, eq=False)
+class Source:
+    """Where a block's text stands in the text it was parsed from, for rewriting its values
+    in place (mimarble/scene/rewrite.py): offsets into the text as parsed (a leading byte
+    order mark removed), which its comments, blanked to spaces of the same length, keep.
+
+    ``block``: the block, its keyword to its closing brace. ``values``: each key written,
+    the span of its value's text (a number, a word, ``< x y z >``, ``#rrggbb``; ``ramp``:
+    the whole ``ramp { … }``). ``stops``: a ramp's stops, (the span of its position or
+    None, the span of its colour) each. Like ``pos``, no part of a node's equality, hash
+    or repr; a node edited in Python keeps the source of the node it was made from."""
+
+    block: Span
+    values: Mapping[str, Span]
+    stops: tuple = ()
+
+
+def _source() -> Source | None:
     return field(default=None, compare=False, repr=False, kw_only=True)  # type: ignore[return-value]
 
 

@@ -2,10 +2,12 @@
 and its values, read and checked, and the limits on how many frames they make.
 
 ``count`` values of a range go from ``start`` to ``stop``, both included. A key is a key
-path of the scene (:func:`mimarble.scene.edits.with_value`): ``marble.K``, ``MATERIAL.K``
-or ``MATERIAL.CHANNEL.K`` for K a sweepable marble parameter
-(``mimarble.parameters.SWEEPABLE``), ``camera.fov``, ``image.samples`` or
-``light.N.intensity``.
+path of the scene (mimarble/scene/keys.py, ``mimarble sweep --keys SCENE`` lists them):
+``marble.K``, ``TEXTURE.K``, ``MATERIAL.K`` or ``MATERIAL.CHANNEL.K`` for K a sweepable
+marble parameter (``mimarble.parameters.SWEEPABLE``), ``ramp`` or ``ramp.N``;
+``camera.fov|eye|lookat|up``, ``light.N.intensity|color|position``, ``image.samples``.
+A whole ramp's values hold commas, so they are separated by ``;``
+(``marble.ramp=#ffffff, #000000;#ff0000, #000000``).
 """
 
 from __future__ import annotations
@@ -45,8 +47,10 @@ class Setting:
 
     @property
     def name(self) -> str:
-        """The last part of the key (``period``), for labels and file names."""
-        return self.key.rsplit(".", 1)[-1]
+        """The last part of the key (``period``; a ramp stop's ``ramp.2``), for labels and
+        file names."""
+        parts = self.key.rsplit(".", 2)
+        return ".".join(parts[-2:]) if parts[-1].isdigit() and len(parts) > 1 else parts[-1]
 
 
 def parse_setting(text: str) -> Setting:
@@ -55,6 +59,8 @@ def parse_setting(text: str) -> Setting:
     key, values = key.strip(), values.strip()
     if not sep or not key or not values:
         raise SweepError(f"--set {text!r}: write KEY=v1,v2,… or KEY=start:stop:count")
+    if key.endswith(".ramp"):                # a whole ramp holds commas: ramps split at ';'
+        return Setting(key, tuple(v.strip() for v in values.split(";")))
     if ":" in values:
         parts = values.split(":")
         try:
