@@ -400,7 +400,8 @@ class Scene:
     every shape's ``material`` is a key of it (the constructor checks it, as the parser
     does). ``ambient`` is the global ambient light A. ``textures`` maps the names of the
     file's ``texture "NAME" { … }`` to their channels (the materials hold the channels
-    themselves, so a texture used twice is one value, evaluated once). ``source`` is the
+    themselves, so a texture used twice is one value, evaluated once). ``environment``
+    is the light from far away (:class:`Environment`, or None). ``source`` is the
     file it came from (None for text parsed without a file name); it takes no part in
     equality.
     """
