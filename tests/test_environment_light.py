@@ -257,6 +257,22 @@ def test_whitted_mode_agrees_with_the_reference(files, name, llvm):
     assert np.abs(mitsuba - reference).max() < 2e-5 * reference.max()
 
 
+def test_the_scalar_variant_sees_the_sky_too(files):
+    """scalar_rgb (Python booleans for masks) renders what llvm_ad_rgb renders."""
+    folder, _ = files
+    scene = load(folder, scene_text('environment { file "sky.exr" rotate < 0 45 0 > }')
+                 .replace("width 40 height 30", "width 8 height 6"))
+    previous = mi.variant()
+    try:
+        mi.set_variant("llvm_ad_rgb")
+        jit = mimarble.render(scene)
+        mi.set_variant("scalar_rgb")
+        scalar = mimarble.render(scene)
+    finally:
+        mi.set_variant(previous)
+    assert np.abs(jit - scalar).max() < 1e-5 * jit.max() and jit.max() > 0.1
+
+
 def test_whitted_sees_the_sky_in_the_right_place(files, llvm):
     """A sky black but for one bright texel: a camera looking straight at its direction
     sees it in the image centre (whitted and reference alike), a planted rotation not."""

@@ -186,8 +186,7 @@ def exr_layout(f) -> ExrLayout:
     while True:
         if at >= len(head):
             raise EnvironmentFileProblem(
-                "a truncated OpenEXR file (its header does not end)" if len(head) < size
-                or size <= EXR_HEADER_MOST else
+                "a truncated OpenEXR file (its header does not end)" if len(head) == size else
                 f"a damaged OpenEXR file: its header does not end within "
                 f"{EXR_HEADER_MOST} bytes")
         if head[at] == 0:

@@ -47,6 +47,7 @@ from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis
                     Pos, Source, Vec3, _colour, _instances, _integer, _number, _pos, _refuse, _shown,
                     _source, _store, _vector)
 from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
+from .transforms import compose
 
 __all__ = [
     "Vec3",
@@ -288,7 +289,6 @@ class Environment:
 
     def rotation(self):
         """The 3×3 rotation R that ``rotate`` makes (environment to world), rows of floats."""
-        from .transforms import compose
         return tuple(row[:3] for row in compose([("rotate", self.rotate)])[:3])
 
 

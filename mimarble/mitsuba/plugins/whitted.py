@@ -330,4 +330,4 @@ class Whitted:
             return self.background
         si = dr.zeros(mi.SurfaceInteraction3f)
         si.wi = -mi.Vector3f(ray.d)
-        return environment.eval(si, ~hit)
+        return environment.eval(si, ~hit if dr.is_jit_v(mi.Float) else not hit)
