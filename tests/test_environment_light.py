@@ -427,3 +427,21 @@ def test_the_environment_has_sweep_keys(files):
         with_value(colour, "environment.rotate", "0 1 0")
     with pytest.raises(KeyPathError, match="the scene has no environment"):
         with_value(parse(scene_text("")), "environment.intensity", "2")
+
+
+def test_a_damaged_file_that_passes_the_header_check_is_one_sentence(files, capsys, llvm):
+    """A ZIP OpenEXR whose compressed bytes are damaged is whole by its header and table:
+    Mitsuba's reader and the reference's decoder each refuse it in one sentence, exit 2."""
+    folder, _ = files
+    data = bytearray((folder / "sky.exr").read_bytes())
+    data[-40:-20] = bytes(20)                     # inside the last chunk's zlib stream
+    (folder / "damaged.exr").write_bytes(bytes(data))
+    scene = folder / "damaged.scene"
+    scene.write_text(scene_text('environment { file "damaged.exr" }'))
+    for command in ("render", "reference"):
+        out = folder / f"damaged-{command}.png"
+        assert main([command, str(scene), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert f"{scene}:4:20: environment file 'damaged.exr'" in err, err
+        assert "Traceback" not in err and not out.exists()
+        assert len([line for line in err.splitlines() if "warning" not in line]) == 3, err

@@ -82,7 +82,13 @@ class LoadedScenes:
         if entry is None:
             if len(self.scenes) >= self.size:
                 forget(self.scenes.pop(next(iter(self.scenes)))[0])
-            mitsuba_scene = mi.load_dict(scene_dict)
+            # An OpenEXR file that fails to decode throws from a loader thread, which
+            # aborts the process (Mitsuba 3.9.1's parallel load_dict: "terminate called after
+            # throwing an instance of 'Iex_2_5::IoExc'"); loaded in this thread, the reader's
+            # error is an exception (render.check_images says it at the file's string).
+            envmap = any(isinstance(item, dict) and item.get("type") == "envmap"
+                         for item in scene_dict.values())
+            mitsuba_scene = mi.load_dict(scene_dict, parallel=not envmap)
             entry = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
         else:
             mitsuba_scene, params, held = entry
