@@ -445,3 +445,31 @@ def test_a_damaged_file_that_passes_the_header_check_is_one_sentence(files, caps
         assert f"{scene}:4:20: environment file 'damaged.exr'" in err, err
         assert "Traceback" not in err and not out.exists()
         assert len([line for line in err.splitlines() if "warning" not in line]) == 3, err
+
+
+@pytest.mark.parametrize("name", ["sky.exr", "half.exr", "sky.hdr"])
+def test_damaged_and_cut_files_are_refused_or_read_never_an_exception(files, name, tmp_path):
+    """Bytes changed at random or the file cut anywhere: the header check refuses it in a
+    sentence, or passes it and the reference's decoder reads it or refuses it in a sentence
+    (Unreadable) — nothing else escapes."""
+    import random
+    from mimarble.scene.environment_header import environment_file_problem
+    folder, _ = files
+    data = (folder / name).read_bytes()
+    rng = random.Random(7)
+    for k in range(120):
+        damaged = bytearray(data)
+        if k % 2:
+            damaged = damaged[:rng.randrange(len(damaged))]
+        else:
+            for _ in range(rng.randrange(1, 6)):
+                damaged[rng.randrange(len(damaged))] = rng.randrange(256)
+        path = tmp_path / f"{k}{name}"
+        path.write_bytes(bytes(damaged))
+        problem = environment_file_problem(str(path))
+        assert problem is None or (isinstance(problem, str) and "\n" not in problem)
+        if problem is None:
+            try:
+                reference_environment.load_environment(path)
+            except reference_environment.Unreadable as e:
+                assert "\n" not in str(e)

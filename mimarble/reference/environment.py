@@ -96,12 +96,16 @@ def _exr(f, where: str) -> np.ndarray:
     width, height, lines = layout.width, layout.height, layout.lines_per_chunk
     sizes = [EXR_TYPES[kind][1] for _, kind in layout.channels]
     line_bytes = width * sum(sizes)
+    size = os.fstat(f.fileno()).st_size
     f.seek(layout.table)
     offsets = np.frombuffer(f.read(8 * layout.chunks), "<u8")
     image = np.zeros((height, width, 3))
     for chunk, offset in enumerate(offsets):
         f.seek(int(offset))
-        y, length = np.frombuffer(f.read(8), "<i4")
+        head = f.read(8)
+        y, length = np.frombuffer(head, "<i4") if len(head) == 8 else (0, -1)
+        if length < 0 or int(offset) + 8 + int(length) > size:
+            raise Unreadable(where, f"a damaged OpenEXR file (chunk {chunk} lies past its end)")
         count = min(lines, layout.y_min + height - int(y))
         first = int(y) - layout.y_min
         if not 0 <= first < height or count <= 0:
@@ -125,8 +129,8 @@ def _exr(f, where: str) -> np.ndarray:
 def _unzip(data: bytes, expected: int, where: str) -> bytes:
     """OpenEXR's ZIP: zlib, then the delta predictor undone (a running sum, less 128 a
     byte, modulo 256), then the two halves interleaved back (even positions first)."""
-    try:
-        raw = zlib.decompress(data)
+    try:            # never more than the chunk's rows hold (a stream could inflate past them)
+        raw = zlib.decompressobj().decompress(data, expected + 1)
     except zlib.error as e:
         raise Unreadable(where, f"a damaged OpenEXR file ({e})") from None
     if len(raw) != expected:
