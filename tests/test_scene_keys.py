@@ -152,3 +152,22 @@ def test_sweep_keys_prints_them_and_an_unknown_key_is_one_line(tmp_path):
                        cwd=tmp_path)
     assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1
     assert "did you mean carrara.period" in bad.stderr and not (tmp_path / "out").exists()
+
+
+def test_a_sweep_of_a_texture_and_a_ramp_stop_renders_each_frame_as_its_scene(llvm, tmp_path):
+    """Each frame is the image of the scene written by hand with that frame's values,
+    rendered on its own, bit for bit."""
+    import numpy as np
+    from PIL import Image
+
+    import mimarble
+    from mimarble.mitsuba.rendering.image_output import srgb8
+    index = mimarble.sweep(parse(TEXT), {"carrara.period": [1.3, 2.0],
+                                         "carrara.ramp.1": ["#d0d0d0"]}, tmp_path, spp=1)
+    assert [f["status"] for f in index["frames"]] == ["done"] * 2
+    for frame, period in zip(index["frames"], ("1.3", "2.0")):
+        text = TEXT.replace("period 1.3", f"period {period}").replace("< 0.5 0.5 0.5 >",
+                                                                      "#d0d0d0")
+        alone = mimarble.render(parse(text), spp=1)
+        image = np.asarray(Image.open(tmp_path / frame["file"]).convert("RGB"))
+        assert np.array_equal(image, srgb8(alone))

@@ -149,7 +149,7 @@ def test_a_key_over_several_marbles_rewrites_each_and_a_shared_texture_once():
     assert rewrite(text, {"t.period": 3}) == text.replace("marble { period 1 } }\nmaterial",
                                                           "marble { period 3 } }\nmaterial")
     assert rewrite(text, {"a.ambient.period": 3}).count("period 3") == 1
-    with pytest.raises(KeyPathError, match=r'^a.diffuse.period: .*texture "t".* edit t.period'):
+    with pytest.raises(KeyPathError, match='^a.diffuse.period: .*texture "t".* edit t.period'):
         rewrite(text, {"a.diffuse.period": 3})
 
 
@@ -159,6 +159,11 @@ def test_bad_edits_are_refused_in_one_sentence():
                               ("camera.fov", "wide", "is not a number")):
         with pytest.raises(KeyPathError, match=f"^{key}: .*{words}"):
             rewrite(text, {key: value})
+    with pytest.raises(KeyPathError, match="^m.ramp: a value of 80000 characters; a value is at "
+                                           "most 65536$"):
+        rewrite(text, {"m.ramp": "#ffffff," * 10000})
+    with pytest.raises(KeyPathError, match="^1025 edits at once; a save writes at most 1024$"):
+        rewrite(text, {f"m.k{n}": 1 for n in range(1025)})
 
 
 def test_save_is_atomic_and_refuses_a_file_changed_on_disk(tmp_path):

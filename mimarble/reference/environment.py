@@ -96,15 +96,16 @@ def _exr(f, where: str) -> np.ndarray:
     width, height, lines = layout.width, layout.height, layout.lines_per_chunk
     sizes = [EXR_TYPES[kind][1] for _, kind in layout.channels]
     line_bytes = width * sum(sizes)
-    size = os.fstat(f.fileno()).st_size
+    file_size = os.fstat(f.fileno()).st_size
     f.seek(layout.table)
     offsets = np.frombuffer(f.read(8 * layout.chunks), "<u8")
     image = np.zeros((height, width, 3))
-    for chunk, offset in enumerate(offsets):
-        f.seek(int(offset))
-        head = f.read(8)
-        y, length = np.frombuffer(head, "<i4") if len(head) == 8 else (0, -1)
-        if length < 0 or int(offset) + 8 + int(length) > size:
+    for chunk, offset in enumerate(offsets.tolist()):
+        if offset + 8 > file_size:
+            raise Unreadable(where, f"a damaged OpenEXR file (chunk {chunk} lies past its end)")
+        f.seek(offset)
+        y, length = np.frombuffer(f.read(8), "<i4")
+        if length < 0 or offset + 8 + int(length) > file_size:
             raise Unreadable(where, f"a damaged OpenEXR file (chunk {chunk} lies past its end)")
         count = min(lines, layout.y_min + height - int(y))
         first = int(y) - layout.y_min

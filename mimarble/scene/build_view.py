@@ -33,7 +33,8 @@ class ViewBuilder(ValueReader):
         if problem:
             raise self.error(f.get("samples") or f.get("width") or f.get("height") or st, problem)
         background = self.color(f["background"].children[0], "background") if "background" in f else d.background
-        return Image(width, height, samples, background, pos=pos_of(st), source=source_of(st, f))
+        return Image(width, height, samples, background, pos=pos_of(st),
+                     source=source_of(st, f))
 
     def camera(self, st: Tree) -> Camera:
         f = self.fields(st, "'camera' block")

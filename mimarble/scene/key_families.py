@@ -47,12 +47,16 @@ class Key:
     group: str
     parameter: Parameter
     value: object
-    text: str
     stop: int | None = None
     count: int = 1
     #: The family that knows the key, and what the key names in the scene (its own form).
     family: KeyFamily = dataclasses.field(default=None, compare=False, repr=False)
     target: object = dataclasses.field(default=None, compare=False, repr=False)
+
+    @property
+    def text(self) -> str:
+        """The current value in the value syntax (key_values.py): what ``--set`` takes."""
+        return current_text(self.parameter, self.value, self.stop)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,6 +87,10 @@ class KeyFamily:
         """Where the value of ``key`` stands in the text ``scene`` was parsed from."""
         raise NotImplementedError
 
+    def find(self, scene, path: str) -> Key | None:
+        """The key ``path`` of ``scene``, or None (:meth:`keys`, searched)."""
+        return next((key for key in self.keys(scene) if key.path == path), None)
+
     def written(self, key: Key, value: Value) -> str:
         """The text a value is written as at its place."""
         return value.text
@@ -102,13 +110,7 @@ class KeyFamily:
         return [f"{prefix}.{'|'.join(names)}" for prefix, names in groups.items()]
 
     def _key(self, path, group, parameter, value, stop=None, count=1, target=None) -> Key:
-        return Key(path, group, parameter, value, current_text(parameter, value, stop), stop,
-                   count, self, target)
-
-
-def _replaced(node, **changes):
-    """``dataclasses.replace`` keeping the node's source (a field with ``init``)."""
-    return dataclasses.replace(node, **changes)
+        return Key(path, group, parameter, value, stop, count, self, target)
 
 
 # ---------------------------------------------------------------------------
@@ -163,13 +165,17 @@ def _rebuilt(channel, change, memo: dict):
         w = channel.weight if isinstance(channel.weight, float) else \
             _rebuilt(channel.weight, change, memo)
         if a is not channel.a or b is not channel.b or w is not channel.weight:
-            out = _replaced(channel, a=a, b=b, weight=w)
+            out = dataclasses.replace(channel, a=a, b=b, weight=w)
     elif isinstance(channel, EXPRESSIONS):
         operands = tuple(_rebuilt(c, change, memo) for c in channel.operands)
         if any(x is not y for x, y in zip(operands, channel.operands)):
-            out = _replaced(channel, operands=operands)
+            out = dataclasses.replace(channel, operands=operands)
     memo[id(channel)] = (channel, out)          # the channel kept alive: its id stays its own
     return out
+
+
+#: Groups of a kind (textures, materials) named in an unknown key's sentence at most.
+SHOWN = 8
 
 
 class MarbleKeys(KeyFamily):
@@ -211,29 +217,43 @@ class MarbleKeys(KeyFamily):
 
     def keys(self, scene):
         for group, prefix, selection in self.groups(scene):
-            marbles = self.selected(scene, selection)
-            if not marbles:
-                continue
-            first, count = marbles[0], len(marbles)
-            for p in self.ROWS:
-                yield self._key(f"{prefix}.{p.name}", group, p, getattr(first, p.name),
-                                count=count, target=selection)
-            yield self._key(f"{prefix}.ramp", group, self.RAMP,
-                            (first.ramp, first.ramp_positions), count=count, target=selection)
-            for n in range(min(len(m.ramp) for m in marbles)):
-                position = None if first.ramp_positions is None else first.ramp_positions[n]
-                yield self._key(f"{prefix}.ramp.{n}", group, self.RAMP,
-                                (position, first.ramp[n]), stop=n, count=count,
-                                target=selection)
+            yield from self.group_keys(scene, group, prefix, selection)
+
+    def find(self, scene, path):
+        # Only the groups whose prefix the path starts with are listed (a sweep's frames
+        # each look up their keys: 10 000 frames).
+        for group, prefix, selection in self.groups(scene):
+            if path.startswith(prefix + "."):
+                for key in self.group_keys(scene, group, prefix, selection):
+                    if key.path == path:
+                        return key
+        return None
+
+    def group_keys(self, scene, group, prefix, selection):
+        """The keys of one group (none when it holds no marble)."""
+        marbles = self.selected(scene, selection)
+        if not marbles:
+            return
+        first, count = marbles[0], len(marbles)
+        for p in self.ROWS:
+            yield self._key(f"{prefix}.{p.name}", group, p, getattr(first, p.name),
+                            count=count, target=selection)
+        yield self._key(f"{prefix}.ramp", group, self.RAMP,
+                        (first.ramp, first.ramp_positions), count=count, target=selection)
+        for n in range(min(len(m.ramp) for m in marbles)):
+            position = None if first.ramp_positions is None else first.ramp_positions[n]
+            yield self._key(f"{prefix}.ramp.{n}", group, self.RAMP,
+                            (position, first.ramp[n]), stop=n, count=count,
+                            target=selection)
 
     def change(self, key: Key, value: Value):
         """The marble → marble change of ``key`` set to ``value``."""
         name = key.parameter.name
         if name != "ramp":
-            return lambda m: _replaced(m, **{name: value.value})
+            return lambda m: dataclasses.replace(m, **{name: value.value})
         if key.stop is None:
             colours, positions = value.value
-            return lambda m: _replaced(m, ramp=colours, ramp_positions=positions)
+            return lambda m: dataclasses.replace(m, ramp=colours, ramp_positions=positions)
         n, (position, rgb) = key.stop, value.value
 
         def stop(m):
@@ -250,7 +270,7 @@ class MarbleKeys(KeyFamily):
                 if problem:
                     raise KeyPathError(f"{key.path}: {problem[1]}")
                 positions = tuple(positions)
-            return _replaced(m, ramp=colours, ramp_positions=positions)
+            return dataclasses.replace(m, ramp=colours, ramp_positions=positions)
         return stop
 
     def apply(self, scene, key: Key, value: Value):
@@ -277,8 +297,8 @@ class MarbleKeys(KeyFamily):
                 inside = {k: _rebuilt(c, each, memo)
                           for k, c in material.subsurface.channels().items()
                           if wanted in (None, k)}
-                own["subsurface"] = _replaced(material.subsurface, **inside)
-            materials[name] = _replaced(material, **own)
+                own["subsurface"] = dataclasses.replace(material.subsurface, **inside)
+            materials[name] = dataclasses.replace(material, **own)
         return dataclasses.replace(scene, materials=FrozenMap(materials), textures=textures)
 
     def places(self, scene, key: Key) -> list[Place]:
@@ -315,7 +335,8 @@ class MarbleKeys(KeyFamily):
                 kind = key.group.split(" ", 1)[0] if key.group != "every marble" else ""
                 prefixes.setdefault(kind, []).append(f"{prefix}.K")
         rows = ", ".join(p.name for p in self.ROWS)
-        return [(f"{kind} " if kind else "") + ", ".join(names)
+        return [(f"{kind} " if kind else "") + ", ".join(names[:SHOWN]) +
+                (f" and {len(names) - SHOWN} more" if len(names) > SHOWN else "")
                 for kind, names in prefixes.items()] + \
             [f"K: {rows}, ramp (whole) or ramp.N (stop N)"] * bool(prefixes)
 
@@ -354,7 +375,7 @@ class CameraKeys(KeyFamily):
             yield self._key(f"camera.{p.name}", "camera", p, getattr(scene.camera, p.name))
 
     def apply(self, scene, key, value):
-        return dataclasses.replace(scene, camera=_replaced(scene.camera, **{
+        return dataclasses.replace(scene, camera=dataclasses.replace(scene.camera, **{
             key.parameter.name: value.value}))
 
     def places(self, scene, key):
@@ -362,8 +383,8 @@ class CameraKeys(KeyFamily):
 
 
 class LightKeys(KeyFamily):
-    """``light.N.intensity`` (its colour, grey), ``light.N.color``, ``light.N.position``:
-    light N of the file, from 0."""
+    """``light.N.intensity`` (its colour as one grey; its value: the colour's mean),
+    ``light.N.color``, ``light.N.position``: light N of the file, from 0."""
 
     ROWS = (INTENSITY, COLOR, POSITION)
 
@@ -377,7 +398,7 @@ class LightKeys(KeyFamily):
         lights = list(scene.lights)
         name = key.parameter.name
         held = (value.value,) * 3 if name == "intensity" else value.value
-        lights[key.target] = _replaced(lights[key.target], **{
+        lights[key.target] = dataclasses.replace(lights[key.target], **{
             "color" if name == "intensity" else name: held})
         return dataclasses.replace(scene, lights=tuple(lights))
 
@@ -412,7 +433,8 @@ class ImageKeys(KeyFamily):
             samples_per_axis(value.value)
         except ValueError as e:
             raise KeyPathError(f"{key.path}: {e}") from None
-        return dataclasses.replace(scene, image=_replaced(scene.image, samples=value.value))
+        image = dataclasses.replace(scene.image, samples=value.value)
+        return dataclasses.replace(scene, image=image)
 
     def places(self, scene, key):
         return [Place(scene.image.source, "samples", "image")]
@@ -442,7 +464,7 @@ class EnvironmentKeys(KeyFamily):
             yield self._key("environment.rotate", "environment", ROTATE, environment.rotate)
 
     def apply(self, scene, key, value):
-        return dataclasses.replace(scene, environment=_replaced(scene.environment, **{
+        return dataclasses.replace(scene, environment=dataclasses.replace(scene.environment, **{
             key.parameter.name: value.value}))
 
     def places(self, scene, key):

@@ -213,8 +213,17 @@ def read_ramp(path: str, value) -> Value:
     return Value((colours, positions), stops=tuple((s.position_text, s.text) for s in stops))
 
 
+#: The longest value text read: a ramp of the table's most colours, each with its position
+#: and three numbers of 17 digits, takes about 20 000 characters; a longer text (a page's
+#: message, say) is refused before it is split.
+MAX_VALUE_TEXT = 65536
+
+
 def read(path: str, parameter: Parameter, value, stop: int | None = None) -> Value:
     """``value`` read as ``parameter``'s kind says (a ramp's stop when ``stop`` is given)."""
+    if isinstance(value, str) and len(value) > MAX_VALUE_TEXT:
+        raise KeyPathError(f"{path}: a value of {len(value)} characters; a value is at most "
+                           f"{MAX_VALUE_TEXT}")
     if parameter.kind == COLOURS:
         return read_ramp(path, value) if stop is None else read_stop(path, value)
     if parameter.kind == VECTOR:

@@ -42,18 +42,36 @@ def scene_keys(scene) -> dict[str, Key]:
 def key_of(scene, path: str) -> Key:
     """The key ``path`` of ``scene``; :class:`KeyPathError` (one sentence: the scene's keys
     in short, grouped, and the closest one) when it has none."""
+    if isinstance(path, str):
+        for family in FAMILIES:           # the first family's, as scene_keys keeps it
+            key = family.find(scene, path)
+            if key is not None:
+                return key
     keys = scene_keys(scene)
-    key = keys.get(path) if isinstance(path, str) else None
-    if key is not None:
-        return key
     import difflib
     from .rules import shortened
     shown = shortened(repr(path), 60) if not isinstance(path, str) else shortened(path, 60)
-    close = difflib.get_close_matches(path, list(keys), n=1) if isinstance(path, str) else []
+    close = difflib.get_close_matches(path, _candidates(keys, path), n=1) \
+        if isinstance(path, str) else []
     said = next((d for d in (f.diagnosis(scene, path) for f in FAMILIES) if d), None) \
         if isinstance(path, str) else None
     said = said or "unknown key" + (f" (did you mean {close[0]}?)" if close else "")
     return _unknown(scene, keys, f"{shown}: {said}")
+
+
+#: Keys compared with an unknown one for the closest at most (difflib compares each: a scene
+#: of 10 000 textures has 200 000 keys).
+MAX_CANDIDATES = 5000
+
+
+def _candidates(keys: dict, path: str) -> list[str]:
+    """The keys worth comparing with ``path``: all of a small scene's; of a large one's,
+    those that share its first or its last part."""
+    if len(keys) <= MAX_CANDIDATES:
+        return list(keys)
+    first, last = path.split(".", 1)[0], path.rsplit(".", 1)[-1]
+    return [k for k in keys if k.startswith(first + ".") or k.endswith("." + last)][
+        :MAX_CANDIDATES]
 
 
 def _unknown(scene, keys: dict, said: str):

@@ -44,8 +44,8 @@ from .channels import (CHANNEL_TYPES, EXPRESSIONS, SPACES, Add, Channel, ColorCh
                        MarbleChannel, Mix, Multiply, depth, in_object_space, replace_marbles, size, walk)
 from .limits import MAX_IMAGE_SAMPLES
 from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis, FrozenMap, MarbleFunction,
-                    Pos, Source, Vec3, _colour, _instances, _integer, _number, _pos, _refuse, _shown,
-                    _source, _store, _vector)
+                    Pos, Source, Vec3, _colour, _instances, _integer, _number, _pos, _refuse,
+                    _shown, _source, _store, _vector)
 from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
 from .transforms import compose
 

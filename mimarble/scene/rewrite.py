@@ -39,6 +39,10 @@ from .parser import parse
 __all__ = ["rewrite", "save_atomic", "read_scene_text", "SaveRefused"]
 
 _BOM = "\ufeff"
+#: Edits one :func:`rewrite` writes at most: each is two parses of the text (8–12 ms for the
+#: shipped scenes), so 1024 take seconds; a studio's save holds the keys edited since the
+#: file was loaded, a few dozen.
+MAX_EDITS = 1024
 
 
 class SaveRefused(OSError):
@@ -51,7 +55,13 @@ def rewrite(text: str, edits, filename: str = "<string>", source: str | None = N
     messages; ``source``: the file's path, where its meshes and image maps are found.
     SceneError when ``text`` does not parse; KeyPathError for an unknown key, a value it
     cannot take, or an edit the text cannot say alone."""
-    for path, value in dict(edits).items():
+    if not isinstance(text, str):
+        raise TypeError(f"rewrite: the scene text must be str (read_scene_text reads a "
+                        f"file's), found {type(text).__name__}")
+    edits = dict(edits)
+    if len(edits) > MAX_EDITS:
+        raise KeyPathError(f"{len(edits)} edits at once; a save writes at most {MAX_EDITS}")
+    for path, value in edits.items():
         text = _rewritten(text, path, value, filename, source)
     return text
 
@@ -74,19 +84,18 @@ def _rewritten(text: str, path: str, value, filename: str, source: str | None) -
 
 
 def _why_not(scene, key) -> str:
-    """Why an edit's text, parsed again, is not the edited scene: its marble is a named
-    texture's, used elsewhere too."""
-    if isinstance(key.family, MarbleKeys) and key.target[0] in ("material", "channel"):
-        for group, prefix, selection in key.family.groups(scene):
-            if selection[0] == "texture" and any(
-                    m.source.block in {n.source.block for n in
-                                       key.family.selected(scene, key.target)}
-                    for m in key.family.selected(scene, selection)):
-                name = key.path.rsplit(".", 1)[-1] if key.stop is None else \
-                    "ramp." + str(key.stop)
-                return (f"its marble is written in {group}, which is used elsewhere too, so "
-                        f"the file cannot change it here alone; edit {prefix}.{name} (every "
-                        f"use of the texture)")
+    """Why an edit's text, parsed again, is not the edited scene: a material's (or a
+    channel's) marble written in a named texture, which the file can only change for every
+    use of the texture (and the scene's ``textures``) at once."""
+    family = key.family
+    if isinstance(family, MarbleKeys) and key.target[0] in ("material", "channel"):
+        blocks = {m.source.block for m in family.selected(scene, key.target)}
+        for group, prefix, selection in family.groups(scene):
+            if selection[0] == "texture" and any(m.source.block in blocks for m in
+                                                 family.selected(scene, selection)):
+                name = key.parameter.name + ("" if key.stop is None else f".{key.stop}")
+                return (f"its marble is written in {group}, so the file cannot change it for "
+                        f"this material alone; edit {prefix}.{name} (every use of the texture)")
     return "the file cannot say this edit alone (its text, read again, is not the edited scene)"
 
 
