@@ -5,16 +5,14 @@
 Writes the tests' sky (tests/test_environment_light.py, ``sky``) at width × width/2 as a
 run-length-encoded Radiance HDR and a ZIP OpenEXR (tests/environment_files.py) into a
 temporary folder, then prints, for each, the file's size and the median over ``--repeat``
-runs of ``environment_file_problem`` (what the parser runs) and of the reference's
+runs (after one warm run) of ``environment_file_problem`` (what the parser runs) and of the reference's
 ``load_environment`` (its cache cleared each time). docs/benchmarks.md, "Environment files".
 """
 
 import argparse
 import os
-import statistics
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
@@ -22,17 +20,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from environment_files import write_exr, write_hdr  # noqa: E402
 from test_environment_light import sky  # noqa: E402
 
+from mimarble.bench.peers import _median_seconds as median_seconds  # noqa: E402  (one warm run)
 from mimarble.reference import environment  # noqa: E402
 from mimarble.scene.environment_header import environment_file_problem  # noqa: E402
-
-
-def median_seconds(run, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        run()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
 
 
 def main() -> int:
