@@ -304,10 +304,15 @@ class _Values:
             object.__setattr__(self, "ramp_positions", tuple(self.ramp_positions))
 
     @classmethod
-    def from_properties(cls, props, context: str = "marble"):
+    def from_properties(cls, props, context: str = "marble", defaults=None):
         """Every parameter read from a mapping (a Mitsuba ``Properties``, a dict) and
-        checked; missing ones take their defaults. ``ParameterError`` names
-        ``context``, the parameter and the value."""
+        checked; missing ones take their defaults: the table's, or ``defaults``' (checked
+        values by row: a preset's, mimarble/presets.py), whose ramp positions are left
+        out when ``props`` gives a ramp. ``ParameterError`` names ``context``, the
+        parameter and the value."""
+        defaults = {} if defaults is None else dict(defaults)
+        if _ramp_given(props):              # a ramp given replaces its positions too
+            defaults.pop("ramp_positions", None)
         for old, new in RENAMED.items():
             if old in props:
                 others = [c for c in BY_NAME[new].choices if c != old]
@@ -316,15 +321,17 @@ class _Values:
         values, inline = {}, None
         for p in PARAMETERS:
             try:
+                default = defaults.get(p.name, p.default)
                 if p.kind == COLOURS:       # "p r g b, …": the positions come with it
-                    value, inline = parse_positioned_ramp(ramp_property(props), p.name)
+                    value, inline = parse_positioned_ramp(ramp_property(props, default),
+                                                          p.name)
                 elif p.kind == POSITIONS and inline is not None:
                     if props.get(p.name, None) is not None:
                         raise ParameterError("give the ramp's positions in the ramp string "
                                              "or in ramp_positions, not both")
                     value = inline
                 else:
-                    value = props.get(p.name, p.default)
+                    value = props.get(p.name, default)
             except ParameterError as e:
                 raise ParameterError(f"{context}: {e}") from None
             values[p.name] = checked(p, value, context)
@@ -368,15 +375,21 @@ def checked(parameter: Parameter, value, context: str = "marble", text: bool = F
 # ---------------------------------------------------------------------------
 # The ramp as Mitsuba properties
 
-def ramp_property(props):
+def _ramp_given(props) -> bool:
+    """Whether ``props`` gives a ramp: ``ramp``, or ``ramp_0``, ``ramp_1``, …"""
+    return "ramp" in props or any(key.startswith("ramp_") and key[5:].isdigit()
+                                  for key in props.keys())
+
+
+def ramp_property(props, default=BY_NAME["ramp"].default):
     """The ramp as given: ``ramp`` (a string, a list, or one ``rgb``), or ``ramp_0``,
-    ``ramp_1``, … (one ``<rgb>`` each)."""
+    ``ramp_1``, … (one ``<rgb>`` each); ``default`` when neither is there."""
     try:
         keys = numbered_properties(props, "ramp")
     except ValueError as e:
         raise ParameterError(str(e)) from None
     if keys is None:
-        return props.get("ramp", BY_NAME["ramp"].default)
+        return props.get("ramp", default)
     if "ramp" in props:
         raise ParameterError("give either ramp or ramp_0, ramp_1, …, not both")
     return [props[key] for key in keys]

@@ -70,6 +70,7 @@ def test_the_wheel_holds_the_scenes_their_image_maps_and_the_license(installed):
         if scene.is_file():
             assert "mimarble/scenes/" + scene.relative_to(ROOT / "scenes").as_posix() in names
     assert "mimarble/scene/scene.lark" in names
+    assert "mimarble/presets.toml" in names          # the marble library
     assert any(n.endswith(".dist-info/licenses/LICENSE") for n in names)
     metadata = zipfile.ZipFile(wheel).read(
         next(n for n in names if n.endswith(".dist-info/METADATA"))).decode()

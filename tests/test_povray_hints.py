@@ -42,6 +42,8 @@ HABITS = {
     "rotate": ("sphere { rotate <0, 0, 30> }", (1, 10)),
     "global_settings": ("global_settings { assumed_gamma 1 }", (1, 1)),
     "background": ("background { color <0 0 0> }", (1, 1)),
+    **{name: (f'material "m" {{ diffuse {{ {name} }} }}', (1, 26))
+       for name in ("White_Marble", "Red_Marble", "Blood_Marble", "Jade")},
 }
 
 
@@ -75,6 +77,7 @@ def test_hints_name_the_gain_and_lacunarity_keywords_and_the_vertical_fov():
     assert "distortion" in POVRAY_HINTS["turbulence <number>"]
     assert "vertical" in POVRAY_HINTS["angle"] and "horizontal" in POVRAY_HINTS["angle"]
     assert "light { … } in docs/scene-language.md" in POVRAY_HINTS["area_light"]
+    assert 'marble { preset "white_marble" }' in POVRAY_HINTS["White_Marble"]
 
 
 def test_errors_that_are_no_povray_habit_get_no_hint():

@@ -266,6 +266,7 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
         "area": "{ radius 1 }", "axis1": "<1 0 0> axis2 <0 1 0>", "axis2": "<0 1 0> axis1 <1 0 0>",
         "material": '"m"',
         "transform": "{ }", "translate": "<1 0 0>", "rotate": "<0 0 90>", "space": "object",
+        "preset": '"jade"',
         "point": "<0 0 0>", "normal": "<0 0 1>", "min": "<0 0 0>", "max": "<1 1 1>",
         "file": f'"{tmp_path / "a.obj"}"',
         "subsurface": "{ albedo color <1 1 1> mean_free_path 1 }",
@@ -281,7 +282,7 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
     # Every kind of shape's block, and a value for each of its keys the table above lacks.
     wrap |= {kind.keyword: f'material "m" {{{{ }}}} {kind.keyword} {{{{ material "m" {{}} }}}}'
              for kind in S.SHAPE_KINDS}
-    samples |= {key.name: {"vector": "<0 0 1>", "number": "1"}[key.syntax]
+    samples |= {key.name: {"vector": "<0 0 1>", "number": "1", "boolean": "true"}[key.syntax]
                 for kind in S.SHAPE_KINDS for key in kind.keys if key.name not in samples}
     one = {"color": "color <0 0 0>", "marble": "marble { }", "weight": "weight 0.5",
            "image": f'image {{ file "{PNG}" }}', "add": "add { color <0 0 0> color <0 0 0> }",

@@ -53,7 +53,8 @@ def test_a_malformed_scene_is_reported_before_drjit_loads(tmp_path):
 def test_a_malformed_scene_imports_only_what_its_answer_needs(tmp_path):
     """Issue 39: the answer's process builds only the render command's options, reads no
     mesh file's header, nor the baker (only `bake`'s options need it), and imports neither
-    extra nor importlib's abstract classes (which bring importlib.resources)."""
+    extra nor importlib's abstract classes (which bring importlib.resources), nor the
+    scene model and its builder (text that fails to parse builds no model)."""
     bad = tmp_path / "bad.scene"
     bad.write_text("scene {\n")
     result, names = imported_by("render", bad, "-o", tmp_path / "out.png")
@@ -61,7 +62,8 @@ def test_a_malformed_scene_imports_only_what_its_answer_needs(tmp_path):
     assert {"lark", "mimarble.scene.parser"} <= names             # the check sees them
     unneeded = {"mimarble.meshes.facts", "mimarble.meshes.ply_body", "mimarble.tools.bake",
                 "importlib.abc", "importlib.resources",
-                "matplotlib", "dask", "distributed", "PIL", "tqdm"}
+                "matplotlib", "dask", "distributed", "PIL", "tqdm",
+                "mimarble.scene.model", "mimarble.scene.builder"}
     assert names & unneeded == set()
 
 

@@ -291,6 +291,12 @@ def _scenes_command(sub) -> None:
                                                  "missing (files there are never overwritten)")
 
 
+def _presets_command(sub) -> None:
+    p = sub.add_parser("presets", help="list the marble library's presets (marble { preset "
+                                       "\"carrara\" }); with a NAME: its values")
+    p.add_argument("name", nargs="?", help="a preset's name: print what it is and its values")
+
+
 def _export_command(sub) -> None:
     p = sub.add_parser("export", help="write the scene as Mitsuba 3 XML (or --python: a Python "
                                       "file) that Mitsuba renders as mimarble does")
@@ -349,7 +355,7 @@ def _doctor_command(sub) -> None:
 _COMMANDS = {"render": _render_command, "reference": _reference_command,
              "compare": _compare_command, "bench": _bench_command, "sweep": _sweep_command,
              "stress": _stress_command, "gallery": _gallery_command, "scenes": _scenes_command,
-             "export": _export_command, "bake": _bake_command, "doctor": _doctor_command}
+             "presets": _presets_command, "export": _export_command, "bake": _bake_command, "doctor": _doctor_command}
 
 
 def _edge_spp(text: str) -> int:

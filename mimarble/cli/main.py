@@ -36,6 +36,7 @@ HANDLERS = {
     "sweep": ("sweep", "_sweep"),
     "gallery": ("scenes", "_gallery"),
     "scenes": ("scenes", "_scenes"),
+    "presets": ("presets", "_presets"),
     "export": ("export_bake", "_export"),
     "bake": ("export_bake", "_bake"),
     "doctor": ("doctor", "_doctor"),

@@ -2,7 +2,8 @@
 
     L = ka(p)⊙A + Σ_l V(p,l)·I_l⊙(kd(p)·max(0, n·l̂) + ks(p)·max(0, n·ĥ)^shininess)
 
-with V the paper's ``shadowHit`` from p + ε·n, ε = EPS_REL·(1 + max_k |p_k|)
+with V the paper's ``shadowHit`` from p + ε·n (on a smooth mesh, n its shading normal,
+from p + ε·n_g, its geometric normal), ε = EPS_REL·(1 + max_k |p_k|)
 (:mod:`mimarble.contract`); an area light is n×n point lights at its fixed sample
 pattern (:func:`.preparation.area_sample_points`).
 """
@@ -40,7 +41,7 @@ def shade(prep: PreparedScene, rec: HitRecord, d: np.ndarray | None = None) -> n
         return out
     p, n, v = rec.p, rec.n, rec.v
     eps = EPS_REL * (1.0 + np.max(np.abs(p), axis=1))
-    p_shadow = p + eps[:, None] * n
+    p_shadow = p + eps[:, None] * (n if rec.ng is None else rec.ng)   # a smooth mesh: off ng
 
     lights = []                                 # (l_index, visible mask, n·l, n·h)
     areas = []                                  # (Σ I·n·l, Σ I·(n·h)^s) over visible samples

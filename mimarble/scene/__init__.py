@@ -15,46 +15,56 @@ marble's rules, written from its parameter table (``grammar.py``).
 from .errors import SceneError
 from .grammar import GRAMMAR_PATH
 from .keywords import BLOCK_KEYS, STATEMENTS
-from .model import (
-    AXES,
-    CHANNEL_TYPES,
-    EXPRESSIONS,
-    FIG5_RAMP,
-    MARBLE_FILTERS,
-    MARBLE_FUNCTIONS,
-    RGB,
-    Add,
-    Axis,
-    Camera,
-    Channel,
-    ColorChannel,
-    FrozenMap,
-    Image,
-    ImageChannel,
-    Environment,
-    Light,
-    MarbleChannel,
-    MarbleFunction,
-    Material,
-    Subsurface,
-    Mix,
-    Multiply,
-    Pos,
-    RectangleArea,
-    Scene,
-    Sphere,
-    SphereArea,
-    Plane,
-    Box,
-    Mesh,
-    SHAPE_TYPES,
-    SPACES,
-    Vec3,
-    replace_marbles,
-    walk,
-)
 from .parser import LIMITS, load, parse
 from .shapes import SHAPE_KINDS, ShapeKind
+
+# The model's classes load on first use (PEP 562): a scene that fails to parse is
+# answered without building them (the start-up of a malformed scene's error, issue 39).
+_MODEL_NAMES = frozenset({
+    "AXES",
+    "CHANNEL_TYPES",
+    "EXPRESSIONS",
+    "FIG5_RAMP",
+    "MARBLE_FILTERS",
+    "MARBLE_FUNCTIONS",
+    "RGB",
+    "Add",
+    "Axis",
+    "Camera",
+    "Channel",
+    "ColorChannel",
+    "FrozenMap",
+    "Image",
+    "ImageChannel",
+    "Environment",
+    "Light",
+    "MarbleChannel",
+    "MarbleFunction",
+    "Material",
+    "Subsurface",
+    "Mix",
+    "Multiply",
+    "Pos",
+    "RectangleArea",
+    "Scene",
+    "Sphere",
+    "SphereArea",
+    "Plane",
+    "Box",
+    "Mesh",
+    "SHAPE_TYPES",
+    "SPACES",
+    "Vec3",
+    "replace_marbles",
+    "walk",
+})
+
+
+def __getattr__(name: str):
+    if name in _MODEL_NAMES:
+        from . import model
+        return getattr(model, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = [
     "load",

@@ -9,6 +9,7 @@ from __future__ import annotations
 from lark import Token, Tree
 
 from mimarble import parameters as marble_parameters
+from mimarble import presets
 from mimarble.parameters import BOOLEAN, CHOICE, COLOURS, PARAMETERS, Parameter, ParameterError
 from mimarble.scene import rules
 from .build_values import ValueReader, pos_of, source_of, unquoted
@@ -262,6 +263,7 @@ class MaterialBuilder(ValueReader):
         its row of the parameter table; the error is at the value, in the table's words."""
         f = self.fields(st, "'marble' block")
         values = {}
+        preset = self.marble_preset(st, f["preset"]) if "preset" in f else None
         for p in PARAMETERS:
             if p.name not in f:
                 continue
@@ -283,8 +285,26 @@ class MaterialBuilder(ValueReader):
             space = str(tok)
             self.refuse(tok, None if space in SPACES else
                         f"a marble's space is {' or '.join(SPACES)}")
+        if preset is not None:          # the preset's values, those written on top
+            values = presets.resolved(preset, values)
         return MarbleChannel(**values, transform=steps, space=space, pos=pos_of(st),
                              source=source_of(st, f))
+
+    def marble_preset(self, st: Tree, key: Tree) -> str:
+        """``preset "NAME"``: the name of a preset of the library (mimarble/presets.py),
+        written first in the marble block; an unknown one is refused at its name, with
+        the closest one named."""
+        first = next(c for c in st.children if isinstance(c, Tree))
+        if first is not key:
+            raise self.error(key, "'preset' comes first in a marble block, then the values "
+                                  "that override it: marble { preset \"carrara\" period 1.5 }")
+        (tok,) = key.children
+        name = unquoted(tok)
+        try:
+            presets.preset(name)
+        except presets.PresetError as e:
+            raise self.error(tok, str(e)) from None
+        return name
 
     def marble_value(self, p: Parameter, key: Tree):
         """The value of a marble key as written, for ``p.check``, and where to point at

@@ -26,8 +26,9 @@ GRAMMAR_PATH = Path(__file__).with_name("scene.lark")
 #: The marble block's keys that are the language's own, not rows of the table: their rules
 #: are written in ``scene.lark`` (``transform``: the pattern's translate / rotate / scale,
 #: which the plugin takes as its ``to_world``; ``space``: world or object, where the
-#: pattern is evaluated). They come after the table's keys.
-LANGUAGE_MARBLE_KEYS: tuple[str, ...] = ("transform", "space")
+#: pattern is evaluated; ``preset``: a named marble of mimarble/presets.toml, written first
+#: in the block). They come after the table's keys.
+LANGUAGE_MARBLE_KEYS: tuple[str, ...] = ("transform", "space", "preset")
 
 #: How a value of each kind of parameter is written. Words are any name here; which
 #: names a choice takes is checked after parsing, so that a wrong one gets a message
@@ -59,7 +60,7 @@ def marble_rules() -> str:
 
 
 #: How a shape key's value is written, by its syntax (shapes.ShapeKey).
-_SHAPE_KEY_SYNTAX = {"vector": "vector", "number": "NUMBER"}
+_SHAPE_KEY_SYNTAX = {"vector": "vector", "number": "NUMBER", "boolean": "WORD"}
 
 
 def shape_rules(text: str) -> str:

@@ -23,14 +23,16 @@ from __future__ import annotations
 
 import hashlib
 import os
+from typing import TYPE_CHECKING
 
-from .builder import SceneBuilder
 from .errors import SceneError
 from .lark_front import oversized, scene_tree
 from .limits import LIMITS, MAX_SCENE_BYTES
-from .model import Scene
 from mimarble.runtime.reading import NotRegularFile, open_regular
 from .syntax_errors import decoded
+
+if TYPE_CHECKING:
+    from .model import Scene
 
 __all__ = ["parse", "load", "LIMITS"]
 
@@ -122,7 +124,11 @@ def parse(text: str | bytes, filename: str = "<string>", *, source: str | None =
         text = text[1:]
     if source is None and filename != "<string>":
         source = filename
-    return SceneBuilder(text, filename, source).scene(scene_tree(text, filename), source)
+    tree = scene_tree(text, filename)
+    # The builder (and the model it builds) loads only for text that parsed: a syntax
+    # error is answered without them (issue 39's start-up of a malformed scene).
+    from .builder import SceneBuilder
+    return SceneBuilder(text, filename, source).scene(tree, source)
 
 
 # --------------------------------------------------------------------------

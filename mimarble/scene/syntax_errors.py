@@ -17,7 +17,7 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 from mimarble.parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
 from .keywords import BARE_CHANNEL_KEYS, BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
-from .model import SPACES
+from .channels import SPACES
 from .rules import shortened
 
 __all__ = ["syntax_error", "decoded", "POVRAY_HINTS", "povray_hint"]
@@ -94,6 +94,10 @@ POVRAY_HINTS: dict[str, str] = {
     "global_settings": "the ambient light is the statement ambient < r g b >; there are no "
                        "other global settings",
     "background": "the background is in the image statement: image { background < r g b > }",
+    # textures.inc's marbles: presets of the marble library (mimarble/presets.toml).
+    **{name: f"POV-Ray's {name} (textures.inc) is a preset here: marble {{ preset "
+             f"\"{name.lower()}\" }} (docs/presets.md)"
+       for name in ("White_Marble", "Red_Marble", "Blood_Marble", "Jade")},
 }
 
 #: The channels, in the sentences that expect one.
@@ -432,5 +436,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(line, col, f"{parameter.name} {parameter.requirement}, found {found}")
         if after and str(prev) == "space":                  # the builder's sentence
             return at(line, col, f"a marble's space is {' or '.join(SPACES)}, found {found}")
+        if after and str(prev) == "smooth":                 # a mesh's; the builder's sentence
+            return at(line, col, f"smooth is true or false, found {found}")
         return at(line, col, f"expected a name{after}, found {found}")
     return at(line, col, f"unexpected {found}; expected {_expected_list(expected, keywords)}")

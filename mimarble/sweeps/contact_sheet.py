@@ -1,14 +1,19 @@
 """A sweep's contact sheet: the frames with their values beside them, in one image.
 
 A row for one setting (the paper's figure layout; a grid past :data:`ONE_ROW` values), a
-grid of rows × columns for two (values along the top and the left), a grid of cells each
-captioned with every value for more; drawn with Pillow (a sheet of 64 frames in a
-fraction of a second). A failed frame is a grey cell. The images are read without
-following links (mimarble/runtime/reading.py): the sheet reads nothing but the frames.
+grid of rows × columns for two (values along the top and the left), a grid of cells for
+more; drawn with Pillow (a sheet of 64 frames in a fraction of a second). Each frame fills
+its cell: scaled to the cell's width, up or down (up by whole pixels, nearest, so a small
+render shows its own pixels), the cells shaped as the frames are (``size``, else the first
+frame's header), :data:`GAP` pixels apart; each cell's values are one line under it,
+shortened with "…" to the cell's width (issue 42, item 6). A failed frame is a grey cell.
+The images are read without following links (mimarble/runtime/reading.py): the sheet reads
+nothing but the frames.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -25,8 +30,103 @@ CONTACT_SHEET = "contact.png"
 CONTACT_SHEET_PIXELS = 50_000_000
 MIN_CELL = 24
 #: One setting's frames stand in one row (the paper's figures) up to this many; more are
-#: a grid, each cell captioned.
+#: a grid.
 ONE_ROW = 16
+#: Pixels between two cells, and around the grid.
+GAP = 2
+#: The height of a line of text (Pillow's default font), with a pixel above and below.
+LINE = 12
+#: The widest a cell's frame may be for its height, and the narrowest (a 1×1000 frame's
+#: cell would be a hair: its thumbnail is then fitted inside, not stretched to it).
+ASPECT_RANGE = (0.25, 4.0)
+
+
+@dataclasses.dataclass(frozen=True)
+class SheetLayout:
+    """Where everything of a sheet lies, in pixels.
+
+    ==============  ============================================================
+    ``size``        (width, height) of the sheet
+    ``cells``       (x, y, width, height) of each frame's cell, in frame order
+    ``labels``      (x, y, width) of each cell's one line under it (None: the
+                    values stand along the top and the left, two settings)
+    ``columns``     (x, y) of each column's value (two settings), else ()
+    ``rows``        (x, y) of each row's value (two settings), else ()
+    ==============  ============================================================
+    """
+
+    size: tuple[int, int]
+    cells: tuple[tuple[int, int, int, int], ...]
+    labels: tuple[tuple[int, int, int], ...] | None
+    columns: tuple[tuple[int, int], ...]
+    rows: tuple[tuple[int, int], ...]
+
+
+def grid_shape(settings, count: int) -> tuple[int, int]:
+    """(rows, columns): two settings' values, one row of at most :data:`ONE_ROW` for one,
+    else the squarest grid."""
+    if len(settings) == 2:
+        return len(settings[0]["values"]), len(settings[1]["values"])
+    if len(settings) == 1 and count <= ONE_ROW:
+        return 1, count
+    columns = math.ceil(math.sqrt(count))
+    return math.ceil(count / columns), columns
+
+
+def sheet_layout(settings, count: int, cell: int = 160, aspect: float = 1.0,
+                 left: int = 0) -> SheetLayout:
+    """The layout of ``count`` cells ``cell`` pixels wide and ``cell / aspect`` high (aspect:
+    the frames' width over height), shrunk until the sheet holds at most
+    :data:`CONTACT_SHEET_PIXELS` (not below :data:`MIN_CELL`); ``left``: the row labels'
+    width, for two settings."""
+    aspect = min(max(aspect, ASPECT_RANGE[0]), ASPECT_RANGE[1])
+    rows, columns = grid_shape(settings, count)
+    two = len(settings) == 2
+    left = left + GAP if two else 0
+    top = LINE + 2 * GAP + (LINE if two else 0)          # the title, the column values
+
+    def size(width):
+        height = max(1, round(width / aspect))
+        return (left + GAP + columns * (width + GAP),
+                top + rows * (height + (0 if two else LINE) + GAP) + GAP), height
+    while cell > MIN_CELL and math.prod(size(cell)[0]) > CONTACT_SHEET_PIXELS:
+        cell -= 1                        # a large sweep: smaller cells, a bounded sheet
+    (width, height), cell_height = size(cell)
+    row_height = cell_height + (0 if two else LINE) + GAP
+    cells = tuple((left + GAP + c * (cell + GAP), top + r * row_height, cell, cell_height)
+                  for r, c in (divmod(k, columns) for k in range(count)))
+    labels = None if two else tuple((x, y + h, w) for x, y, w, h in cells)
+    return SheetLayout((width, height), cells, labels,
+                       tuple((left + GAP + c * (cell + GAP), top - LINE) for c in range(columns))
+                       if two else (),
+                       tuple((GAP, top + r * row_height + cell_height // 2 - LINE // 2)
+                             for r in range(rows)) if two else ())
+
+
+def fitted_line(draw, text: str, width: int) -> str:
+    """``text`` as it fits in ``width`` pixels on one line, shortened with "…"."""
+    if draw.textlength(text) <= width:
+        return text
+    while text and draw.textlength(text + "…") > width:
+        text = text[:-1]
+    return text + "…"
+
+
+def _frame_aspect(cells, size) -> float:
+    """The frames' width over height: ``size``'s, else the first readable frame's header."""
+    from PIL import Image
+    if size is not None:
+        return size[0] / size[1]
+    for _, image_path in cells:
+        if image_path is None:
+            continue
+        try:
+            with open_regular(image_path, follow_links=False) as f:
+                width, height = Image.open(f).size      # the header only
+            return width / height
+        except Exception:                # unreadable: drawn as a failed cell below
+            continue
+    return 1.0
 
 
 def draw_contact_sheet(path, title: str, settings, cells, cell: int = 160,
@@ -36,36 +136,21 @@ def draw_contact_sheet(path, title: str, settings, cells, cell: int = 160,
 
     ``settings``: [{"key", "values"}] as a sweep's index holds them; ``cells``: one
     (values by key, image path or None for a failed frame) per frame, in frame order.
-    Cells are ``cell`` pixels wide, fewer for a sweep so large that the sheet would pass
-    :data:`CONTACT_SHEET_PIXELS`."""
+    Cells are ``cell`` pixels wide (:func:`sheet_layout`), fewer for a sweep so large that
+    the sheet would pass :data:`CONTACT_SHEET_PIXELS`."""
     from PIL import Image, ImageDraw
 
+    measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    left = 0 if len(settings) != 2 else math.ceil(max(
+        measure.textlength(_label(settings[0], v)) for v in settings[0]["values"]))
+    layout = sheet_layout(settings, len(cells), cell, _frame_aspect(cells, size), left)
     undecodable = {}
-    if len(settings) == 2:
-        rows, columns = len(settings[0]["values"]), len(settings[1]["values"])
-    elif len(settings) == 1 and len(cells) <= ONE_ROW:
-        rows, columns = 1, len(cells)
-    else:
-        columns = math.ceil(math.sqrt(len(cells)))
-        rows = math.ceil(len(cells) / columns)
-    line = 12                                            # the default font's line height
-    caption = line * (1 if len(settings) <= 2 else len(settings)) + 4
-    left = 0 if len(settings) != 2 else 8 * max(len(_label(settings[0], v))
-                                                for v in settings[0]["values"]) + 8
-    top = line + 8 + (caption if len(settings) == 2 else 0)
-
-    def sheet_size(cell):
-        row_height = cell + (caption if len(settings) != 2 else 4)
-        return left + columns * cell + 8, top + rows * row_height + 4
-    while cell > MIN_CELL and math.prod(sheet_size(cell)) > CONTACT_SHEET_PIXELS:
-        cell -= 1                        # a large sweep: smaller cells, a bounded sheet
-    row_height = cell + (caption if len(settings) != 2 else 4)
-    sheet = Image.new("RGB", sheet_size(cell), "white")
+    sheet = Image.new("RGB", layout.size, "white")
     draw = ImageDraw.Draw(sheet)
-    draw.text((4, 4), title, fill="black")
+    draw.text((GAP + 2, GAP), fitted_line(draw, title, layout.size[0] - 2 * GAP - 2),
+              fill="black")
     for k, (values, image_path) in enumerate(cells):
-        r, c = divmod(k, columns)
-        x, y = left + c * cell + 4, top + r * row_height
+        x, y, w, h = layout.cells[k]
         image = None
         if image_path is not None:
             try:
@@ -81,24 +166,41 @@ def draw_contact_sheet(path, title: str, settings, cells, cell: int = 160,
                 image = None
                 undecodable[k] = e
         if image is not None:
-            image.thumbnail((cell - 4, cell - 4))
-            sheet.paste(image, (x, y))
+            thumbnail = _filled(image, w, h)
+            sheet.paste(thumbnail, (x + (w - thumbnail.width) // 2,
+                                    y + (h - thumbnail.height) // 2))
         else:                                            # a failed frame: a grey cell
-            draw.rectangle((x, y, x + cell - 5, y + cell - 5), fill=(200, 200, 200))
-            draw.text((x + 6, y + cell // 2 - 6), "failed", fill="black")
-        if len(settings) == 2:
-            if r == 0:
-                draw.text((x, y - caption), _label(settings[1], values[settings[1]["key"]]),
-                          fill="black")
-            if c == 0:
-                draw.text((4, y + cell // 2), _label(settings[0], values[settings[0]["key"]]),
-                          fill="black")
-        else:
-            for n, setting in enumerate(settings):
-                draw.text((x, y + cell - 2 + n * line), _label(setting, values[setting["key"]]),
-                          fill="black")
+            draw.rectangle((x, y, x + w - 1, y + h - 1), fill=(200, 200, 200))
+            draw.text((x + 4, y + h // 2 - LINE // 2), "failed", fill="black")
+        if layout.labels is not None:    # every value, one line under the cell
+            lx, ly, lw = layout.labels[k]
+            text = ", ".join(_label(setting, values[setting["key"]]) for setting in settings)
+            draw.text((lx, ly), fitted_line(draw, text, lw), fill="black")
+    if len(settings) == 2:               # the values along the top and the left
+        for (cx, cy), value in zip(layout.columns, settings[1]["values"]):
+            draw.text((cx, cy), fitted_line(draw, _label(settings[1], value), cell),
+                      fill="black")
+        for (rx, ry), value in zip(layout.rows, settings[0]["values"]):
+            draw.text((rx, ry), _label(settings[0], value), fill="black")
     files.write_atomically(path, lambda tmp: sheet.save(tmp, compress_level=1))
     return undecodable
+
+
+def _filled(image, width: int, height: int):
+    """``image`` scaled to fill a ``width`` × ``height`` box, its aspect kept (fitted
+    inside): up by a whole factor with nearest-neighbour (its pixels shown as they are),
+    then, or else, down with Lanczos to the box."""
+    from PIL import Image
+    scale = min(width / image.width, height / image.height)
+    if scale >= 2:
+        factor = math.floor(scale)
+        image = image.resize((image.width * factor, image.height * factor),
+                             Image.Resampling.NEAREST)
+        scale = min(width / image.width, height / image.height)
+    if scale != 1:
+        image = image.resize((max(1, round(image.width * scale)),
+                              max(1, round(image.height * scale))), Image.Resampling.LANCZOS)
+    return image
 
 
 def _label(setting, value) -> str:

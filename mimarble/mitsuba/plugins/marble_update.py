@@ -12,7 +12,8 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.texture import error_budget, filters as pixel_filter
-from mimarble.parameters import AXES, BY_NAME, COLOURS, PARAMETERS, MarbleParameters
+from mimarble import presets
+from mimarble.parameters import AXES, BY_NAME, COLOURS, PARAMETERS, MarbleParameters, ParameterError
 from mimarble.texture.fbm import Spectrum
 from mimarble.texture.perlin import lattice_tables
 from mimarble.mitsuba.plugins.registration import Kept, describe, first_number
@@ -30,7 +31,12 @@ class MarbleUpdates(HeldValues):
     def _read_properties(self, props) -> None:
         """The texture's values from its properties (``MarbleParameters``: the table's
         rules), then every decision made from them."""
-        params = MarbleParameters.from_properties(props)
+        # "preset": a named marble (mimarble/presets.toml) whose values are the defaults.
+        try:
+            defaults = presets.preset_values(props["preset"]) if "preset" in props else None
+        except ParameterError as e:
+            raise ParameterError(f"marble: {e}") from None
+        params = MarbleParameters.from_properties(props, defaults=defaults)
         self.function, self.axis, self.turbulence, self.filter = \
             params.function, params.axis, params.turbulence, params.filter
         self.tolerance = error_budget.DEFAULT_TOLERANCE if params.tolerance is None \

@@ -80,6 +80,15 @@ def fresnel_from_outside(mu, eta: float):
     return mi.fresnel(mi.Float(mu), eta)[0] if dr.is_jit_v(mi.Float) else mi.fresnel(mu, eta)[0]
 
 
+def mirror_probability(ctx, fresnel, other_lobe):
+    """The chance of a Fresnel mirror (component 0) against the BSDF's other lobe (component
+    1, of flag ``other_lobe``): F(μᵢ), or 1 / 0 when the context enables only the mirror /
+    only the other lobe (Mitsuba's component selection)."""
+    mirror = ctx.is_enabled(mi.BSDFFlags.DeltaReflection, 0)
+    other = ctx.is_enabled(other_lobe, 1)
+    return fresnel if mirror and other else fresnel * 0.0 + (1.0 if mirror else 0.0)
+
+
 @plugin("bsdf", "subsurface_boundary")
 class SubsurfaceBoundary:
     """The surface of a translucent material: Fresnel-weighted delta reflection outside,
@@ -105,22 +114,12 @@ class SubsurfaceBoundary:
         """F(μ) for μ ≥ 0 (light from outside), in the kernel."""
         return fresnel_from_outside(mu, self.eta)
 
-    def _reflect_probability(self, ctx, f_i, outside):
-        """The probability of the delta reflection at a point seen from outside: F(μᵢ),
-        or 1 / 0 when the context enables only the reflection / only the transmission."""
-        reflection = ctx.is_enabled(mi.BSDFFlags.DeltaReflection, 0)
-        transmission = ctx.is_enabled(mi.BSDFFlags.DiffuseTransmission, 1)
-        if reflection and transmission:
-            chance = f_i
-        else:
-            chance = f_i * 0.0 + (1.0 if reflection else 0.0)
-        return dr.select(outside, chance, 0.0)
-
     def sample(self, ctx, si, sample1, sample2, active=True):
         cos_i = mi.Frame3f.cos_theta(si.wi)
         outside, inside = cos_i > 0.0, cos_i < 0.0
         f_i = self._fresnel(dr.maximum(cos_i, 0.0))
-        p_reflect = self._reflect_probability(ctx, f_i, outside)
+        p_reflect = dr.select(outside, mirror_probability(
+            ctx, f_i, mi.BSDFFlags.DiffuseTransmission), 0.0)
         transmission = ctx.is_enabled(mi.BSDFFlags.DiffuseTransmission, 1)
         reflect = outside & (sample1 < p_reflect)
         diffuse = mi.warp.square_to_cosine_hemisphere(sample2)            # about +z
@@ -163,7 +162,8 @@ class SubsurfaceBoundary:
         f_i = self._fresnel(dr.maximum(cos_i, 0.0))
         f_o = self._fresnel(dr.maximum(cos_o, 0.0))
         value = dr.select(entering, 1.0 - f_i, (1.0 - f_o) * self.exit_scale) * abs_o * dr.inv_pi
-        p_reflect = self._reflect_probability(ctx, f_i, cos_i > 0.0)
+        p_reflect = dr.select(cos_i > 0.0, mirror_probability(
+            ctx, f_i, mi.BSDFFlags.DiffuseTransmission), 0.0)
         pdf = dr.select(entering, 1.0 - p_reflect, 1.0) * abs_o * dr.inv_pi
         return dr.select(ok, value, 0.0), dr.select(ok, pdf, 0.0)
 

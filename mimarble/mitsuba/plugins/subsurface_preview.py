@@ -61,7 +61,7 @@ from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import describe, plugin, recording_key
 from mimarble.mitsuba.plugins.subsurface_boundary import (DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
                                                           SubsurfaceBoundaryError, _ior,
-                                                          fresnel_from_outside)
+                                                          fresnel_from_outside, mirror_probability)
 from mimarble.mitsuba.plugins.subsurface_reflectance import (diffuse_fresnel_reflectance,
                                                              spherical_albedo,
                                                              spherical_albedo_seen)
@@ -109,17 +109,10 @@ class SubsurfacePreview:
             return spherical_albedo_seen(colour, self.mean_reflectance)
         return spherical_albedo(colour)
 
-    def _coat_probability(self, ctx, f_i):
-        """The chance of the mirror: F(μᵢ), or 1 / 0 when the context enables only the coat /
-        only the diffuse lobe."""
-        coat = ctx.is_enabled(mi.BSDFFlags.DeltaReflection, 0)
-        diffuse = ctx.is_enabled(mi.BSDFFlags.DiffuseReflection, 1)
-        return f_i if coat and diffuse else f_i * 0.0 + (1.0 if coat else 0.0)
-
     def sample(self, ctx, si, sample1, sample2, active=True):
         cos_i = mi.Frame3f.cos_theta(si.wi)
         f_i = fresnel_from_outside(dr.maximum(cos_i, 0.0), self.eta)
-        p_coat = self._coat_probability(ctx, f_i)
+        p_coat = mirror_probability(ctx, f_i, mi.BSDFFlags.DiffuseReflection)
         mirror = sample1 < p_coat
         wo = mi.warp.square_to_cosine_hemisphere(sample2)
         cos_o = mi.Frame3f.cos_theta(wo)
@@ -153,7 +146,8 @@ class SubsurfacePreview:
         f_i = fresnel_from_outside(dr.maximum(cos_i, 0.0), self.eta)
         value = (1.0 - f_i) * (1.0 - fresnel_from_outside(dr.maximum(cos_o, 0.0), self.eta)) \
             * self.exit_scale * cos_o * dr.inv_pi
-        pdf = (1.0 - self._coat_probability(ctx, f_i)) * cos_o * dr.inv_pi
+        p_coat = mirror_probability(ctx, f_i, mi.BSDFFlags.DiffuseReflection)
+        pdf = (1.0 - p_coat) * cos_o * dr.inv_pi
         return dr.select(ok, value, 0.0), dr.select(ok, pdf, 0.0), ok
 
     def eval(self, ctx, si, wo, active=True):

@@ -26,7 +26,7 @@ from .lights import (AREA_LIGHT_POINT_SIZE, RECTANGLE_LIGHT_SHORTEST_EDGE, ambie
 from .materials import CALCITE_IOR, surface_bsdf
 from .media import medium_dict, subsurface_boundary, translucent_materials
 from .modes import MODES, ModeError, integrator_and_sampler, refuse_translucent
-from .shapes import (_facing_out, _product, _transform, clip_planes, cube_to_world,
+from .shapes import (_facing_out, _product, _transform, clip_planes, cube_to_world, is_smooth,
                      disk_to_world, in_object_space, is_two_sided, shape_dict)
 from .textures import _marble_gains, _texture_id, _unused, marble_tolerance, texture_dict
 
@@ -146,7 +146,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             out[textures[key]] = texture
         return {"type": "ref", "id": textures[key]}
 
-    out["integrator"], sampler = integrator_and_sampler(scene, mode, spp, translucent)
+    out["integrator"], sampler = integrator_and_sampler(
+        scene, mode, spp, translucent, smooth=any(map(is_smooth, scene.meshes)))
     out["sensor"] = _sensor(scene, sampler)
 
     bsdfs: dict = {}       # (material name, placement's matrix or None) -> its BSDF
