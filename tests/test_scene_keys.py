@@ -62,6 +62,8 @@ def test_keys_carry_their_row_of_the_parameter_table_and_their_value():
     assert keys["carrara.ramp.1"].value == (None, (0.5, 0.5, 0.5))
     assert keys["carrara.ramp"].value == (((1.0,) * 3, (0.5,) * 3, (0.0,) * 3), None)
     assert keys["light.0.position"].value == (1.0, 2.0, 3.0)
+    assert keys["camera.eye"].parameter.requirement == "must be three finite numbers 'x y z'"
+    assert (keys["camera.fov"].parameter.above, keys["camera.fov"].parameter.below) == (0, 180)
     assert "vase.ambient.period" not in keys          # a colour has no marble keys
     groups = list(dict.fromkeys(k.group for k in keys.values()))
     assert groups == ["every marble", 'texture "carrara"', 'material "stone"',

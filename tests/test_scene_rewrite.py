@@ -133,6 +133,10 @@ def test_ramps_keep_their_layout():
     # a stop whose value is as it was keeps its text (< 0 0 0 > is 0 0 0)
     assert rewrite(text, {"m.ramp": "0 #fefefe, 0.5 #808080, 1 0 0 0"}) == \
         text.replace("< 1 1 1 >", "#fefefe")
+    unplaced = rewrite(text, {"m.ramp": "#ffffff, #808080, 0 0 0"})       # positions gone
+    assert unplaced == text.replace("0   < 1 1 1 >", "< 1 1 1 >").replace(
+        "0.5 #808080", "#808080").replace("1   < 0 0 0 >", "< 0 0 0 >")
+    assert parse(unplaced) == with_value(parse(text), "m.ramp", "#ffffff, #808080, 0 0 0")
     three_to_two = rewrite(text, {"m.ramp": "#ffffff, #000000"})
     assert three_to_two == text.replace(
         "0   < 1 1 1 >\n        0.5 #808080\n        1   < 0 0 0 >",
@@ -181,3 +185,15 @@ def test_save_is_atomic_and_refuses_a_file_changed_on_disk(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.scene"]   # no temporary left
     save_atomic(tmp_path / "new.scene", "camera { fov 50 }\n", None)   # "Save as"
     assert (tmp_path / "new.scene").read_text() == "camera { fov 50 }\n"
+
+
+def test_a_preset_marble_gets_the_preset_values_it_did_not_write():
+    """A value a preset gives is not in the block: an edit writes it after the preset (which
+    comes first); a stop of the preset's ramp writes the preset's ramp with that stop."""
+    text = 'material "m" { diffuse { marble { preset "carrara" period 1.5 } } }\n' \
+           'sphere { material "m" }\n'
+    scene = parse(text)
+    for key, value in (("m.scale", 3), ("m.ramp.1", "#ffffff"), ("m.ramp", "#ffffff, #000000")):
+        new = rewrite(text, {key: value})
+        assert new.startswith('material "m" { diffuse { marble { preset "carrara" period 1.5 ')
+        assert parse(new) == with_value(scene, key, value), key

@@ -25,7 +25,6 @@ import dataclasses
 
 from mimarble import scene as scene_language
 from mimarble.scene.key_values import KeyPathError
-from mimarble.scene.keys import with_value
 from mimarble.scene.rules import spp_problem
 
 __all__ = ["KeyPathError", "with_value", "with_image_size", "resized", "with_marbles",
@@ -62,6 +61,18 @@ def with_image_size(scene, width: int | None = None, height: int | None = None,
 def resized(scene, size: int):
     """The same scene at size×size pixels (the paper's images are square)."""
     return with_image_size(scene, size, size)
+
+
+# ---------------------------------------------------------------------------
+# One value by key path
+
+def with_value(scene, key: str, value):
+    """The scene with the value at key path ``key`` set to ``value``: the key registry's
+    (mimarble/scene/keys.py, :func:`~mimarble.scene.keys.with_value`), imported when first
+    called — the command line imports this module for :func:`with_image_size` before it
+    parses, and a file that fails to parse builds no scene model."""
+    from mimarble.scene.keys import with_value as registry_with_value
+    return registry_with_value(scene, key, value)
 
 
 # ---------------------------------------------------------------------------

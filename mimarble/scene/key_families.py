@@ -73,7 +73,27 @@ class Place:
 
 
 class KeyFamily:
-    """A family of keys. Subclasses give :meth:`keys`, :meth:`apply` and :meth:`places`."""
+    """A family of keys. Subclasses give :meth:`keys`, :meth:`apply` and :meth:`places`;
+    a new family — the environment's ``environment.intensity``, say — is::
+
+        class EnvironmentKeys(KeyFamily):
+            ROW = Parameter("intensity", NUMBER, 1.0, at_least=0.0, doc="…")
+
+            def keys(self, scene):
+                if scene.environment is not None:
+                    yield self._key("environment.intensity", "environment", self.ROW,
+                                    scene.environment.intensity)
+
+            def apply(self, scene, key, value):
+                return dataclasses.replace(scene, environment=dataclasses.replace(
+                    scene.environment, intensity=value.value))
+
+            def places(self, scene, key):
+                return [Place(scene.environment.source, "intensity")]
+
+    and one entry in ``keys.FAMILIES``; its builder gives the node
+    ``source=source_of(st, f)`` (build_values.py), and its model class a ``source`` field
+    (``_source()``, nodes.py), as the camera's."""
 
     def keys(self, scene) -> Iterator[Key]:
         """Every key of this family that ``scene`` has."""
@@ -351,18 +371,33 @@ def evenly_spaced(count: int) -> tuple:
 
 _CAMERA, _LIGHT, _IMAGE = Camera(), Light((0.0, 0.0, 0.0)), Image()
 
+
+@dataclasses.dataclass(frozen=True)
+class KeyRow(Parameter):
+    """A row for a key that is no marble parameter: the table's fields, and the kinds
+    ``vector`` and ``colour`` said in words too."""
+
+    @property
+    def requirement(self) -> str:
+        if self.kind == VECTOR:
+            return "must be three finite numbers 'x y z'"
+        if self.kind == COLOUR:
+            return "must be a colour '#rrggbb' or 'r g b', each component ≥ 0"
+        return super().requirement
+
+
 #: The rows of the keys that are no marble's: declared here, once.
-FOV = Parameter("fov", NUMBER, _CAMERA.fov, above=0.0, below=180.0,
-                doc="The camera's full vertical field of view, in degrees.")
-EYE = Parameter("eye", VECTOR, _CAMERA.eye, doc="Where the camera is.")
-LOOKAT = Parameter("lookat", VECTOR, _CAMERA.lookat, doc="The point seen at the image's centre.")
-UP = Parameter("up", VECTOR, _CAMERA.up, doc="The camera's up direction, not along the view.")
-INTENSITY = Parameter("intensity", NUMBER, 1.0, at_least=0.0,
-                      doc="A light's colour as one grey level (r = g = b).")
-COLOR = Parameter("color", COLOUR, _LIGHT.color, doc="A light's colour, linear RGB (or #rrggbb).")
-POSITION = Parameter("position", VECTOR, None, doc="Where a light is (an area light's centre).")
-SAMPLES = Parameter("samples", INTEGER, _IMAGE.samples, bounds=(1, MAX_IMAGE_SAMPLES),
-                    doc="Samples per pixel, a square n·n (whitted mode's n×n grid).")
+FOV = KeyRow("fov", NUMBER, _CAMERA.fov, above=0.0, below=180.0,
+             doc="The camera's full vertical field of view, in degrees.")
+EYE = KeyRow("eye", VECTOR, _CAMERA.eye, doc="Where the camera is.")
+LOOKAT = KeyRow("lookat", VECTOR, _CAMERA.lookat, doc="The point seen at the image's centre.")
+UP = KeyRow("up", VECTOR, _CAMERA.up, doc="The camera's up direction, not along the view.")
+INTENSITY = KeyRow("intensity", NUMBER, 1.0, at_least=0.0,
+                   doc="A light's colour as one grey level (r = g = b).")
+COLOR = KeyRow("color", COLOUR, _LIGHT.color, doc="A light's colour, linear RGB (or #rrggbb).")
+POSITION = KeyRow("position", VECTOR, None, doc="Where a light is (an area light's centre).")
+SAMPLES = KeyRow("samples", INTEGER, _IMAGE.samples, bounds=(1, MAX_IMAGE_SAMPLES),
+                 doc="Samples per pixel, a square n·n (whitted mode's n×n grid).")
 
 
 class CameraKeys(KeyFamily):
@@ -443,11 +478,11 @@ class ImageKeys(KeyFamily):
 # ---------------------------------------------------------------------------
 # The environment
 
-ENVIRONMENT_INTENSITY = Parameter("intensity", NUMBER, 1.0, at_least=0.0,
-                                  doc="The environment's radiance, scaled (path mode's sky, "
-                                      "whitted mode's background).")
-ROTATE = Parameter("rotate", VECTOR, (0.0, 0.0, 0.0),
-                   doc="The environment image turned: degrees about x, then y, then z.")
+ENVIRONMENT_INTENSITY = KeyRow("intensity", NUMBER, 1.0, at_least=0.0,
+                               doc="The environment's radiance, scaled (path mode's sky, "
+                                   "whitted mode's background).")
+ROTATE = KeyRow("rotate", VECTOR, (0.0, 0.0, 0.0),
+                doc="The environment image turned: degrees about x, then y, then z.")
 
 
 class EnvironmentKeys(KeyFamily):

@@ -113,6 +113,6 @@ def keys_listing(scene) -> str:
         p = key.parameter
         what = "a ramp stop: [position] colour" if key.stop is not None else \
             "a ramp: [p] colour, [p] colour, …" if p.kind == "colours" else \
-            f"{p.kind}, {p.requirement}" if p.kind not in ("vector", "colour") else p.kind
+            f"{p.kind}, {p.requirement}"
         lines.append(f"  {key.path:<{width}}  {key.text}  ({what})")
     return "\n".join(lines)

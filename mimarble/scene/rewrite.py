@@ -28,10 +28,9 @@ import os
 import stat
 import tempfile
 
-from mimarble.parameters import FIG5_RAMP
 from .comments import blanked
 from .key_families import MarbleKeys, Place, evenly_spaced
-from .key_values import KeyPathError, Value, number_text, read
+from .key_values import KeyPathError, Value, number_text, read, vector_text
 from .keys import key_of, with_value
 from .limits import MAX_SCENE_BYTES
 from .parser import parse
@@ -50,9 +49,16 @@ class SaveRefused(OSError):
 
 
 def rewrite(text: str, edits, filename: str = "<string>", source: str | None = None) -> str:
-    """``text`` with each edit of ``edits`` (key path → value, as ``with_value`` takes
-    them; applied in order) written into it, every other byte kept. ``filename``: for
-    messages; ``source``: the file's path, where its meshes and image maps are found.
+    """``text`` with each edit written into it, every other byte kept.
+
+    ========== ===========================================================================
+    text       a scene file's text (:func:`read_scene_text`), a byte order mark kept
+    edits      key path → value, as ``with_value`` takes them, applied in order (at most
+               :data:`MAX_EDITS`)
+    filename   the name messages give the text
+    source     the file's path: its meshes and image maps are found beside it
+    ========== ===========================================================================
+
     SceneError when ``text`` does not parse; KeyPathError for an unknown key, a value it
     cannot take, or an edit the text cannot say alone."""
     if not isinstance(text, str):
@@ -173,9 +179,8 @@ class _Text:
                for k, rgb in enumerate(marble.ramp)]
         texts = [(self.body[p[0]:p[1]] if p else None, self.body[c[0]:c[1]])
                  for p, c in source.stops]
-        if "ramp" not in source.values:           # the default ramp, unwritten
-            texts = [(None, "< " + " ".join(number_text(x) for x in rgb) + " >")
-                     for rgb in FIG5_RAMP]
+        if "ramp" not in source.values:           # unwritten: the default's, or a preset's
+            texts = [(None if p is None else number_text(p), vector_text(rgb)) for p, rgb in old]
         if key.stop is None:
             new = list(zip(value.value[1] or [None] * len(value.value[0]), value.value[0]))
             new_texts = list(value.stops)
@@ -240,11 +245,18 @@ def read_scene_text(path) -> str:
 
 
 def save_atomic(path, text: str, loaded_text: str | None) -> None:
-    """Write ``text`` to the scene file ``path`` whole or not at all: a temporary file in
-    the same folder, synced, then renamed over it (``os.replace``), with the file's
-    permission bits. :class:`SaveRefused`, nothing written, when the file on disk is no
-    longer ``loaded_text`` (:func:`read_scene_text`'s text when it was loaded; None: no
-    check, for "Save as"). A link is written through, to the file it names."""
+    """Write ``text`` to a scene file whole or not at all: a temporary file in the same
+    folder, synced, then renamed over it (``os.replace``), with the file's permission bits.
+
+    =========== ==========================================================================
+    path        the file (a link is written through, to the file it names)
+    text        the new text (:func:`rewrite`'s)
+    loaded_text the file's text when it was loaded (:func:`read_scene_text`); None: no
+                check ("Save as" a new name)
+    =========== ==========================================================================
+
+    :class:`SaveRefused`, nothing written, when the file on disk is no longer
+    ``loaded_text``; OSError as the system says it (a folder not writable)."""
     path = os.path.realpath(os.fspath(path))
     if loaded_text is not None:
         try:
