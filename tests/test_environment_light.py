@@ -140,12 +140,29 @@ def test_huge_truncated_or_non_image_files_exit_2_in_one_sentence(files, make, w
     assert "Traceback" not in err and not out.exists()
 
 
-def test_a_huge_header_is_refused_without_reading_past_it(files):
-    """60000² float RGB would be 43 GB: the header alone decides, before any allocation."""
+def test_a_huge_header_is_refused_from_a_bounded_read(files, monkeypatch):
+    """60000² float RGB would be 43 GB: a file of 1 GiB (sparse) whose header claims it is
+    refused from its header, the check having read at most EXR_HEADER_MOST bytes and the
+    signature (every read counted), nothing in proportion to the file or the image."""
     folder, _ = files
     _header_only_exr(folder / "huge.exr", 60000, 60000)
-    from mimarble.scene.environment_header import environment_file_problem
-    assert "environments hold at most" in environment_file_problem(str(folder / "huge.exr"))
+    with open(folder / "huge.exr", "r+b") as f:
+        f.truncate(1 << 30)
+    from mimarble.scene import environment_header
+    opened = environment_header.open_regular
+    reads = []
+
+    def counted(path):
+        f = opened(path)
+        read = f.read
+        f.read = lambda n=-1: reads.append(len(data := read(n))) or data
+        return f
+
+    monkeypatch.setattr(environment_header, "open_regular", counted)
+    problem = environment_header.environment_file_problem(str(folder / "huge.exr"))
+    assert "60000x60000 = 3600000000 pixels; environments hold at most" in problem
+    assert sum(reads) <= environment_header.EXR_HEADER_MOST + 8 + 10
+    (folder / "huge.exr").unlink()
 
 
 def test_the_model_checks_what_the_parser_checks(files):
