@@ -26,6 +26,7 @@ from mimarble.scene.rules import shortened
 from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 from .channels import needs_uv
+from .environment import EnvironmentLookup
 from mimarble.meshes.arrays import read_mesh
 from .vertex_normals import angle_weighted_normals, placed_normals
 from .shapes import REFERENCE_SHAPES, _from_world, _normalize
@@ -66,6 +67,7 @@ class PreparedScene:
     kinds: tuple = ()
     meshes: "MeshArrays | None" = None
     from_world: np.ndarray | None = None       # (n, 3, 4): object_to_world⁻¹, when needed
+    environment: "EnvironmentLookup | None" = None   # the scene's, loaded: misses see it
 
     @property
     def spheres_only(self) -> bool:
@@ -252,6 +254,8 @@ def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
         kinds=tuple(kinds),
         meshes=_mesh_arrays(scene, meshes, first["mesh"]),
         from_world=_object_space(scene, tuple(channels)),
+        environment=None if scene.environment is None else EnvironmentLookup(scene.environment,
+                                                                            scene.source),
     )
 
 

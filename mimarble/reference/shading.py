@@ -21,13 +21,21 @@ from .preparation import SLOTS, AreaSamples, PreparedScene, _normalize, area_sam
 # ---------------------------------------------------------------------------
 # Shading
 
-def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
-    """Radiance of every ray of the batch (N, 3): background on a miss, else the formula.
+def shade(prep: PreparedScene, rec: HitRecord, d: np.ndarray | None = None) -> np.ndarray:
+    """Radiance of every ray of the batch (N, 3): background on a miss (the scene's
+    environment along the ray's unit direction ``d`` (N, 3), when it has one), else the
+    formula.
 
     Computes visibility first, so that channels are evaluated only where used:
     ka where A ≠ 0, kd and ks where at least one light is visible.
     """
     out = np.broadcast_to(prep.background, (rec.count, 3)).copy()
+    if prep.environment is not None:
+        if d is None:
+            raise ValueError("shade: a scene with an environment needs the rays' directions")
+        missed = np.ones(rec.count, dtype=bool)
+        missed[rec.index] = False
+        out[missed] = prep.environment.radiance(np.asarray(d, dtype=np.float64)[missed])
     k = rec.index.size
     if k == 0:
         return out

@@ -19,7 +19,11 @@ shaded with Mitsuba's shading normal ``si.sh_frame.n`` (a smooth mesh's vertex n
 interpolated, b₀n₀ + b₁n₁ + b₂n₂ normalised), turned to the viewer's side of the
 geometric normal with it, while shadow rays still leave along the geometric normal (so
 that the shadow test is the flat one's). Every light
-contributes (no light is picked at random). A miss returns the background colour. The
+contributes (no light is picked at random). A miss returns the background colour, or
+with an environment emitter in the scene (``envmap``, ``constant``: Mitsuba's
+``scene.environment()``) its radiance in the ray's direction — the scene language's
+``environment``, seen as the background; it lights nothing here (no secondary rays; the
+ambient term stays the paper's A). The
 integrator draws no random numbers: with a non-jittered ``stratified`` sampler
 and a ``box`` filter the image is deterministic (docs/rendering-model.md).
 
@@ -52,7 +56,7 @@ light, no channel evaluation for absent channels.
        differ from its face normals in the last bit).
 
 Every shape's BSDF must be a ``channel_material``; lights must be point-like
-(``point``, ``spot``) or ``stratified_area`` (an area light as n×n point lights at fixed
+(``point``, ``spot``), an environment (background only), or ``stratified_area`` (an area light as n×n point lights at fixed
 stratum centres, area_light.py: the samples a symbolic loop, so that the kernel holds one
 light's code whatever their count); other emitters are an error.
 """
@@ -202,7 +206,8 @@ class Whitted:
 
     @staticmethod
     def _lights(scene):
-        lights = list(scene.emitters())
+        # The environment (Mitsuba holds at most one) is the background, not a light.
+        lights = [light for light in scene.emitters() if not light.is_environment()]
         for light in lights:
             if not isinstance(light, StratifiedArea) and \
                     not mi.has_flag(light.flags(), mi.EmitterFlags.DeltaPosition):
@@ -337,4 +342,15 @@ class Whitted:
         shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), 0) if jit else None
         if doubts:
             doubt = dr.select(hit, largest_component(doubt), 0.0)
-        return dr.select(hit, radiance, self.background), shape, doubt
+        return dr.select(hit, radiance, self.background_of(scene, ray, hit)), shape, doubt
+
+    def background_of(self, scene, ray, hit):
+        """What a ray that misses sees: the scene's environment emitter's radiance in its
+        direction (``eval`` at an interaction whose ``wi`` is −d, as Mitsuba's ``path``
+        evaluates it for an escaped ray), else the ``background`` colour."""
+        environment = scene.environment()
+        if environment is None:
+            return self.background
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.wi = -mi.Vector3f(ray.d)
+        return environment.eval(si, ~hit if dr.is_jit_v(mi.Float) else not hit)

@@ -66,11 +66,14 @@ def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple,
         if smooth:              # only then: other scenes' dicts (and images) stay as they were
             integrator["shading_normals"] = True
         return integrator, {"type": "stratified", "sample_count": spp, "jitter": False}
+    # The camera sees the scene's environment (and then its area lights too: Mitsuba hides
+    # all emitters or none); without one, no emitter, as whitted mode sees no light.
+    hidden = scene.environment is None
     if translucent and mode == "path":
         return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH,
-                 "rr_depth": roulette_depth(translucent), "hide_emitters": True},
+                 "rr_depth": roulette_depth(translucent), "hide_emitters": hidden},
                 {"type": "independent", "sample_count": spp})
-    return ({"type": "path", "max_depth": 4, "hide_emitters": True},
+    return ({"type": "path", "max_depth": 4, "hide_emitters": hidden},
             {"type": "independent", "sample_count": spp})
 
 
