@@ -305,7 +305,7 @@ OBJ_REFUSALS = {
     "missing vn": ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\n", "line 4: normal 1 does not exist"),
     "short vertex": ("v 0 0\n", "line 1: a vertex (v) needs 3 numbers"),
     "short vt": ("v 0 0 0\nvt 0.5\n", "line 2: a texture coordinate (vt) needs 2 numbers"),
-    "zero normal": ("vn 0 0 0\n", "line 1: a normal (vn) needs three numbers, not all 0"),
+    "zero normal": ("vn 0 0 0\n", "line 1: a vertex normal (0 0 0) has no direction"),
     "not a number": ("v 0 0 0\nv 1 zero 0\n", "line 2: 'v' is followed by something that is not a number"),
     "underscore": ("v 1_0 0 0\n", "line 1: 'v' is followed by something that is not a number"),
     "not finite": ("v 0 0 0\nv inf 0 0\n", "line 2: a number that is not finite"),

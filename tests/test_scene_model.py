@@ -282,7 +282,7 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
     # Every kind of shape's block, and a value for each of its keys the table above lacks.
     wrap |= {kind.keyword: f'material "m" {{{{ }}}} {kind.keyword} {{{{ material "m" {{}} }}}}'
              for kind in S.SHAPE_KINDS}
-    samples |= {key.name: {"vector": "<0 0 1>", "number": "1"}[key.syntax]
+    samples |= {key.name: {"vector": "<0 0 1>", "number": "1", "boolean": "true"}[key.syntax]
                 for kind in S.SHAPE_KINDS for key in kind.keys if key.name not in samples}
     one = {"color": "color <0 0 0>", "marble": "marble { }", "weight": "weight 0.5",
            "image": f'image {{ file "{PNG}" }}', "add": "add { color <0 0 0> color <0 0 0> }",
@@ -305,6 +305,13 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
                     operands = f"{one[key]} {one[key]}" + (" weight 0.5" if block == "mix" else "")
                     inner = f"{block} {{ {operands} }}"
                 parse(texture + f'material "m" {{ diffuse {{ {inner} }} }}')
+            continue
+        if block == "environment":      # exactly one of file and color; rotate a file's
+            alone = {"file": f'file "{PNG}"', "color": "color <1 1 1>",
+                     "intensity": "color <1 1 1> intensity 2",
+                     "rotate": f'file "{PNG}" rotate <0 90 0>'}
+            for key in keys:
+                parse(f"environment {{ {alone[key]} }}")
             continue
         for key in keys:
             if (block, key) in (("light", "position"), ("subsurface", "albedo"),

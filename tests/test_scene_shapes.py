@@ -461,7 +461,7 @@ def test_texture_definitions_past_the_limit_are_refused_and_uses_are_not_counted
 @pytest.mark.parametrize("block, allowed", [
     ("plane", "'point', 'normal' or 'material'"),
     ("box", "'min', 'max', 'transform' or 'material'"),
-    ("mesh", "'file', 'transform' or 'material'"),
+    ("mesh", "'file', 'transform', 'smooth' or 'material'"),
 ])
 def test_an_unknown_key_in_a_shape_lists_the_blocks_keys_in_order(block, allowed):
     e = refused_at(f"{block} {{ centre < 0 0 0 > }}", 1, len(block) + 4)
@@ -487,7 +487,7 @@ def test_every_key_of_the_new_blocks_is_accepted(tmp_path, facts):
     facts["a.ply"] = MeshFacts("ply", 3, 1, False)
     value = {"point": "< 0 0 0 >", "normal": "< 0 0 1 >", "min": "< 0 0 0 >",
              "max": "< 1 1 1 >", "transform": "{ rotate < 0 0 90 > }", "file": '"a.ply"',
-             "material": '"m"'}
+             "smooth": "false", "material": '"m"'}
     for block in ("plane", "box", "mesh"):
         for key in S.BLOCK_KEYS[block]:
             required = "" if key == "material" else ' material "m"'
@@ -500,7 +500,7 @@ def test_every_key_of_the_new_blocks_is_accepted(tmp_path, facts):
                "multiply": "multiply { color < 0 0 0 > color < 0 0 0 > }",
                "mix": "mix { color < 0 0 0 > color < 0 0 0 > weight 0.5 }"}[channel]
         parse(f'texture "t" {{ {one} }} texture "u" {{ color < 0 0 0 > }}')
-    assert S.BLOCK_KEYS["marble"][-2:] == ("transform", "space")
+    assert S.BLOCK_KEYS["marble"][-3:] == ("transform", "space", "preset")
 
 
 def test_a_texture_doubling_at_each_level_is_refused_at_the_expression_past_the_size():

@@ -235,9 +235,11 @@ def test_mimarble_render_refuses_a_wrong_bsdf_before_tracing(variant_name, monke
 
 
 def test_mimarble_render_refuses_an_area_light_naming_its_class(llvm):
+    """A light that is not point-like is refused (an environment, ``constant`` or
+    ``envmap``, is the background: tests/test_environment_light.py)."""
     d = to_mitsuba(tiny_scene())
-    d["sky"] = {"type": "constant"}
-    with pytest.raises(ValueError, match=r"emitter 'sky' is 'constant' \(\w+\), not a point light"):
+    d["sun"] = {"type": "directional", "direction": [0, 0, -1]}
+    with pytest.raises(ValueError, match=r"emitter 'sun' is 'directional' \(\w+\), not a point light"):
         mimarble.render(mi.load_dict(d))
 
 

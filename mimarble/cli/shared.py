@@ -176,9 +176,12 @@ def _load_scene(args):
         plurals = [kind.plural for kind in SHAPE_KINDS]
         warnings.warn(f"{args.scene}: the scene has no shapes (no {', '.join(plurals[:-1])} or "
                       f"{plurals[-1]}): the image is the background")
-    elif not scene.lights and not any(scene.ambient):
+    elif not scene.lights and not any(scene.ambient) and not (
+            scene.environment is not None and getattr(args, "mode", None) in ("path", "preview")):
+        # (path mode's environment lights the shapes; whitted mode's is their background)
         warnings.warn(f"{args.scene}: the scene has no lights and no ambient light: "
-                      f"the shapes are black")
+                      f"the shapes are black"
+                      + (" (its environment lights path mode only)" if scene.environment else ""))
     return scene
 
 

@@ -19,7 +19,9 @@ What is read (and what is refused, in one sentence each):
   the property types Mitsuba 3.9's ``ply`` plugin knows): ``element vertex`` with float or
   double ``x y z`` and optionally ``u v``, ``texture_u texture_v`` or ``s t`` (Mitsuba's
   order of preference; a lone ``u`` or ``v`` beside another pair is refused: Mitsuba
-  renames the pair onto it), other properties skipped; ``element face`` with an integer
+  renames the pair onto it) and ``nx ny nz`` (vertex normals, all three, float or double,
+  each finite within float32 and not zero: ``limits.MIN_NORMAL``), other properties
+  skipped; ``element face`` with an integer
   ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference), the
   file's only list (Mitsuba reads every list as a length and 3 values, so another list, on
   any element, is refused); other elements skipped. The header's lines are ``ply``,
@@ -41,7 +43,9 @@ What is read (and what is refused, in one sentence each):
   ``f``; polygons as fans, as Mitsuba splits them), negative (relative) indices refused
   (Mitsuba 3.9 reads indices with ``strtoul``: −1 becomes 2³² − 1, "an invalid vertex"),
   read by the reference tracer's reader (:func:`~mimarble.meshes.obj_lines.obj_statements`
-  with ``relative``). ``has_uv`` when every corner of every face names a ``vt``.
+  with ``relative``). ``has_uv`` when every corner of every face names a ``vt``;
+  ``has_normals`` when there are ``vn`` lines and every corner names one (some but not
+  all: ``normals_problem``, refused where the mesh is shaded smooth).
 
 So the files :func:`mesh_facts` accepts, Mitsuba 3.9.1's ``ply`` and ``obj`` plugins and the
 reference tracer read alike in fans, (u, v), indices, coordinates and triangles (checked on
@@ -79,7 +83,11 @@ class MeshFacts:
     position the file lists (used by a face or not), in the file's coordinates (None
     where not known: facts built by hand); ``uv_extent``: the largest |u| or |v| of the
     texture coordinates as Mitsuba stores them (None: none); ``digest``: SHA-256 of the
-    file's bytes (hex), what tells two versions of one file apart."""
+    file's bytes (hex), what tells two versions of one file apart; ``has_normals``:
+    vertex normals Mitsuba reads (PLY: ``nx ny nz``; OBJ: ``vn`` lines and every face
+    corner naming one); ``normals_problem``: why the file's normals cannot be used, where
+    it has some and they are incomplete (an OBJ face whose corners name no ``vn``: Mitsuba
+    would leave those normals unset), a sentence beginning with its line, else None."""
 
     format: str
     vertices: int
@@ -88,6 +96,8 @@ class MeshFacts:
     bounds: tuple[tuple[float, float, float], tuple[float, float, float]] | None = None
     uv_extent: float | None = field(default=None, compare=False)
     digest: str | None = field(default=None, compare=False)
+    has_normals: bool = field(default=False, compare=False)
+    normals_problem: str | None = field(default=None, compare=False)
 
 
 def mesh_facts(path: str) -> MeshFacts:
@@ -134,7 +144,8 @@ def _read_facts(f, fmt: str, size: int) -> MeshFacts:
         header = ply_header(f, size)
         bounds, uv_extent = ply_body(f, header, size)
         facts = MeshFacts("ply", header.element("vertex").count, header.element("face").count,
-                          header.uv is not None, bounds, uv_extent=uv_extent)
+                          header.uv is not None, bounds, uv_extent=uv_extent,
+                          has_normals=header.normals)
     else:
         facts = _obj_facts(f)
     f.seek(0)
@@ -150,7 +161,9 @@ def _obj_facts(f) -> MeshFacts:
     x0 = y0 = z0 = math.inf
     x1 = y1 = z1 = -math.inf
     uv_extent = 0.0
-    for kind, value in obj_statements(f):
+    normals = 0
+    notes: dict = {}
+    for kind, value in obj_statements(f, notes=notes):
         if kind == "v":
             vertices += 1
             x, y, z = value                  # plain comparisons: the fastest here
@@ -168,12 +181,20 @@ def _obj_facts(f) -> MeshFacts:
                 z1 = z
         elif kind == "f":
             triangles += len(value) - 2
-            has_uv = has_uv and all(t >= 0 for _, t in value)
+            has_uv = has_uv and all(t >= 0 for _, t, _ in value)
+        elif kind == "vn":
+            normals += 1
         else:                                # vt: as Mitsuba stores it, v flipped (1 − v)
             u, v = value
             uv_extent = max(uv_extent, abs(u), abs(1.0 - v))
+    without = notes.get("face_without_normal")
+    problem = None if not normals or without is None else (
+        f"line {without}: a face whose corners name no normal (v//vn) in a file with vn "
+        f"lines; Mitsuba would leave those vertices' normals unset (give every corner a "
+        f"normal, or shade the mesh with smooth false)")
     return MeshFacts("obj", vertices, triangles, has_uv, ((x0, y0, z0), (x1, y1, z1)),
-                     uv_extent=uv_extent if has_uv else None)
+                     uv_extent=uv_extent if has_uv else None,
+                     has_normals=bool(normals) and without is None, normals_problem=problem)
 
 
 def mesh_bounds(path):

@@ -15,8 +15,11 @@ Limits, each checked before anything in proportion to it is read or allocated:
   tracer's reader (arrays.py), which also takes polygons (a fan of n − 2 triangles for n
   corners), counts them and refuses past the limit;
 * **OBJ**: the lines are streamed; the triangles (Σ (n − 2) over the faces) are refused the
-  line they pass the limit, the ``v`` and ``vt`` lines past :data:`MAX_MESH_VERTICES`
-  (obj_lines.py).
+  line they pass the limit, the ``v``, ``vt`` and ``vn`` lines past :data:`MAX_MESH_VERTICES`
+  (obj_lines.py);
+* **vertex normals** (PLY ``nx ny nz``, OBJ ``vn``): each finite, within float32, and at
+  least :data:`MIN_NORMAL` long in its largest component (Mitsuba normalises every normal
+  it reads, in float32: a zero one becomes NaN).
 
 The scene language's limits (mimarble/scene/limits.py) take the two that are a scene's
 (:data:`MAX_MESH_TRIANGLES`, :data:`MAX_MESH_BYTES`) from here. Standard library only.
@@ -30,8 +33,8 @@ from mimarble.contract import FLT_MAX
 from mimarble.runtime.reading import open_failure, open_regular, shortened
 
 __all__ = ["MAX_MESH_TRIANGLES", "MAX_MESH_BYTES", "MAX_MESH_VERTICES", "MAX_PLY_HEADER_BYTES",
-           "MAX_OBJ_LINE_BYTES", "MAX_PRECISE_UV", "READ_CHUNK", "MeshFileError", "open_mesh",
-           "beyond_float32"]
+           "MAX_OBJ_LINE_BYTES", "MAX_PRECISE_UV", "MIN_NORMAL", "READ_CHUNK", "MeshFileError", "open_mesh",
+           "beyond_float32", "zero_normal"]
 
 #: Triangles over all the meshes of a scene (2²⁰, about a million): the reference tracer
 #: holds them in float64 with a bounding-volume hierarchy (~0.3 GB at the limit), and a
@@ -61,6 +64,12 @@ MAX_OBJ_LINE_BYTES = 1023
 #: (float64) may differ (docs/rendering-model.md, "A mesh's texture coordinates").
 MAX_PRECISE_UV = float(1 << 10)
 
+#: The least largest component |n_k| of a vertex normal in a file (2⁻⁴⁰, about 9·10⁻¹³):
+#: Mitsuba 3.9 normalises each normal it reads in float32 (src/shapes/ply.cpp, obj.cpp),
+#: n·rsqrt(|n|²), and |n|² must stay a normal float32 number (≥ 2⁻¹²⁶) for that to be a
+#: unit vector; a zero normal becomes NaN there. Shorter normals are refused.
+MIN_NORMAL = 2.0 ** -40
+
 #: A PLY body is taken about this many bytes (binary) or words (ascii) at a time, an OBJ
 #: file's lines and a file's digest this many bytes at a time.
 READ_CHUNK = 1 << 20
@@ -84,6 +93,14 @@ def open_mesh(path):
         raise MeshFileError(f"a mesh file of {size} bytes; mesh files hold at most "
                             f"{MAX_MESH_BYTES} bytes")
     return f, size
+
+
+def zero_normal(normal) -> str:
+    """The sentence for a vertex normal too short to have a direction (MIN_NORMAL)."""
+    shown = " ".join(f"{c:g}" for c in normal)
+    return (f"a vertex normal ({shown}) has no direction: Mitsuba normalises normals in "
+            f"float32, so each needs a component of at least {MIN_NORMAL:g} (2^-40) in "
+            f"magnitude")
 
 
 def beyond_float32(value: float) -> str:

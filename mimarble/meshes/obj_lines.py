@@ -3,7 +3,8 @@ reads them: ``v``, ``vt``, ``vn`` and ``f`` (fans from the first corner), indice
 the triangles and vertices within the limits the line they pass them.
 
 ``v x y z`` (further numbers ignored), ``vt u v`` (each finite, within ±FLT_MAX), ``vn x y
-z``, ``f`` with 3 or more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, each referring
+z`` (finite, within ±FLT_MAX, a component at least MIN_NORMAL in magnitude: Mitsuba
+normalises it), ``f`` with 3 or more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, each referring
 to an element defined before the face. Negative (relative) indices, which the OBJ format
 allows, are refused for the facts (Mitsuba 3.9.1 reads indices with ``strtoul``: −1
 becomes 2³² − 1, "an invalid vertex") and read for the arrays (``relative``). Everything
@@ -25,18 +26,22 @@ import math
 from mimarble.contract import FLT_MAX
 from mimarble.runtime.reading import shortened
 from . import limits
-from .limits import MAX_MESH_TRIANGLES, MAX_MESH_VERTICES, MAX_OBJ_LINE_BYTES, MeshFileError, beyond_float32
+from .limits import (MAX_MESH_TRIANGLES, MAX_MESH_VERTICES, MAX_OBJ_LINE_BYTES, MIN_NORMAL,
+                     MeshFileError, beyond_float32, zero_normal)
 
 __all__ = ["obj_statements"]
 
 
-def obj_statements(f, relative: bool = False):
+def obj_statements(f, relative: bool = False, notes: dict | None = None):
     """The OBJ file open as ``f`` (binary), statement by statement, checked (module
-    docstring): yields ``("v", (x, y, z))``, ``("vt", (u, v))`` as written, and ``("f",
-    ((v, t), …))`` with 0-based indices resolved, t = −1 where a corner names no ``vt``.
+    docstring): yields ``("v", (x, y, z))``, ``("vt", (u, v))``, ``("vn", (x, y, z))`` as
+    written, and ``("f", ((v, t, n), …))`` with 0-based indices resolved, t (n) = −1
+    where a corner names no ``vt`` (``vn``). ``notes``, a dict when given, gets
+    ``"face_without_normal"``: the line of the first face one of whose corners names no
+    ``vn`` (facts.py: where such a file's normals would be incomplete).
     Negative (relative) indices are resolved against the elements defined so far when
     ``relative``, else refused (Mitsuba 3.9's OBJ reader takes none: ``strtoul`` makes −1
-    an index past every vertex). Normals are checked and counted, not yielded.
+    an index past every vertex).
     MeshFileError ``line N: …`` on the first malformed line or the first past a limit;
     ``the file has no faces`` at the end when it has none."""
     counts = {b"v": 0, b"vt": 0, b"vn": 0}
@@ -64,11 +69,11 @@ def obj_statements(f, relative: bool = False):
             numbers = _obj_numbers(words, number, b"_" not in line)
             counts[keyword] += 1
             if keyword == b"vn":
-                if len(numbers) < 3 or not any(numbers[:3]):
-                    raise MeshFileError(f"line {number}: a normal (vn) needs three numbers, "
-                                        f"not all 0")
-                continue
-            need = 3 if keyword == b"v" else 2
+                if len(numbers) < 3:
+                    raise MeshFileError(f"line {number}: a normal (vn) needs three numbers")
+                if max(map(abs, numbers[:3])) < MIN_NORMAL:
+                    raise MeshFileError(f"line {number}: {zero_normal(numbers[:3])}")
+            need = 2 if keyword == b"vt" else 3
             if len(numbers) < need:
                 what = "a vertex (v)" if keyword == b"v" else "a texture coordinate (vt)"
                 raise MeshFileError(f"line {number}: {what} needs {need} numbers")
@@ -85,6 +90,9 @@ def obj_statements(f, relative: bool = False):
                                     f"corner; Mitsuba's OBJ reader drops a corner not followed "
                                     f"by a space (write one before the #)")
             corners = _obj_face(words, number, counts, relative, b"_" not in line)
+            if notes is not None and "face_without_normal" not in notes \
+                    and any(n < 0 for _, _, n in corners):
+                notes["face_without_normal"] = number
             if len(corners) < 3:
                 raise MeshFileError(f"line {number}: a face needs 3 or more vertices")
             triangles += len(corners) - 2
@@ -163,7 +171,7 @@ _OBJ_ELEMENTS = ((b"v", "vertex"), (b"vt", "texture coordinate"), (b"vn", "norma
 
 
 def _obj_face(words, number: int, counts, relative: bool, plain: bool) -> tuple:
-    """The corners (v, t) of ``f`` line ``number`` (``words`` with the keyword), 0-based.
+    """The corners (v, t, n) of ``f`` line ``number`` (``words`` with the keyword), 0-based.
     The common case, indices from 1 within the counts on a line without ``_`` (``plain``:
     Python's int takes 1_0, strtoul not), is read here; anything else goes to
     :func:`_obj_corner`, which resolves relative indices and says what is wrong."""
@@ -178,7 +186,7 @@ def _obj_face(words, number: int, counts, relative: bool, plain: bool) -> tuple:
                 n = int(parts[2]) if len(parts) > 2 and parts[2] else 0
                 if 0 < v <= nv and (0 < t <= nt or (t == 0 and (len(parts) < 2 or not parts[1]))) \
                         and (0 < n <= nn or (n == 0 and (len(parts) < 3 or not parts[2]))):
-                    out.append((v - 1, t - 1))
+                    out.append((v - 1, t - 1, n - 1))
                     continue
             except ValueError:
                 pass
@@ -186,9 +194,9 @@ def _obj_face(words, number: int, counts, relative: bool, plain: bool) -> tuple:
     return tuple(out)
 
 
-def _obj_corner(word: bytes, number: int, counts, relative: bool) -> tuple[int, int]:
-    """(v, t) of one face corner ``v``, ``v/t``, ``v//n`` or ``v/t/n``, 0-based (t = −1:
-    none); n is checked only."""
+def _obj_corner(word: bytes, number: int, counts, relative: bool) -> tuple[int, int, int]:
+    """(v, t, n) of one face corner ``v``, ``v/t``, ``v//n`` or ``v/t/n``, 0-based (t, n =
+    −1: none)."""
     parts = word.split(b"/")
     if len(parts) > 3 or not parts[0]:
         raise MeshFileError(f"line {number}: a face corner is v, v/vt, v//vn or v/vt/vn, "
@@ -211,4 +219,4 @@ def _obj_corner(word: bytes, number: int, counts, relative: bool) -> tuple[int, 
             raise MeshFileError(f"line {number}: {what} {index} does not exist (OBJ counts "
                                 f"from 1, or back from -1; {defined} defined so far)")
         out.append(resolved)
-    return out[0], (out[1] if len(out) > 1 else -1)
+    return out[0], (out[1] if len(out) > 1 else -1), (out[2] if len(out) > 2 else -1)

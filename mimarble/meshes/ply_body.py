@@ -20,8 +20,8 @@ import sys
 from mimarble.contract import FLT_MAX
 from mimarble.runtime.reading import shortened
 from . import limits
-from .limits import MeshFileError, beyond_float32
-from .ply_header import PLY_TYPES, PlyHeader
+from .limits import MeshFileError, beyond_float32, zero_normal
+from .ply_header import PLY_NORMAL_NAMES, PLY_TYPES, PlyHeader
 
 __all__ = ["ply_body"]
 
@@ -35,8 +35,10 @@ def ply_body(f, header: PlyHeader, size: int) -> tuple:
     * a face whose list is not 3 indices long (Mitsuba reads triangles only: "incompatible
       contents -- is this a triangle mesh?"; the reference tracer would read a fan);
     * a face index outside 0 … V − 1 (Mitsuba would read past its vertex buffer);
-    * a coordinate x, y, z (or the (u, v) read) not finite or beyond ±FLT_MAX (Mitsuba
-      stores float32, where it would be ±∞, and refuses such a mesh with a traceback);
+    * a coordinate x, y, z (or the (u, v) or normal nx, ny, nz read) not finite or beyond
+      ±FLT_MAX (Mitsuba stores float32, where it would be ±∞, and refuses such a mesh
+      with a traceback); a normal shorter than :data:`limits.MIN_NORMAL` in every
+      component (Mitsuba normalises it: zero becomes NaN);
     * a body that ends inside an element, or goes on past the last one (Mitsuba refuses
       both).
 
@@ -47,19 +49,23 @@ def ply_body(f, header: PlyHeader, size: int) -> tuple:
     walk = _AsciiWalk(f) if header.format == "ascii" else \
         _BinaryWalk(f, "little" if header.format == "binary_little_endian" else "big", size)
     vertices = header.element("vertex").count
-    names = ("x", "y", "z") + (header.uv or ())
+    normals = PLY_NORMAL_NAMES if header.normals else ()
+    names = ("x", "y", "z") + (header.uv or ()) + normals
     lo, hi = [math.inf] * 3, [-math.inf] * 3
     uv_extent = 0.0
     for element in header.elements:
         if element.name == "vertex":
             for columns in walk.scalars(element, names):
                 for i, name in enumerate(names):
-                    least, most = _coordinate_range(
-                        columns[name], "vertex coordinate" if i < 3 else "texture coordinate")
+                    what = "vertex coordinate" if i < 3 else \
+                        "vertex normal" if name in normals else "texture coordinate"
+                    least, most = _coordinate_range(columns[name], what)
                     if i < 3:
                         lo[i], hi[i] = min(lo[i], least), max(hi[i], most)
-                    else:
+                    elif name not in normals:
                         uv_extent = max(uv_extent, -least, most)
+                if normals:
+                    _normals_have_length(*(columns[name] for name in normals))
         elif element.name == "face":
             for indices in walk.triangles(element, header.face_list):
                 least, most = min(indices), max(indices)
@@ -71,6 +77,15 @@ def ply_body(f, header: PlyHeader, size: int) -> tuple:
             walk.skip(element)
     walk.finish()
     return (tuple(lo), tuple(hi)), (uv_extent if header.uv else None)
+
+
+def _normals_have_length(nx, ny, nz) -> None:
+    """Every normal (nx, ny, nz) of a chunk has a component of at least
+    :data:`limits.MIN_NORMAL` in magnitude (Mitsuba normalises it in float32)."""
+    least = limits.MIN_NORMAL
+    for x, y, z in zip(nx, ny, nz):
+        if -least < x < least and -least < y < least and -least < z < least:
+            raise MeshFileError(zero_normal((x, y, z)))
 
 
 def _coordinate_range(values, what: str) -> tuple[float, float]:
@@ -236,7 +251,8 @@ class _AsciiWalk:
             if not p.count_type:
                 at = k if offset is None else offset[p.name]
                 what = None if p.name not in names else \
-                    "vertex coordinate" if names.index(p.name) < 3 else "texture coordinate"
+                    "vertex coordinate" if names.index(p.name) < 3 else \
+                    "vertex normal" if p.name in PLY_NORMAL_NAMES else "texture coordinate"
                 out[p.name] = _ascii_values(words[at:records * width:width], p.type, what)
         return out
 

@@ -6,7 +6,8 @@ The header's lines are split into words where C++'s ``>>`` splits them; the prop
 are those Mitsuba 3.9's ``ply`` plugin knows (:data:`PLY_TYPES`); ``obj_info`` is refused,
 as Mitsuba refuses it. The vertex's (u, v) are ``u v``, else ``texture_u texture_v``, else
 ``s t`` (Mitsuba's order of preference; a lone ``u`` or ``v`` beside another pair is
-refused: Mitsuba renames the pair onto it); the face's list is ``vertex_index`` or
+refused: Mitsuba renames the pair onto it); its normals are ``nx ny nz`` (all three, as
+Mitsuba reads them; float or double); the face's list is ``vertex_index`` or
 ``vertex_indices``, the file's only list (Mitsuba reads every list as a length and 3
 values). Read by the facts (facts.py, ply_body.py) and the arrays (arrays.py) alike.
 Standard library only.
@@ -19,7 +20,7 @@ from dataclasses import dataclass
 from mimarble.runtime.reading import shortened
 from .limits import MAX_MESH_TRIANGLES, MAX_MESH_VERTICES, MAX_PLY_HEADER_BYTES, MeshFileError
 
-__all__ = ["PLY_TYPES", "PlyProperty", "PlyElement", "PlyHeader", "ply_header"]
+__all__ = ["PLY_TYPES", "PLY_NORMAL_NAMES", "PlyProperty", "PlyElement", "PlyHeader", "ply_header"]
 
 #: PLY property types (Mitsuba 3.9's names, src/shapes/ply.h) -> (kind, bytes): kind "i"
 #: signed integer, "u" unsigned, "f" floating point (NumPy's type codes).
@@ -34,6 +35,8 @@ PLY_TYPES: dict[str, tuple[str, int]] = {
 _PLY_FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
 #: The texture coordinate pairs of a PLY vertex, in Mitsuba's order of preference.
 _PLY_UV_NAMES = (("u", "v"), ("texture_u", "texture_v"), ("s", "t"))
+#: A vertex's normal: Mitsuba 3.9's ply plugin reads it when all three are there.
+PLY_NORMAL_NAMES = ("nx", "ny", "nz")
 #: The face's list of vertex indices, in Mitsuba's order of preference.
 _PLY_FACE_LISTS = ("vertex_index", "vertex_indices")
 
@@ -63,13 +66,15 @@ class PlyHeader:
     """A PLY header, checked: ``format`` one of ascii, binary_little_endian,
     binary_big_endian; ``elements`` in file order; ``size`` the header's bytes (the body
     starts there); ``uv`` the vertex properties read as (u, v) or None; ``face_list`` the
-    face's list of vertex indices."""
+    face's list of vertex indices; ``normals``: the vertex has ``nx ny nz`` (vertex
+    normals, :data:`PLY_NORMAL_NAMES`)."""
 
     format: str
     elements: tuple[PlyElement, ...]
     size: int
     uv: tuple[str, str] | None
     face_list: str
+    normals: bool = False
 
     def element(self, name: str) -> PlyElement:
         return next(e for e in self.elements if e.name == name)
@@ -204,13 +209,15 @@ def _ply_checked(fmt, elements, end) -> PlyHeader:
                                 f"an element of a mesh file holds at most {MAX_MESH_VERTICES}")
     uv = next((pair for pair in _PLY_UV_NAMES
                if vertex.property(pair[0]) and vertex.property(pair[1])), None)
-    for name in ("x", "y", "z") + (uv or ()):
+    normals = all(vertex.property(name) for name in PLY_NORMAL_NAMES)
+    for name in ("x", "y", "z") + (uv or ()) + (PLY_NORMAL_NAMES if normals else ()):
         prop = vertex.property(name)
         if prop is None:
             raise MeshFileError("the PLY vertex element has no x, y and z properties")
         if prop.count_type is not None or PLY_TYPES[prop.type][0] != "f":
             kind = "a list" if prop.count_type else prop.type
-            raise MeshFileError(f"the PLY vertex property {name} is {kind}; coordinates are "
+            what = "normals" if name in PLY_NORMAL_NAMES else "coordinates"
+            raise MeshFileError(f"the PLY vertex property {name} is {kind}; {what} are "
                                 f"float or double (Mitsuba reads an integer as a fraction of "
                                 f"its type's range)")
     face_list = next((n for n in _PLY_FACE_LISTS if face.property(n)), None)
@@ -234,7 +241,7 @@ def _ply_checked(fmt, elements, end) -> PlyHeader:
     if PLY_TYPES[prop.type][0] == "f":
         raise MeshFileError(f"the PLY face list {face_list} holds floating-point numbers; "
                             f"vertex indices are integers")
-    return PlyHeader(fmt, elements, end, uv, face_list)
+    return PlyHeader(fmt, elements, end, uv, face_list, normals)
 
 
 def _ply_fits(header: PlyHeader, size: int) -> None:

@@ -18,6 +18,7 @@ from mimarble.contract import T_MIN_REL
 from .channels import channel_color, needs_uv, sphere_uv
 from .preparation import SLOTS, PreparedScene, _as_prepared, _normalize
 from .shapes import REFERENCE_SHAPES
+from .vertex_normals import interpolated_normals
 
 
 # ---------------------------------------------------------------------------
@@ -117,7 +118,10 @@ class HitRecord:
     ``triangle``: a mesh's triangle in the scene's hierarchy, −1 for other shapes, with
     ``bary`` its barycentrics (b₁, b₂) of vertices 1 and 2), the material hit, and, once
     :func:`fill_channels` has run, the channel colours ``colors[slot]``
-    ((k, 3), or None when no hit material has that component).
+    ((k, 3), or None when no hit material has that component). On a smooth mesh ``n``
+    is the shading normal (its vertex normals interpolated: vertex_normals.py) and
+    ``ng`` the geometric normal, both turned to the viewer's side of the geometric
+    normal, shadow rays leaving along ``ng``; ``ng`` None: ``n`` is both.
     """
 
     count: int                      # rays in the batch
@@ -132,6 +136,7 @@ class HitRecord:
     triangle: np.ndarray | None = None  # (k,) −1 off meshes
     bary: np.ndarray | None = None      # (k, 2)
     colors: dict = field(default_factory=dict)
+    ng: np.ndarray | None = None        # (k, 3) geometric normal where n is a shading one
 
 
 def closest_hit(prep: PreparedScene, o, d) -> HitRecord:
@@ -197,8 +202,19 @@ def _closest_of_all(prep: PreparedScene, o, d, t_min, t, s) -> HitRecord:
     v = -dd
     flip = np.einsum("ij,ij->i", n, v) < 0.0
     n[flip] = -n[flip]
+    ng = None
+    if prep.meshes is not None and prep.meshes.smooth is not None:
+        smooth = on.copy()
+        smooth[on] = prep.meshes.smooth[tri[on]]
+        if smooth.any():            # the shading normal, on the geometric normal's side
+            ng = n.copy()
+            shading = interpolated_normals(prep.meshes.normals,
+                                           prep.meshes.triangles[tri[smooth]],
+                                           bary[smooth, 0], bary[smooth, 1])
+            n[smooth] = np.where(flip[smooth, None], -shading, shading)
     return HitRecord(count=n_rays, index=idx, t=t, p=p, n=n, v=v, sphere=sphere,
-                     material=prep.shape_material[shape], shape=shape, triangle=tri, bary=bary)
+                     material=prep.shape_material[shape], shape=shape, triangle=tri, bary=bary,
+                     ng=ng)
 
 
 def hit_uv(prep: PreparedScene, rec: HitRecord) -> np.ndarray:

@@ -26,7 +26,9 @@ from mimarble.scene.rules import shortened
 from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
 from .channels import needs_uv
+from .environment import EnvironmentLookup
 from mimarble.meshes.arrays import read_mesh
+from .vertex_normals import angle_weighted_normals, placed_normals
 from .shapes import REFERENCE_SHAPES, _from_world, _normalize
 from .triangles import TriangleBVH
 
@@ -65,6 +67,7 @@ class PreparedScene:
     kinds: tuple = ()
     meshes: "MeshArrays | None" = None
     from_world: np.ndarray | None = None       # (n, 3, 4): object_to_world⁻¹, when needed
+    environment: "EnvironmentLookup | None" = None   # the scene's, loaded: misses see it
 
     @property
     def spheres_only(self) -> bool:
@@ -74,14 +77,18 @@ class PreparedScene:
 @dataclass(frozen=True)
 class MeshArrays:
     """Every mesh's triangles in world space, one hierarchy: ``triangles`` index
-    ``positions`` (and ``uv``, NaN rows for a mesh without texture coordinates);
-    ``triangle_shape`` is each triangle's global shape index."""
+    ``positions`` (and ``uv``, NaN rows for a mesh without texture coordinates; and
+    ``normals``, the unit world vertex normals of the smooth meshes, NaN rows for the
+    flat ones: vertex_normals.py); ``triangle_shape`` is each triangle's global shape
+    index, ``smooth`` whether it is a smooth mesh's (None: no mesh is)."""
 
     bvh: TriangleBVH
     positions: np.ndarray          # (V, 3) world
     triangles: np.ndarray          # (T, 3) int64
     triangle_shape: np.ndarray     # (T,) int64
     uv: np.ndarray | None          # (V, 2), or None when no mesh has texture coordinates
+    normals: np.ndarray | None = None   # (V, 3), or None when no mesh is smooth
+    smooth: np.ndarray | None = None    # (T,) bool, or None when no mesh is smooth
 
 
 def read_meshes(scene: Scene) -> tuple:
@@ -118,6 +125,10 @@ def read_meshes(scene: Scene) -> tuple:
             except MeshFileError as e:
                 raise refused(mesh, str(e)) from None
         data = read[mesh.location]
+        if mesh.smooth:             # incomplete normals (an OBJ's): the parser's refusal
+            problem = mesh_facts(mesh.location).normals_problem
+            if problem:
+                raise refused(mesh, problem)
         total += len(data.triangles)
         if total > MAX_MESH_TRIANGLES:
             raise refused(mesh, over(total))
@@ -130,14 +141,20 @@ def _mesh_arrays(scene: Scene, meshes: tuple, first: int) -> MeshArrays | None:
     hierarchy over all their triangles; ``first`` is mesh 0's global shape index."""
     if not scene.meshes:
         return None
-    positions, triangles, shape, uvs = [], [], [], []
+    positions, triangles, shape, uvs, normals, smooth = [], [], [], [], [], []
     offset = 0
     for k, (mesh, data) in enumerate(zip(scene.meshes, meshes)):
         m = np.array(geometry.object_to_world(mesh), dtype=np.float64)
-        positions.append(data.positions @ m[:3, :3].T + m[:3, 3])
+        placed = data.positions @ m[:3, :3].T + m[:3, 3]
+        positions.append(placed)
         triangles.append(data.triangles + offset)
         shape.append(np.full(len(data.triangles), first + k, dtype=np.int64))
         uvs.append(data.uv if data.uv is not None else np.full((len(data.positions), 2), np.nan))
+        is_smooth = mesh.is_smooth(data.normals is not None)
+        smooth.append(np.full(len(data.triangles), is_smooth))
+        normals.append(np.full((len(data.positions), 3), np.nan) if not is_smooth
+                       else placed_normals(data.normals, m) if data.normals is not None
+                       else angle_weighted_normals(placed, data.triangles))
         offset += len(data.positions)
     positions = np.concatenate(positions)
     triangles = np.concatenate(triangles)
@@ -145,8 +162,11 @@ def _mesh_arrays(scene: Scene, meshes: tuple, first: int) -> MeshArrays | None:
     bvh = TriangleBVH(corners[:, 0], corners[:, 1], corners[:, 2])
     del corners
     uv = np.concatenate(uvs) if any(d.uv is not None for d in meshes) else None
+    smooth = np.concatenate(smooth)
     return MeshArrays(bvh=bvh, positions=positions, triangles=triangles,
-                      triangle_shape=np.concatenate(shape), uv=uv)
+                      triangle_shape=np.concatenate(shape), uv=uv,
+                      normals=np.concatenate(normals) if smooth.any() else None,
+                      smooth=smooth if smooth.any() else None)
 
 
 def _check_uv(scene: Scene, meshes: tuple) -> None:
@@ -234,6 +254,8 @@ def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
         kinds=tuple(kinds),
         meshes=_mesh_arrays(scene, meshes, first["mesh"]),
         from_world=_object_space(scene, tuple(channels)),
+        environment=None if scene.environment is None else EnvironmentLookup(scene.environment,
+                                                                            scene.source),
     )
 
 

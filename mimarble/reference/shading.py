@@ -2,7 +2,8 @@
 
     L = ka(p)⊙A + Σ_l V(p,l)·I_l⊙(kd(p)·max(0, n·l̂) + ks(p)·max(0, n·ĥ)^shininess)
 
-with V the paper's ``shadowHit`` from p + ε·n, ε = EPS_REL·(1 + max_k |p_k|)
+with V the paper's ``shadowHit`` from p + ε·n (on a smooth mesh, n its shading normal,
+from p + ε·n_g, its geometric normal), ε = EPS_REL·(1 + max_k |p_k|)
 (:mod:`mimarble.contract`); an area light is n×n point lights at its fixed sample
 pattern (:func:`.preparation.area_sample_points`).
 """
@@ -20,19 +21,27 @@ from .preparation import SLOTS, AreaSamples, PreparedScene, _normalize, area_sam
 # ---------------------------------------------------------------------------
 # Shading
 
-def shade(prep: PreparedScene, rec: HitRecord) -> np.ndarray:
-    """Radiance of every ray of the batch (N, 3): background on a miss, else the formula.
+def shade(prep: PreparedScene, rec: HitRecord, d: np.ndarray | None = None) -> np.ndarray:
+    """Radiance of every ray of the batch (N, 3): background on a miss (the scene's
+    environment along the ray's unit direction ``d`` (N, 3), when it has one), else the
+    formula.
 
     Computes visibility first, so that channels are evaluated only where used:
     ka where A ≠ 0, kd and ks where at least one light is visible.
     """
     out = np.broadcast_to(prep.background, (rec.count, 3)).copy()
+    if prep.environment is not None:
+        if d is None:
+            raise ValueError("shade: a scene with an environment needs the rays' directions")
+        missed = np.ones(rec.count, dtype=bool)
+        missed[rec.index] = False
+        out[missed] = prep.environment.radiance(np.asarray(d, dtype=np.float64)[missed])
     k = rec.index.size
     if k == 0:
         return out
     p, n, v = rec.p, rec.n, rec.v
     eps = EPS_REL * (1.0 + np.max(np.abs(p), axis=1))
-    p_shadow = p + eps[:, None] * n
+    p_shadow = p + eps[:, None] * (n if rec.ng is None else rec.ng)   # a smooth mesh: off ng
 
     lights = []                                 # (l_index, visible mask, n·l, n·h)
     areas = []                                  # (Σ I·n·l, Σ I·(n·h)^s) over visible samples

@@ -11,7 +11,8 @@ In short:
 * **Sampling**: n×n samples per pixel (spp = n²) at the stratum centres
   x = (i + (a + ½)/n)/W, y = (j + (b + ½)/n)/H; the pixel is their plain mean.
 * **Intersection**: the closest hit over every shape with t > T_MIN_REL·(1 + max_k |o_k|)
-  (:data:`T_MIN_REL` = 1e-6); miss → background. Spheres by the numerically stable
+  (:data:`T_MIN_REL` = 1e-6); miss → background, or the scene's environment along the
+  ray (:mod:`.environment`, Mitsuba's ``envmap`` lookup). Spheres by the numerically stable
   quadratic; planes t = n·(p₀ − o)/(n·d), kept only within the disk
   :func:`mimarble.scene.geometry.plane_disk` (|p − centre| ≤ radius); boxes by the slab
   test in the box's object space (o and d taken there by the inverse of its transform,
@@ -115,7 +116,7 @@ def trace(scene, o, d) -> np.ndarray:
     """Radiance along rays (o (3,) or (N, 3), unit d (N, 3)) -> (N, 3)."""
     prep = _as_prepared(scene)
     d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
-    return shade(prep, closest_hit(prep, o, d))
+    return shade(prep, closest_hit(prep, o, d), d)
 
 
 # ---------------------------------------------------------------------------
@@ -144,7 +145,7 @@ def render(scene: Scene, spp: int | None = None, chunk_rays: int = CHUNK_RAYS,
         p1 = min(H * W, p0 + pixels_per_chunk)
         x, y = sample_positions(W, H, n, p0, p1)
         eye, d = camera_rays(scene, x, y)
-        rad = shade(prep, closest_hit(prep, eye, d))
+        rad = shade(prep, closest_hit(prep, eye, d), d)
         out[p0:p1] = rad.reshape(p1 - p0, ns, 3).mean(axis=1)
         if progress is not None:
             progress(p1 * ns, H * W * ns)

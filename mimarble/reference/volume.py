@@ -31,7 +31,11 @@ restricted to what translucent scenes need:
   (``geometry.object_to_world(sphere)⁻¹·p``). (Image maps have no value off a surface:
   the model refuses them in a subsurface.)
 * **Light**: the global ambient A as a constant environment of radiance A (seen by every
-  ray that leaves the scene, except camera rays: ``hide_emitters``); spherical and
+  ray that leaves the scene, except camera rays: ``hide_emitters``) — or the scene's
+  ``environment`` in its place (path mode's sky: :mod:`.environment`'s lookup along the
+  ray, seen by camera rays too, as Mitsuba's integrator then hides no emitter; a scene
+  with an environment and area lights is refused, since its camera rays would see the
+  lights); spherical and
   rectangular area lights as emitting shapes (black, they end the path) of the radiance
   that path mode gives them (:func:`area_radiance`, the rule of
   ``mimarble.mitsuba.translate.lights.area_light_dict`` re-derived from the model): a sphere of
@@ -114,6 +118,7 @@ from mimarble.scene.rules import spp_problem
 from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, T_MIN_REL, VOLPATH_MAX_DEPTH
 
 from .intersection import _roots as sphere_roots    # both roots, the stable quadratic
+from .environment import EnvironmentLookup
 from .preparation import camera_rays
 from .subsurface_reflectance import diffuse_fresnel_reflectance
 from .volume_lights import _basis, exit_lighting
@@ -235,7 +240,7 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     width, height = scene.image.width, scene.image.height
     spheres = _Spheres(scene)
     lights = _Lights(scene)
-    ambient = np.array(scene.ambient, dtype=np.float64)
+    ambient = _sky(scene)
     rng = np.random.default_rng(seed)
     depth_cap = math.inf if max_depth == -1 else int(max_depth)
     roulette = math.inf if rr_depth is None else int(rr_depth)
@@ -263,6 +268,15 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     spread = np.maximum(square - spp * mean * mean, 0.0) / (spp - 1) if spp > 1 \
         else np.zeros_like(mean)
     return image, spread.reshape(height, width, 3)
+
+
+def _sky(scene):
+    """What a path that leaves the scene meets: the ambient A (an RGB array), or the
+    scene's environment's radiance along its direction (a function of (N, 3) unit
+    directions)."""
+    if scene.environment is None:
+        return np.array(scene.ambient, dtype=np.float64)
+    return EnvironmentLookup(scene.environment, scene.source).radiance
 
 
 def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps=None):
@@ -322,7 +336,11 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 emitted = np.where(closer[:, None], np.where((facing < 0)[:, None], radiance, 0.0),
                                    emitted)
             escape = which == -1
-            value[idx[escape]] += np.where(camera[escape, None], 0.0, beta[idx[escape]] * ambient)
+            if callable(ambient):                     # an environment: seen by every ray
+                value[idx[escape]] += beta[idx[escape]] * ambient(dd[escape])
+            else:
+                value[idx[escape]] += np.where(camera[escape, None], 0.0,
+                                               beta[idx[escape]] * ambient)
             # an area light met by a path leaving an exit was estimated there (volume_lights):
             # it ends the path, black
             lit = which == -2

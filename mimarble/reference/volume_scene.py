@@ -149,6 +149,10 @@ def _problem(scene: Scene) -> str | None:
     if others:
         return (f"render_translucent renders translucent spheres only; this scene has "
                 f"{' and '.join(others)}")
+    if scene.environment is not None and any(light.area is not None for light in scene.lights):
+        return ("render_translucent renders an environment with point lights only: with an "
+                "environment, path mode's camera sees the area lights, which the walk's "
+                "camera rays pass through")
     eye = np.array(scene.camera.eye, dtype=np.float64)
     spheres = scene.spheres
     for k, sphere in enumerate(spheres):

@@ -6,8 +6,6 @@ and a material's ``subsurface``.
 
 from __future__ import annotations
 
-import os
-
 from lark import Token, Tree
 
 from mimarble import parameters as marble_parameters
@@ -256,12 +254,7 @@ class MaterialBuilder(ValueReader):
         if "file" not in f:
             raise self.error(st, 'image channel has no \'file\'; write image { file "maps/x.png" }')
         tok = f["file"].children[0]
-        name = unquoted(tok)
-        self.file_name(tok, "an image")
-        path = os.path.normpath(os.path.join(self.folder, name))
-        problem = image_file_sentence(name, path)
-        if problem:
-            raise self.error(tok, problem)
+        name, path = self.found_file(tok, "an image", image_file_sentence)
         # Its position is the file string's, where every error about the file points.
         return ImageChannel(name, path, pos=Pos(tok.line, tok.column))
 

@@ -78,12 +78,14 @@ class ShapeBuilder(ValueReader):
         return Box(unquoted(name_tok), lo, hi, steps, pos=pos_of(st)), name_tok, False
 
     def mesh(self, st: Tree) -> tuple[Mesh, Token, bool]:
-        """``mesh { file "…" transform { … } material "m" }``: the file, relative to the
+        """``mesh { file "…" transform { … } smooth B material "m" }``: the file, relative to the
         scene file, is checked at its string — a PLY or OBJ name, then what
         meshes.facts.mesh_facts says of it (a regular file there, within the size limit,
         in the image maps' words; its header; each sentence after ``mesh file 'NAME':``)
         — and its triangles counted toward the scene's limit; the mesh is refused at its
-        file string when they pass it."""
+        file string when they pass it, or when it is shaded smooth and the file's normals
+        are incomplete (``MeshFacts.normals_problem``). ``smooth``: true or false, refused
+        at the word otherwise; not written, None (the file's normals decide)."""
         f, name_tok = self.shape_fields(st)
         if "file" not in f:
             raise self.error(st, "mesh has no 'file'; write mesh { file \"models/vase.ply\" "
@@ -106,10 +108,21 @@ class ShapeBuilder(ValueReader):
         if problem:
             raise self.error(tok, problem)
         steps = self.transform(f["transform"]) if "transform" in f else ()
+        smooth = self.switch(f["smooth"].children[0]) if "smooth" in f else None
+        if smooth and facts.normals_problem:
+            raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': "
+                                  f"{facts.normals_problem}")
         # Its position is the file string's, where every error about the file points.
         mesh = Mesh(unquoted(name_tok), name, path, steps, pos=Pos(tok.line, tok.column),
-                    digest=facts.digest)
+                    digest=facts.digest, smooth=smooth)
         return mesh, name_tok, facts.has_uv
+
+    def switch(self, tok: Token) -> bool:
+        """A shape's ``true`` or ``false`` (a mesh's ``smooth``), refused at the word."""
+        if str(tok) not in ("true", "false"):
+            raise self.error(tok, f"smooth is true or false, found "
+                                  f"'{rules.shortened(str(tok), 40)}'")
+        return str(tok) == "true"
 
 
 #: The kinds read by a reader of their own, not from their keys alone.

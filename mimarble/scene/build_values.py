@@ -6,6 +6,7 @@ its token with the token as written.
 from __future__ import annotations
 
 import math
+import os
 
 from lark import Token, Tree
 
@@ -72,6 +73,7 @@ class ValueReader:
 
     text: str
     filename: str
+    folder: str
 
     # -- errors ---------------------------------------------------------------
     def error(self, where, message: str) -> SceneError:
@@ -148,6 +150,19 @@ class ValueReader:
             raise self.error(tok, f"{kind} file name must not be empty")
         if "\0" in tok:
             raise self.error(tok, f"{kind} file name must not hold a NUL character")
+
+    def found_file(self, tok: Token, kind: str, sentence) -> tuple[str, str]:
+        """(name as written, path) of the file the STRING ``tok`` names (``kind``: an image,
+        an environment), found relative to the scene file's folder (``folder``, set by the
+        builder) and checked from its header: ``sentence(name, path)`` is the one sentence
+        that refuses it, or None; refused at the string."""
+        name = unquoted(tok)
+        self.file_name(tok, kind)
+        path = os.path.normpath(os.path.join(self.folder, name))
+        problem = sentence(name, path)
+        if problem:
+            raise self.error(tok, problem)
+        return name, path
 
     def transform(self, st: Tree) -> tuple:
         """``transform { translate <> rotate <> scale s|<> … }``: its steps in the order

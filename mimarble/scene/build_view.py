@@ -1,6 +1,6 @@
-"""The scene builder's ``image``, ``camera`` and ``light`` statements (with a light's
-``area``): their keys read and checked together (a view, a light's samples), at the key
-at fault.
+"""The scene builder's ``image``, ``camera``, ``light`` (with a light's ``area``) and
+``environment`` statements: their keys read and checked together (a view, a light's
+samples, an environment's file or colour), at the key at fault.
 """
 
 from __future__ import annotations
@@ -9,12 +9,13 @@ from lark import Tree
 
 from mimarble.scene import rules
 from .build_values import ValueReader, pos_of, source_of
+from .environment_header import environment_file_sentence
 from .limits import MAX_IMAGE_SAMPLES
-from .model import AREA_SAMPLES, Camera, Image, Light, RectangleArea, SphereArea
+from .model import AREA_SAMPLES, Camera, Environment, Image, Light, Pos, RectangleArea, SphereArea
 
 
 class ViewBuilder(ValueReader):
-    """The image, the camera and the lights."""
+    """The image, the camera, the lights and the environment."""
 
     def image(self, st: Tree) -> Image:
         f = self.fields(st, "'image' block")
@@ -96,3 +97,31 @@ class ViewBuilder(ValueReader):
                 "axis1" if "axis1 is too small" in problem else "axis2"
             raise self.error(f[at], problem)
         return RectangleArea(axis1, axis2, samples, pos=pos_of(st))
+
+    def environment(self, st: Tree) -> Environment:
+        """``environment { file "…" intensity X rotate <> }`` or ``environment { color <>
+        intensity X }``: exactly one of file and color (refused at the second, or at the
+        keyword when neither), rotate with a file only; the file found relative to the
+        scene file and its header checked (environment_header.py) at its string."""
+        f = self.fields(st, "'environment' block")
+        problem = rules.environment_problem("file" in f, "color" in f, False)
+        if problem:
+            both = [f[k] for k in ("file", "color") if k in f]
+            raise self.error(max(both, key=lambda t: (t.meta.line, t.meta.column))
+                             if both else st, problem)
+        if "rotate" in f and "color" in f:
+            raise self.error(f["rotate"], rules.environment_problem(False, True, True))
+        intensity = 1.0
+        if "intensity" in f:
+            tok = f["intensity"].children[0]
+            intensity = self.number(tok)
+            self.refuse(tok, rules.intensity_problem(intensity))
+        rotate = self.point(f["rotate"].children[0], "rotate") if "rotate" in f else (0.0,) * 3
+        if "color" in f:
+            color = self.color(f["color"].children[0], "environment color")
+            return Environment(color=color, intensity=intensity, pos=pos_of(st),
+                               source=source_of(st, f))
+        tok = f["file"].children[0]
+        name, path = self.found_file(tok, "an environment", environment_file_sentence)
+        return Environment(file=name, path=path, intensity=intensity, rotate=rotate,
+                           pos=Pos(tok.line, tok.column), source=source_of(st, f))

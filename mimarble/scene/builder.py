@@ -56,8 +56,8 @@ class SceneBuilder(ViewBuilder, MaterialBuilder, ShapeBuilder):
         """The scene of ``tree``: each statement read by its kind's reader, in file order
         (textures and materials may be used before they are defined), then the checks
         across statements."""
-        once: dict[str, Tree] = {}      # image, camera, ambient: at most one each
-        image, camera, ambient = Image(), Camera(), (0.0, 0.0, 0.0)
+        once: dict[str, Tree] = {}      # image, camera, ambient, environment: one each
+        image, camera, ambient, environment = Image(), Camera(), (0.0, 0.0, 0.0), None
         lights: list[tuple[Light, Tree]] = []           # each light, with its statement
         materials: dict[str, tuple[Material, Token]] = {}  # each, with its name token
         # Every shape, in file order: (shape, its material's name token, whether it has
@@ -68,7 +68,7 @@ class SceneBuilder(ViewBuilder, MaterialBuilder, ShapeBuilder):
                 self.definitions.setdefault(unquoted(st.children[0]), st)
         for st in tree.children:
             kind = st.data
-            if kind in ("image", "camera", "ambient_light"):
+            if kind in ("image", "camera", "ambient_light", "environment"):
                 self.once(st, once)
             if kind == "image":
                 image = self.image(st)
@@ -76,6 +76,8 @@ class SceneBuilder(ViewBuilder, MaterialBuilder, ShapeBuilder):
                 camera = self.camera(st)
             elif kind == "ambient_light":
                 ambient = self.color(st.children[0], "ambient")
+            elif kind == "environment":
+                environment = self.environment(st)
             elif kind == "light":
                 lights.append((self.light(st), st))
             elif kind == "material":
@@ -99,11 +101,12 @@ class SceneBuilder(ViewBuilder, MaterialBuilder, ShapeBuilder):
             materials=FrozenMap(materials),
             **of,
             textures=FrozenMap((name, self.resolved[name]) for name in self.definitions),
+            environment=environment,
             source=source,
         )
 
     def once(self, st: Tree, once: dict[str, Tree]) -> None:
-        """``image``, ``camera``, ``ambient``: a second one is refused at its keyword."""
+        """``image``, ``camera``, ``ambient``, ``environment``: a second one is refused at its keyword."""
         kw = keyword_of(st)
         if kw in once:
             first = once[kw].meta

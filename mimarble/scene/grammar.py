@@ -60,7 +60,7 @@ def marble_rules() -> str:
 
 
 #: How a shape key's value is written, by its syntax (shapes.ShapeKey).
-_SHAPE_KEY_SYNTAX = {"vector": "vector", "number": "NUMBER"}
+_SHAPE_KEY_SYNTAX = {"vector": "vector", "number": "NUMBER", "boolean": "WORD"}
 
 
 def shape_rules(text: str) -> str:

@@ -1,5 +1,6 @@
 """The families of a scene's keys — the marbles (``marble.K``, ``carrara.K``,
-``stone.diffuse.K``, their ramps and ramp stops), the camera, the lights, the image —
+``stone.diffuse.K``, their ramps and ramp stops), the camera, the lights, the image, the
+environment —
 each a :class:`KeyFamily`: the keys a scene has, a new value applied to a scene, and
 where the value's text stands in the file it was parsed from (for rewrite.py).
 
@@ -472,3 +473,43 @@ class ImageKeys(KeyFamily):
 
     def places(self, scene, key):
         return [Place(scene.image.source, "samples", "image")]
+
+
+# ---------------------------------------------------------------------------
+# The environment
+
+ENVIRONMENT_INTENSITY = KeyRow("intensity", NUMBER, 1.0, at_least=0.0,
+                               doc="The environment's radiance, scaled (path mode's sky, "
+                                   "whitted mode's background).")
+ROTATE = KeyRow("rotate", VECTOR, (0.0, 0.0, 0.0),
+                doc="The environment image turned: degrees about x, then y, then z.")
+
+
+class EnvironmentKeys(KeyFamily):
+    """``environment.intensity``, and an image's ``environment.rotate`` (a colour is the
+    same in every direction: it has no rotation)."""
+
+    def keys(self, scene):
+        environment = scene.environment
+        if environment is None:
+            return
+        yield self._key("environment.intensity", "environment", ENVIRONMENT_INTENSITY,
+                        environment.intensity)
+        if environment.file is not None:
+            yield self._key("environment.rotate", "environment", ROTATE, environment.rotate)
+
+    def apply(self, scene, key, value):
+        return dataclasses.replace(scene, environment=dataclasses.replace(scene.environment, **{
+            key.parameter.name: value.value}))
+
+    def places(self, scene, key):
+        return [Place(scene.environment.source, key.parameter.name, "environment")]
+
+    def diagnosis(self, scene, path):
+        if not path.startswith("environment."):
+            return None
+        if scene.environment is None:
+            return "the scene has no environment"
+        if path == "environment.rotate" and scene.environment.file is None:
+            return "a colour environment is the same in every direction: it has no rotate"
+        return None

@@ -9,21 +9,23 @@ studio's controls are named by, and a saved file's edits name (rewrite.py).
 The families (key_families.py): every marble ``marble.K``; a named texture's
 ``carrara.K``; a material's ``stone.K`` and a channel's ``stone.diffuse.K`` (K a
 sweepable marble parameter, ``ramp`` or ``ramp.N``); ``camera.fov|eye|lookat|up``;
-``light.N.intensity|color|position``; ``image.samples``. The value syntax is
+``light.N.intensity|color|position``; ``image.samples``; ``environment.intensity|rotate``. The value syntax is
 key_values.py's. **A new family** is a :class:`~mimarble.scene.key_families.KeyFamily`
 subclass and one entry in :data:`FAMILIES`.
 """
 
 from __future__ import annotations
 
-from .key_families import CameraKeys, ImageKeys, Key, KeyFamily, LightKeys, MarbleKeys
+from .key_families import (CameraKeys, EnvironmentKeys, ImageKeys, Key, KeyFamily, LightKeys,
+                           MarbleKeys)
 from .key_values import KeyPathError, read
 
 __all__ = ["FAMILIES", "Key", "KeyFamily", "KeyPathError", "scene_keys", "key_of",
            "with_value", "keys_listing"]
 
 #: Every family of keys, in the order they are listed.
-FAMILIES: tuple[KeyFamily, ...] = (MarbleKeys(), CameraKeys(), LightKeys(), ImageKeys())
+FAMILIES: tuple[KeyFamily, ...] = (MarbleKeys(), CameraKeys(), LightKeys(), ImageKeys(),
+                                   EnvironmentKeys())
 
 
 def scene_keys(scene) -> dict[str, Key]:

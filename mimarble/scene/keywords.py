@@ -18,8 +18,8 @@ from .shapes import SHAPE_KINDS
 __all__ = ["STATEMENTS", "CHANNEL_KEYWORDS", "CHANNEL_BLOCKS", "BARE_CHANNEL_KEYS", "BLOCK_KEYS"]
 
 #: Top-level statements, in documentation order.
-STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "material", "texture",
-                               *(kind.keyword for kind in SHAPE_KINDS))
+STATEMENTS: tuple[str, ...] = ("image", "camera", "ambient", "light", "environment", "material",
+                               "texture", *(kind.keyword for kind in SHAPE_KINDS))
 
 #: The keywords that start a channel (``texture "NAME"``: a named texture's channel).
 CHANNEL_KEYWORDS: tuple[str, ...] = ("color", "marble", "image", "add", "multiply", "mix",
@@ -39,6 +39,7 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "camera": ("eye", "lookat", "up", "fov"),
     "light": ("position", "color", "area"),
     "area": ("axis1", "axis2", "radius", "samples"),
+    "environment": ("file", "color", "intensity", "rotate"),
     "material": ("ambient", "diffuse", "specular", "shininess", "subsurface"),
     "subsurface": ("albedo", "reflectance", "mean_free_path", "density", "ior"),  # BARE_CHANNEL_KEYS: a channel
     "ambient": CHANNEL_KEYWORDS,

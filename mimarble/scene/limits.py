@@ -68,7 +68,9 @@ RECORDS: tuple[Limit, ...] = (
           'GB through the reference tracer (float64 texels); 16384² took 3.1 GB in Mitsuba, and 40000² (a '
           "4.7 MB PNG) crashed it. Below Pillow's own bomb limit (89 M pixels), and checked by the same "
           "header rule in the parser, in the reference tracer's loader and in the Mitsuba path's image "
-          'check, so both renderers refuse alike, at the `file` string, in the same sentence.'),
+          'check, so both renderers refuse alike, at the `file` string, in the same sentence. An '
+          "environment's file is held to the same limit (OpenEXR: its dataWindow; Radiance HDR: its "
+          'resolution line), by scene/environment_header.py.'),
     Limit(None, 'complete image maps', None,
           'a PNG ends with its IEND chunk, a JPEG with its EOI marker (FF D9), then zero bytes only',
           'libjpeg decodes a truncated JPEG with a warning and the missing rows grey, where Pillow refuses '

@@ -29,7 +29,8 @@ def check_mesh_files(scene) -> list[str]:
     """Every mesh file of ``scene`` checked as the parser checks it, for a scene the parser
     never saw or whose files changed since (built in Python, edited, a file rewritten after
     ``scene.load``): :func:`mesh_facts` (kept per version of the file, so a file parsed
-    and unchanged is not read again), the scene's triangles within MAX_MESH_TRIANGLES, and
+    and unchanged is not read again), a smooth mesh's normals complete, the scene's
+    triangles within MAX_MESH_TRIANGLES, and
     (u, v) in the file where the mesh's material reads an image map — else a SceneError at
     the mesh's ``file`` in the parser's sentence. Returns the warnings of texture
     coordinates past :data:`MAX_PRECISE_UV` read by an image map, one per mesh file.
@@ -45,6 +46,9 @@ def check_mesh_files(scene) -> list[str]:
             facts = mesh_facts(mesh.location)
         except MeshFileError as e:
             raise SceneError.in_file(scene.source, mesh.pos, f"mesh file '{name}': {e}") from None
+        if mesh.smooth and facts.normals_problem:
+            raise SceneError.in_file(scene.source, mesh.pos,
+                                     f"mesh file '{name}': {facts.normals_problem}")
         total += facts.triangles
         problem = mesh_triangles_problem(total)
         if problem:

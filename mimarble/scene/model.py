@@ -47,6 +47,7 @@ from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis
                     Pos, Source, Vec3, _colour, _instances, _integer, _number, _pos, _refuse,
                     _shown, _source, _store, _vector)
 from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
+from .transforms import compose
 
 __all__ = [
     "Vec3",
@@ -64,6 +65,7 @@ __all__ = [
     "Channel",
     "Material",
     "Subsurface",
+    "Environment",
     "Sphere",
     "Plane",
     "Box",
@@ -244,6 +246,53 @@ class Light:
 
 
 @dataclass(frozen=True)
+class Environment:
+    """``environment { file "sky.exr" intensity X rotate < a b c > }`` or ``environment {
+    color < r g b > intensity X }``: the light from far away, in every direction.
+
+    ``file``: a latitude-longitude image (OpenEXR, Radiance HDR, 8-bit PNG or JPEG, the
+    last two sRGB-decoded), as Mitsuba's ``envmap`` maps it: the direction d, turned back
+    by ``rotate`` (R⁻¹·d; degrees about x, then y, then z, as a transform's ``rotate``),
+    is seen at u = atan2(d_x, −d_z)/2π, v = acos(d_y)/π, bilinear (columns wrap, rows
+    clamp). ``color``: the same radiance everywhere. Either is scaled by ``intensity``.
+    ``path``: where the parser found ``file`` (built in Python without it, ``file`` is
+    taken from the working directory); ``pos`` is the file string's when parsed.
+    Path mode: Mitsuba's ``envmap`` / ``constant``, seen by the camera; whitted mode:
+    the background of camera rays (docs/rendering-model.md, "The environment").
+    """
+
+    file: str | None = None
+    color: RGB | None = None
+    intensity: float = 1.0
+    rotate: Vec3 = (0.0, 0.0, 0.0)
+    path: str | None = None
+    pos: Pos | None = _pos()
+    source: Source | None = _source()
+
+    def __post_init__(self) -> None:
+        if self.file is not None and (not isinstance(self.file, str) or not self.file):
+            raise ValueError(f"Environment: file={_shown(self.file)} must be a non-empty path")
+        rotate = _vector(self.rotate, "rotate")
+        problem = rules.environment_problem(self.file is not None, self.color is not None,
+                                            any(rotate))
+        if problem:
+            raise ValueError(problem)
+        intensity = _number(self.intensity, "intensity")
+        _refuse(rules.intensity_problem(intensity), self.intensity)
+        color = None if self.color is None else _colour(self.color, "environment color")
+        _store(self, intensity=intensity, rotate=rotate, color=color)
+
+    @property
+    def location(self) -> str | None:
+        """The file to read: ``path`` when the parser found it, else ``file``."""
+        return self.path or self.file
+
+    def rotation(self):
+        """The 3×3 rotation R that ``rotate`` makes (environment to world), rows of floats."""
+        return tuple(row[:3] for row in compose([("rotate", self.rotate)])[:3])
+
+
+@dataclass(frozen=True)
 class Subsurface:
     """``subsurface { reflectance CH | albedo CH  mean_free_path X density CH ior X }``: the
     material's inside is a scattering volume behind a boundary (path mode only;
@@ -351,7 +400,8 @@ class Scene:
     every shape's ``material`` is a key of it (the constructor checks it, as the parser
     does). ``ambient`` is the global ambient light A. ``textures`` maps the names of the
     file's ``texture "NAME" { … }`` to their channels (the materials hold the channels
-    themselves, so a texture used twice is one value, evaluated once). ``source`` is the
+    themselves, so a texture used twice is one value, evaluated once). ``environment``
+    is the light from far away (:class:`Environment`, or None). ``source`` is the
     file it came from (None for text parsed without a file name); it takes no part in
     equality.
     """
@@ -366,6 +416,7 @@ class Scene:
     boxes: tuple[Box, ...] = ()
     meshes: tuple[Mesh, ...] = ()
     textures: Mapping[str, Channel] = field(default_factory=FrozenMap)
+    environment: Environment | None = None
     source: str | None = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -392,6 +443,9 @@ class Scene:
             if not isinstance(channel, CHANNEL_TYPES):
                 raise TypeError(f'texture "{rules.shortened(name)}" must be a channel, found '
                                 f"{_shown(channel)}")
+        if self.environment is not None and not isinstance(self.environment, Environment):
+            raise TypeError(f"environment must be an Environment or None, found "
+                            f"{_shown(self.environment)}")
         lights = _instances(self.lights, Light, "lights")
         of = {kind.plural: _instances(getattr(self, kind.plural), kind.cls, kind.plural)
               for kind in SHAPE_KINDS}

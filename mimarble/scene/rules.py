@@ -178,6 +178,22 @@ def area_light_enclosure_problem(position, radius: float, eye, lookat) -> str | 
     return None
 
 
+def intensity_problem(intensity: float) -> str | None:
+    """An environment's intensity: a scale of its radiance, ≥ 0."""
+    return None if intensity >= 0 else "intensity must be >= 0"
+
+
+def environment_problem(has_file: bool, has_color: bool, has_rotate: bool) -> str | None:
+    """An environment is an image (``file``) or a uniform ``color``, exactly one; only an
+    image turns (``rotate``)."""
+    if has_file == has_color:
+        return ("an environment is an image or a colour: give exactly one of file and color, "
+                + ("found both" if has_file else 'e.g. environment { file "sky.exr" }'))
+    if has_rotate and has_color:
+        return "rotate turns an environment image; a color is the same in every direction"
+    return None
+
+
 def shininess_problem(shininess: float) -> str | None:
     return None if shininess > 0 else "shininess must be > 0"
 

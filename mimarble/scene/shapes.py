@@ -131,10 +131,13 @@ MESH_FORMATS: tuple[str, ...] = (".ply", ".obj")
 
 @dataclass(frozen=True)
 class Mesh:
-    """``mesh { file "vase.ply" transform { … } material "name" }``: the triangles of a
-    PLY or OBJ file (polygons split into fans), in its coordinates, placed in the world
-    by ``transform``. Shaded flat (each triangle's own normal, facing the viewer); its
-    texture coordinates, when the file has them, are the (u, v) of image maps and of
+    """``mesh { file "vase.ply" transform { … } smooth true material "name" }``: the
+    triangles of a PLY or OBJ file (polygons split into fans), in its coordinates, placed
+    in the world by ``transform``. ``smooth``: shaded with vertex normals interpolated
+    across each triangle (the file's, else computed as Mitsuba computes them: angle-
+    weighted face normals) when true, flat (each triangle's own normal) when false; None
+    (not written): smooth exactly when the file has vertex normals (:meth:`is_smooth`).
+    Either way the normal faces the viewer; its texture coordinates, when the file has them, are the (u, v) of image maps and of
     ``mimarble bake``. ``file`` is as written, ``path`` where the parser found it
     (relative to the scene file; built in Python without ``path``, ``file`` is taken
     from the working directory); ``pos`` is the file string's, where errors about the
@@ -149,14 +152,23 @@ class Mesh:
     transform: tuple = ()
     pos: Pos | None = _pos()
     digest: str | None = None
+    smooth: bool | None = None
 
     def __post_init__(self) -> None:
         _material_name(self)
+        if self.smooth is not None and not isinstance(self.smooth, bool):
+            raise TypeError(f"a mesh's smooth is True, False or None (the file's normals "
+                            f"decide), found {_shown(self.smooth)}")
         if not isinstance(self.file, str) or not self.file:
             raise ValueError(f"Mesh: file={self.file!r:.60} must be a non-empty path")
         if not self.file.lower().endswith(MESH_FORMATS):
             raise ValueError(rules.mesh_format_problem(self.file))
         _store(self, transform=_transform_steps(self.transform, "Mesh"))
+
+    def is_smooth(self, has_normals: bool) -> bool:
+        """Whether the mesh is shaded smooth, its file having vertex normals or not
+        (``MeshFacts.has_normals``): ``smooth`` as written, else the file decides."""
+        return has_normals if self.smooth is None else self.smooth
 
     @property
     def location(self) -> str:
@@ -187,7 +199,7 @@ class Mesh:
 @dataclass(frozen=True)
 class ShapeKey:
     """One key of a shape's block: its ``name``, its ``syntax`` (``vector``, ``number``,
-    ``transform`` or ``file``) and, for a vector or a number, the rule its value must pass
+    ``transform``, ``file`` or ``boolean``) and, for a vector or a number, the rule its value must pass
     (rules.py: value -> problem | None), refused at the value."""
 
     name: str
@@ -249,7 +261,8 @@ BOX = ShapeKind(
 
 MESH = ShapeKind(
     Mesh, "mesh", "meshes",
-    (ShapeKey("file", "file"), ShapeKey("transform", "transform")),
+    (ShapeKey("file", "file"), ShapeKey("transform", "transform"),
+     ShapeKey("smooth", "boolean")),
     BY_KEY["max_meshes"], "each is a file read and a shape of its own",
     bounded=True, without_uv="this mesh's file",
     example='mesh { file "models/vase.ply" material "m" }')

@@ -436,5 +436,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(line, col, f"{parameter.name} {parameter.requirement}, found {found}")
         if after and str(prev) == "space":                  # the builder's sentence
             return at(line, col, f"a marble's space is {' or '.join(SPACES)}, found {found}")
+        if after and str(prev) == "smooth":                 # a mesh's; the builder's sentence
+            return at(line, col, f"smooth is true or false, found {found}")
         return at(line, col, f"expected a name{after}, found {found}")
     return at(line, col, f"unexpected {found}; expected {_expected_list(expected, keywords)}")

@@ -269,12 +269,15 @@ class StratifiedArea:
     # -- what the whitted integrator calls ---------------------------------------
 
     def shade(self, scene, spheres, si, p, n, v, on_sphere, hit, kd, ks, shininess,
-              any_specular, shadows, doubts=None):
+              any_specular, shadows, doubts=None, n_offset=None):
         """Σ over the samples of the paper's point-light term (whitted.py's, operation for
         operation, so that one sample renders as a point light at the centre, bit for
         bit), in a symbolic loop: the kernel holds it once. ``doubts``: the channels'
         doubts (dkd, dks), shaded by the same samples beside the radiance (whitted.py's
-        ``shade``): then (radiance, doubt)."""
+        ``shade``): then (radiance, doubt). ``n`` shades; shadow rays leave along
+        ``n_offset`` (the geometric normal where ``n`` is a smooth mesh's shading normal;
+        None: ``n``)."""
+        offset = n if n_offset is None else n_offset
         edges = self._edges(p)
         colour = self.intensity * (1.0 / self.samples)
 
@@ -289,7 +292,8 @@ class StratifiedArea:
             n_dot_l = dr.dot(n, d)
             lit = hit & (n_dot_l > 0)
             if shadows:
-                lit &= ~sphere_hit.occluded(scene, spheres, si, p, n, on_sphere, target, lit)
+                lit &= ~sphere_hit.occluded(scene, spheres, si, p, offset, on_sphere, target,
+                                            lit)
             shade = kd * n_dot_l
             if any_specular:
                 h = dr.normalize(d + v)

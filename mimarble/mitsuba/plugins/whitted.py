@@ -14,8 +14,16 @@ is off by more than ε, p and n are first refined in float64 and a shadow ray's
 false hit on its own sphere is checked again (``sphere_hit.py``). Every other shape
 (a plane's ``disk``, a box's ``cube``, a mesh) keeps Mitsuba's hit and is shaded flat,
 with its geometric normal ``si.n`` (docs/rendering-model.md, "Planes, boxes and
-meshes"). Every light
-contributes (no light is picked at random). A miss returns the background colour. The
+meshes") — unless ``shading_normals`` is on: then every shape but a refined sphere is
+shaded with Mitsuba's shading normal ``si.sh_frame.n`` (a smooth mesh's vertex normals
+interpolated, b₀n₀ + b₁n₁ + b₂n₂ normalised), turned to the viewer's side of the
+geometric normal with it, while shadow rays still leave along the geometric normal (so
+that the shadow test is the flat one's). Every light
+contributes (no light is picked at random). A miss returns the background colour, or
+with an environment emitter in the scene (``envmap``, ``constant``: Mitsuba's
+``scene.environment()``) its radiance in the ray's direction — the scene language's
+``environment``, seen as the background; it lights nothing here (no secondary rays; the
+ambient term stays the paper's A). The
 integrator draws no random numbers: with a non-jittered ``stratified`` sampler
 and a ``box`` filter the image is deterministic (docs/rendering-model.md).
 
@@ -39,9 +47,16 @@ light, no channel evaluation for absent channels.
    * - ``shadows``
      - boolean (true)
      - Trace the shadow rays (false: V = [n·l > 0]).
+   * - ``shading_normals``
+     - boolean (false)
+     - Shade with each hit's shading normal ``si.sh_frame.n`` (a mesh loaded with
+       ``face_normals`` false: its vertex normals interpolated) rather than the geometric
+       ``si.n``. The translator turns it on for scenes with a smooth mesh; off, every
+       image of a scene without one stays as it was (a ``cube``'s vertex normals can
+       differ from its face normals in the last bit).
 
 Every shape's BSDF must be a ``channel_material``; lights must be point-like
-(``point``, ``spot``) or ``stratified_area`` (an area light as n×n point lights at fixed
+(``point``, ``spot``), an environment (background only), or ``stratified_area`` (an area light as n×n point lights at fixed
 stratum centres, area_light.py: the samples a symbolic loop, so that the kernel holds one
 light's code whatever their count); other emitters are an error.
 """
@@ -135,6 +150,7 @@ class Whitted:
         self.ambient = _colour(props, "ambient")
         self.background = _colour(props, "background")
         self.shadows = bool(props.get("shadows", True))
+        self.shading_normals = bool(props.get("shading_normals", False))
         self.parameters_changed()
 
     def aov_names(self):
@@ -158,12 +174,13 @@ class Whitted:
         does not hold (the table, made current). ``placements``: the shapes' ``to_world``
         (``mi.traverse``'s)."""
         table = sphere_hit.SphereTable.of(scene, placements)
-        return ("whitted", self.shadows, table.structure), (table,)
+        return ("whitted", self.shadows, self.shading_normals, table.structure), (table,)
 
     def to_string(self):
         return describe("Whitted", {"ambient": numbers(self.ambient).tolist(),
                                     "background": numbers(self.background).tolist(),
-                                    "shadows": self.shadows})
+                                    "shadows": self.shadows,
+                                    "shading_normals": self.shading_normals})
 
     @staticmethod
     def check_scene(scene) -> None:
@@ -189,7 +206,8 @@ class Whitted:
 
     @staticmethod
     def _lights(scene):
-        lights = list(scene.emitters())
+        # The environment (Mitsuba holds at most one) is the background, not a light.
+        lights = [light for light in scene.emitters() if not light.is_environment()]
         for light in lights:
             if not isinstance(light, StratifiedArea) and \
                     not mi.has_flag(light.flags(), mi.EmitterFlags.DeltaPosition):
@@ -280,7 +298,14 @@ class Whitted:
         dka, dkd, dks = channels[4:] if doubts else (None, None, None)
 
         v = -mi.Vector3f(ray.d)
-        n = dr.select(dr.dot(n, v) < 0, -n, n)      # two-sided
+        behind = dr.dot(n, v) < 0
+        if self.shading_normals:   # a smooth mesh's interpolated normal; refined spheres' own
+            shading = dr.select(on_sphere, n, mi.Vector3f(si.sh_frame.n))
+            n_offset = dr.select(behind, -n, n)      # shadow rays: the geometric side
+            n = dr.select(behind, -shading, shading)
+        else:
+            n = dr.select(behind, -n, n)            # two-sided
+            n_offset = None
 
         radiance = ka * self.ambient
         doubt = dka * self.ambient if doubts else None
@@ -288,7 +313,8 @@ class Whitted:
             if isinstance(light, StratifiedArea):   # n×n point lights, in a symbolic loop
                 shaded = light.shade(scene, spheres, si, p, n, v, on_sphere, hit, kd, ks,
                                      shininess, any_specular, self.shadows,
-                                     doubts=(dkd, dks) if doubts else None)
+                                     doubts=(dkd, dks) if doubts else None,
+                                     n_offset=n_offset)
                 if doubts:
                     radiance, doubt = radiance + shaded[0], doubt + shaded[1]
                 else:
@@ -299,7 +325,9 @@ class Whitted:
             n_dot_l = dr.dot(n, ds.d)
             lit = hit & (n_dot_l > 0)
             if self.shadows:
-                lit &= ~sphere_hit.occluded(scene, spheres, si, p, n, on_sphere, ds.p, lit)
+                lit &= ~sphere_hit.occluded(scene, spheres, si, p,
+                                            n if n_offset is None else n_offset, on_sphere,
+                                            ds.p, lit)
             shade = kd * n_dot_l
             if any_specular:
                 h = dr.normalize(ds.d + v)
@@ -314,4 +342,15 @@ class Whitted:
         shape = dr.select(hit, dr.reinterpret_array(mi.UInt32, si.shape), 0) if jit else None
         if doubts:
             doubt = dr.select(hit, largest_component(doubt), 0.0)
-        return dr.select(hit, radiance, self.background), shape, doubt
+        return dr.select(hit, radiance, self.background_of(scene, ray, hit)), shape, doubt
+
+    def background_of(self, scene, ray, hit):
+        """What a ray that misses sees: the scene's environment emitter's radiance in its
+        direction (``eval`` at an interaction whose ``wi`` is −d, as Mitsuba's ``path``
+        evaluates it for an escaped ray), else the ``background`` colour."""
+        environment = scene.environment()
+        if environment is None:
+            return self.background
+        si = dr.zeros(mi.SurfaceInteraction3f)
+        si.wi = -mi.Vector3f(ray.d)
+        return environment.eval(si, ~hit if dr.is_jit_v(mi.Float) else not hit)

@@ -4,9 +4,9 @@
 the benchmark translate the scene (``to_mitsuba``: microseconds) and ask
 :data:`LOADED` for it. A scene dict whose *structure* — the dict with the marbles'
 in-place values (``marble_parameters.IN_PLACE``) masked out, plus the size, times and
-inode of every image map and mesh file it reads, and the content digest of every mesh
-file the parser read (``Mesh.digest``); also masked: the camera's placement and a point
-light's position and intensity (:data:`_IN_PLACE_OF`) — matches a loaded one gets that
+inode of every image map, mesh and environment file it reads, and the content digest of
+every mesh file the parser read (``Mesh.digest``); also masked: the camera's placement and a
+point light's position and intensity (:data:`_IN_PLACE_OF`) — matches a loaded one gets that
 loaded ``mi.Scene``,
 with the in-place values that differ from the ones it holds written through
 ``mi.traverse`` and told to their marble as values the host holds (``Marble.hold``: the
@@ -96,7 +96,13 @@ class LoadedScenes:
         if entry is None:
             if len(self.scenes) >= self.size:
                 forget(self.scenes.pop(next(iter(self.scenes)))[0])
-            mitsuba_scene = mi.load_dict(scene_dict)
+            # An OpenEXR file that fails to decode throws from a loader thread, which
+            # aborts the process (Mitsuba 3.9.1's parallel load_dict: "terminate called after
+            # throwing an instance of 'Iex_2_5::IoExc'"); loaded in this thread, the reader's
+            # error is an exception (render.check_images says it at the file's string).
+            envmap = any(isinstance(item, dict) and item.get("type") == "envmap"
+                         for item in scene_dict.values())
+            mitsuba_scene = mi.load_dict(scene_dict, parallel=not envmap)
             entry = (mitsuba_scene, mi.traverse(mitsuba_scene), dict(values))
         else:
             mitsuba_scene, params, held = entry
@@ -207,13 +213,14 @@ def _exact(item):
     return str(item)
 
 
-#: The plugins that read a file named by their ``filename``: image maps and meshes.
-_FILE_PLUGINS = ("bitmap", "ply", "obj")
+#: The plugins that read a file named by their ``filename``: image maps, meshes and the
+#: environment.
+_FILE_PLUGINS = ("bitmap", "ply", "obj", "envmap")
 
 
 def _files_read(item) -> list:
     """(path, size, modification and change times, inode) of every file a ``bitmap``,
-    ``ply`` or ``obj`` of the dict reads, nested. The change time is the kernel's: a
+    ``ply``, ``obj`` or ``envmap`` of the dict reads, nested. The change time is the kernel's: a
     rewrite that puts the modification time back (``cp -p``, ``rsync -t``, ``touch -r``)
     still changes it."""
     found = []

@@ -21,7 +21,7 @@ from mimarble.mitsuba.rendering.crop import as_integers, crop_problem
 from mimarble.runtime.progress import report
 from mimarble.scene.python_numbers import plain_numbers
 from mimarble.scene.model import samples_per_axis
-from mimarble.scene.rules import adaptive_problem, seed_problem, spp_problem
+from mimarble.scene.rules import adaptive_problem, seed_problem, shortened, spp_problem
 from mimarble.scene.edits import with_image_size
 from .adaptive import DEFAULT_MAX_SPP, render_adaptive
 from .passes import Target, trace_in_passes
@@ -206,14 +206,30 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
 
 def check_images(scene) -> None:
     """Every image map decodes (``to_mitsuba`` checked the headers: regular files,
-    complete 8-bit PNG or JPEG within the pixel limit), else a SceneError at its ``file``
-    string. Called when loading the scene failed, so a good image is not decoded twice."""
+    complete 8-bit PNG or JPEG within the pixel limit), and so does the environment's file,
+    else a SceneError at its ``file`` string. Called when loading the scene failed, so a
+    good image is not decoded twice."""
     for channel in scene.image_maps():
         try:
             mi.Bitmap(channel.location)
         except Exception as e:   # Mitsuba's reader raises RuntimeError with libpng's reason
-            reason = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-            raise scene_language.SceneError.undecodable_image(scene, channel, reason) from None
+            raise scene_language.SceneError.undecodable_image(scene, channel, _reason(e)) \
+                from None
+    sky = scene.environment
+    if sky is not None and sky.file is not None:
+        try:
+            mi.Bitmap(sky.location)
+        except Exception as e:   # OpenEXR's or the RGBE reader's reason, after the stream
+            reason = _reason(e).rsplit(']".', 1)[-1].strip()     # Mitsuba prints the stream
+            raise scene_language.SceneError.in_file(
+                scene.source, sky.pos, f"environment file '{shortened(sky.file, 256)}' "
+                f"cannot be decoded: {reason}") from None
+
+
+def _reason(error: Exception) -> str:
+    """The last line of a reader's message (its reason), or the error's class."""
+    text = str(error).strip()
+    return text.splitlines()[-1] if text else type(error).__name__
 
 
 def check_filter(filter, mode: str = "whitted") -> None:

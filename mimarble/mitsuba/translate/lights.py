@@ -1,5 +1,6 @@
 """Scene lights → Mitsuba emitters: a point light, an area light (a sphere or a rectangle)
-as the mode renders it, and path mode's ambient environment.
+as the mode renders it, path mode's ambient environment, and the scene's ``environment``
+(Mitsuba's ``envmap`` or ``constant``, in every mode).
 
 A light of colour I → ``point`` intensity I (whitted) or I·π·d² (path), d its distance to
 the camera's look-at point: a Lambertian surface there then receives kd·I·cosθ in both
@@ -112,7 +113,40 @@ def area_light_dict(light: model.Light, lookat, mode: str = "whitted") -> dict:
 def ambient_dict(scene: model.Scene, mode: str) -> dict | None:
     """Path mode: the global ambient A as a hidden ``constant`` environment of radiance A (a
     Lambertian surface open to the sky reflects kd⊙A: the ambient term with kd in place of
-    ka); None without one, and in whitted mode, whose integrator adds the paper's term."""
-    if mode == "path" and any(scene.ambient):
+    ka); None without one, in whitted mode, whose integrator adds the paper's term, and in
+    a scene with an ``environment``, which is its sky instead (Mitsuba takes one)."""
+    if mode == "path" and any(scene.ambient) and scene.environment is None:
         return {"type": "constant", "radiance": {"type": "rgb", "value": list(scene.ambient)}}
     return None
+
+
+def environment_rotation(rotate):
+    """``rotate < a b c >`` (degrees about x, then y, then z) as Mitsuba's own
+    ``ScalarTransform4f``: R = R_z(c)·R_y(b)·R_x(a), made by Mitsuba's ``rotate`` and
+    multiplied as a hand-written scene writes it, ``T().rotate([0, 0, 1], c) @
+    T().rotate([0, 1, 0], b) @ T().rotate([1, 0, 0], a)`` — left to right, the zero angles
+    left out (float32 products are not associative: so such a scene is the same, bit for
+    bit)."""
+    import mitsuba as mi   # imported here: the module itself stays importable without it
+    a, b, c = rotate
+    turns = [mi.ScalarTransform4f().rotate(axis=axis, angle=angle)
+             for axis, angle in (([0, 0, 1], c), ([0, 1, 0], b), ([1, 0, 0], a)) if angle != 0]
+    transform = turns[0]
+    for turn in turns[1:]:
+        transform = transform @ turn
+    return transform
+
+
+def environment_dict(environment: model.Environment) -> dict:
+    """The scene's ``environment`` as Mitsuba's emitter, in every mode: a file is an
+    ``envmap`` (``filename``, ``scale`` = intensity, ``to_world`` = the rotation), a colour
+    a ``constant`` of radiance colour × intensity. Path mode renders it as the sky (the
+    camera sees it: the integrator's ``hide_emitters`` is off, modes.py); whitted mode's
+    integrator looks it up for the rays that miss (the paper's background)."""
+    if environment.color is not None:
+        radiance = [c * environment.intensity for c in environment.color]
+        return {"type": "constant", "radiance": {"type": "rgb", "value": radiance}}
+    out = {"type": "envmap", "filename": environment.location, "scale": environment.intensity}
+    if any(environment.rotate):
+        out["to_world"] = environment_rotation(environment.rotate)
+    return out

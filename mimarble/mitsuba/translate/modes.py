@@ -53,20 +53,27 @@ def refuse_translucent(scene, mode: str, translucent: tuple) -> None:
             f"render the scene with --mode path (mode=\"path\")")
 
 
-def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple) -> tuple[dict, dict]:
+def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple,
+                           smooth: bool = False) -> tuple[dict, dict]:
     """The mode's integrator and sampler: whitted with the scene's ambient and background
-    over n×n stratum centres; path (volpath with translucent materials: light scattered
+    over n×n stratum centres (``smooth``: the scene has a smooth mesh, whitted shades with
+    shading normals); path (volpath with translucent materials: light scattered
     inside media, docs/rendering-model.md) over independent samples; preview as path
     without media: ``path`` always."""
     if mode == "whitted":
-        return ({"type": "whitted", "ambient": list(scene.ambient),
-                 "background": list(scene.image.background)},
-                {"type": "stratified", "sample_count": spp, "jitter": False})
+        integrator = {"type": "whitted", "ambient": list(scene.ambient),
+                      "background": list(scene.image.background)}
+        if smooth:              # only then: other scenes' dicts (and images) stay as they were
+            integrator["shading_normals"] = True
+        return integrator, {"type": "stratified", "sample_count": spp, "jitter": False}
+    # The camera sees the scene's environment (and then its area lights too: Mitsuba hides
+    # all emitters or none); without one, no emitter, as whitted mode sees no light.
+    hidden = scene.environment is None
     if translucent and mode == "path":
         return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH,
-                 "rr_depth": roulette_depth(translucent), "hide_emitters": True},
+                 "rr_depth": roulette_depth(translucent), "hide_emitters": hidden},
                 {"type": "independent", "sample_count": spp})
-    return ({"type": "path", "max_depth": 4, "hide_emitters": True},
+    return ({"type": "path", "max_depth": 4, "hide_emitters": hidden},
             {"type": "independent", "sample_count": spp})
 
 

@@ -15,17 +15,18 @@ import warnings
 
 from mimarble.contract import VOLPATH_MAX_DEPTH
 from mimarble.scene import geometry, model
+from mimarble.scene.environment_header import check_environment
 from mimarble.scene.image_header import check_image_maps
 from mimarble.scene.mesh_files import check_mesh_files
 from mimarble.scene.rules import spp_problem
 
 from .float32_range import Float32RangeWarning, float32_range_problems
 from .lights import (AREA_LIGHT_POINT_SIZE, RECTANGLE_LIGHT_SHORTEST_EDGE, ambient_dict,
-                     area_light_dict, point_light_dict)
+                     area_light_dict, environment_dict, point_light_dict)
 from .materials import CALCITE_IOR, surface_bsdf
 from .media import medium_dict, subsurface_boundary, translucent_materials
 from .modes import MODES, ModeError, integrator_and_sampler, refuse_translucent
-from .shapes import (_facing_out, _product, _transform, clip_planes, cube_to_world,
+from .shapes import (_facing_out, _product, _transform, clip_planes, cube_to_world, is_smooth,
                      disk_to_world, in_object_space, is_two_sided, shape_dict)
 from .textures import _marble_gains, _texture_id, _unused, marble_tolerance, texture_dict
 
@@ -97,6 +98,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     translucent = translucent_materials(scene)
     refuse_translucent(scene, mode, translucent)
     check_image_maps(scene)        # the header check of maps the parser never saw
+    check_environment(scene)       # and of an environment's file
     uv_problems = check_mesh_files(scene)      # and of mesh files, as the parser checks them
     for problem in float32_range_problems(scene) + uv_problems:
         warnings.warn(problem, Float32RangeWarning, stacklevel=2)
@@ -107,7 +109,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     textures: dict = {}
     bases: dict = {}        # channel value -> its texture's id (placed: id_SHAPE)
     # Top-level ids, so that a named texture's id (Scene.textures) takes none of them.
-    taken = set(LOAD_DICT_KEYS) | {"integrator", "sensor", "ambient"} \
+    taken = set(LOAD_DICT_KEYS) | {"integrator", "sensor", "ambient", "environment"} \
         | {i for i, _ in scene.shapes()} \
         | {f"light_{k}" for k in range(len(scene.lights))}
     names: dict = {}
@@ -144,7 +146,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             out[textures[key]] = texture
         return {"type": "ref", "id": textures[key]}
 
-    out["integrator"], sampler = integrator_and_sampler(scene, mode, spp, translucent)
+    out["integrator"], sampler = integrator_and_sampler(
+        scene, mode, spp, translucent, smooth=any(map(is_smooth, scene.meshes)))
     out["sensor"] = _sensor(scene, sampler)
 
     bsdfs: dict = {}       # (material name, placement's matrix or None) -> its BSDF
@@ -216,4 +219,6 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     ambient = ambient_dict(scene, lighting)
     if ambient is not None:
         out["ambient"] = ambient
+    if scene.environment is not None:
+        out["environment"] = environment_dict(scene.environment)
     return out

@@ -166,8 +166,10 @@ def shape_dict(scene: model.Scene, shape) -> dict:
       :func:`disk_to_world`;
     * box → ``cube``, a mesh of 12 triangles, placed by :func:`cube_to_world`;
     * mesh → ``ply`` or ``obj`` (by the file's ending), placed by its transform, with
-      ``face_normals`` (flat shading, as the reference) and ``flip_tex_coords`` said out
-      loud at Mitsuba's defaults (OBJ: v → 1 − v, so that an OBJ's v = 0 is an image's
+      ``face_normals`` true (flat shading) unless it is smooth (:func:`is_smooth`: then
+      false, so that Mitsuba reads the file's vertex normals or, without them, computes
+      its own, and interpolates them across each triangle as the reference does) and
+      ``flip_tex_coords`` said out loud at Mitsuba's defaults (OBJ: v → 1 − v, so that an OBJ's v = 0 is an image's
       bottom row; PLY: as written). Mitsuba's loaders change nothing else: positions are
       the file's through ``to_world`` (rounded to float32), faces as given.
     """
@@ -189,8 +191,17 @@ def _cube_dict(scene: model.Scene, box) -> dict:
 def _file_mesh_dict(scene: model.Scene, shape) -> dict:
     kind = os.path.splitext(shape.file)[1].lower()[1:]
     return {"type": kind, "filename": shape.location,
-            "to_world": _transform(geometry.object_to_world(shape)), "face_normals": True,
-            "flip_tex_coords": kind == "obj"}
+            "to_world": _transform(geometry.object_to_world(shape)),
+            "face_normals": not is_smooth(shape), "flip_tex_coords": kind == "obj"}
+
+
+def is_smooth(shape) -> bool:
+    """Whether a shape is a mesh shaded with vertex normals: ``Mesh.is_smooth`` of its
+    file's facts (``smooth`` as written, else whether the file has normals)."""
+    if not isinstance(shape, model.Mesh):
+        return False
+    from mimarble.meshes.facts import mesh_facts       # kept per version of the file
+    return shape.is_smooth(mesh_facts(shape.location).has_normals)
 
 
 def _facing_out(shape_out: dict, shape) -> None:
