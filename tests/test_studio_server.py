@@ -6,6 +6,7 @@ the scene is a 64×64 copy of fig11a in a temporary folder, so that saving write
 The browser itself: tests/test_studio_browser.py.
 """
 
+import contextlib
 import http.client
 import json
 import re
@@ -103,6 +104,23 @@ class Tab:
     def close(self):
         self._connection.__exit__(None, None, None)
         self._thread.join(5)
+
+
+@contextlib.contextmanager
+def fresh_studio(folder):
+    """A studio of its own on a small scene in ``folder`` (for tests that write its file):
+    (the scene's path, the session, the server, a tab that has had its hello)."""
+    path = small_scene(folder)
+    session = StudioSession(path)
+    server = StudioServer(session).start()
+    tab = Tab(server)
+    try:
+        hello = tab.wait(lambda m: m["type"] == "hello")
+        yield path, session, server, tab, hello
+    finally:
+        tab.close()
+        server.stop()
+        session.close()
 
 
 def get(server, path, host=None, origin=None):
@@ -361,23 +379,15 @@ def test_snapshot_export_and_save_as_write_the_files_the_user_names(studio, tmp_
 
 
 def test_save_as_writes_a_copy_relative_to_the_scene_and_the_session_follows_it(tmp_path):
-    session = StudioSession(small_scene(tmp_path))
-    server = StudioServer(session).start()
-    tab = Tab(server)
-    try:
-        tab.wait(lambda m: m["type"] == "hello")
+    with fresh_studio(tmp_path) as (path, session, server, tab, _):
         tab.send({"type": "edit", "key": "marble.distortion", "value": 2.25, "seq": 1})
         tab.wait(lambda m: m["type"] == "edited")
         tab.send({"type": "save_as", "path": "copy.scene"})
         tab.wait(lambda m: m["type"] == "done" and m["action"] == "save_as", what="saved as")
         copy = tmp_path / "copy.scene"
         assert "distortion 2.25" in copy.read_text()
-        assert "distortion 2.25" not in (tmp_path / "small.scene").read_text()
+        assert "distortion 2.25" not in path.read_text()
         assert session.state()["path"] == str(copy)
-    finally:
-        tab.close()
-        server.stop()
-        session.close()
 
 
 def test_compare_shows_the_difference_and_psnr(studio):
@@ -396,12 +406,7 @@ def test_compare_shows_the_difference_and_psnr(studio):
 
 def test_a_preset_picked_sets_the_groups_marbles_as_the_scene_language_would(tmp_path):
     from mimarble import scene as scene_language
-    path = small_scene(tmp_path)
-    session = StudioSession(path)
-    server = StudioServer(session).start()
-    tab = Tab(server)
-    try:
-        hello = tab.wait(lambda m: m["type"] == "hello")
+    with fresh_studio(tmp_path) as (path, session, server, tab, hello):
         assert "carrara" in {p["name"] for p in hello["presets"]}
         tab.send({"type": "preset", "prefix": "marble", "name": "carrara"})
         tab.wait(lambda m: m["type"] == "done" and m["action"] == "preset", what="preset")
@@ -416,19 +421,10 @@ def test_a_preset_picked_sets_the_groups_marbles_as_the_scene_language_would(tmp
         tab.send({"type": "preset", "prefix": "marble", "name": "carara"})
         problem = tab.wait(lambda m: m["type"] == "problem" and m["action"] == "preset")
         assert "carrara" in problem["message"]                  # the closest name
-    finally:
-        tab.close()
-        server.stop()
-        session.close()
 
 
 def test_save_refuses_a_file_changed_on_disk_and_reload_takes_the_files(tmp_path):
-    path = small_scene(tmp_path)
-    session = StudioSession(path)
-    server = StudioServer(session).start()
-    tab = Tab(server)
-    try:
-        tab.wait(lambda m: m["type"] == "hello")
+    with fresh_studio(tmp_path) as (path, session, server, tab, _):
         tab.send({"type": "edit", "key": "marble.distortion", "value": 2.25, "seq": 1})
         tab.wait(lambda m: m["type"] == "edited")
         theirs = path.read_text().replace("period 1.3", "period 1.9")
@@ -442,7 +438,3 @@ def test_save_refuses_a_file_changed_on_disk_and_reload_takes_the_files(tmp_path
         tab.send({"type": "reload"})
         tab.wait(lambda m: m["type"] == "done" and m["action"] == "reload")
         assert session.edits_made == {} and session.text == theirs
-    finally:
-        tab.close()
-        server.stop()
-        session.close()
