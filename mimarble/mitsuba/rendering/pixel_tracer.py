@@ -23,15 +23,17 @@ class PassNumbers:
     """The numbers of one pass that vary between passes and renders, as opaque Dr.Jit
     values (one kernel serves them all, and a recording takes them as inputs): the
     first pixel and sample of the pass, samples per pixel in the pass, the spp's
-    stratum count per axis and its reciprocal, the differentials' scale 1/√spp, and
-    the sampler's seed (path mode)."""
+    stratum count per axis and its reciprocal, the differentials' scale 1/√spp, the
+    sampler's seed (path mode), and ``parent_axis``: an adaptive round's previous
+    level's stratum count per axis (its samples are kept: only the others are traced,
+    :func:`nested_stratum`; 0 in any other pass)."""
 
     DRJIT_STRUCT = {"first_pixel": object, "first_sample": object, "samples": object,
                     "per_axis": object, "stratum": object, "differential_scale": object,
-                    "seed": object}
+                    "seed": object, "parent_axis": object}
 
     def __init__(self, first_pixel: int, first_sample: int, samples: int, spp: int,
-                 seed: int, whitted: bool):
+                 seed: int, whitted: bool, parent_axis: int = 0):
         """``whitted``: the samples are the n×n stratum centres (spp = n²)."""
         u32, f32 = (lambda v: dr.opaque(mi.UInt32, v)), (lambda v: dr.opaque(mi.Float, v))
         n = samples_per_axis(spp) if whitted else 1
@@ -41,6 +43,22 @@ class PassNumbers:
         self.per_axis, self.stratum = u32(n), f32(1.0 / n)
         self.differential_scale = f32(1.0 / spp ** 0.5)
         self.seed = u32(seed)
+        self.parent_axis = u32(parent_axis)
+
+
+def nested_stratum(new, parent_axis):
+    """The stratum index (row-major in the 3m×3m grid) of the ``new``-th sample that a
+    3m×3m grid of stratum centres adds to the m×m one it contains (``parent_axis`` = m).
+
+    The centre of stratum (i, j) of the m grid, ((i + ½)/m, (j + ½)/m), is the centre of
+    stratum (3i + 1, 3j + 1) of the 3m grid — an odd refinement keeps every old centre —
+    so a pixel refined from m² to 9m² samples traces only the 8m² others: parent cell
+    c = ⌊new / 8⌋, its r-th other cell r = new mod 8, skipping the middle one (4)."""
+    cell, r = new // 8, new % 8
+    r = r + dr.select(r >= 4, 1, 0)
+    column = 3 * (cell % parent_axis) + r % 3
+    row = 3 * (cell // parent_axis) + r // 3
+    return row * (3 * parent_axis) + column
 
 
 class PixelTracer:
