@@ -34,29 +34,44 @@ def rmse(a, b):
     return float(np.sqrt(np.mean(np.square(np.asarray(a, np.float64) - b))))
 
 
-def test_levels_triple_the_samples_per_axis_up_to_max_spp():
-    assert adaptive.sample_levels(1, 81) == [1, 9, 81]
-    assert adaptive.sample_levels(1, 64) == [1, 9, 64]          # 64 off the ladder: last
-    assert adaptive.sample_levels(4, 64) == [4, 36, 64]
+def test_levels_triple_the_samples_and_keep_them_up_to_max_spp():
+    assert adaptive.sample_levels(1, 81) == [1, 3, 9, 27, 81]
+    assert adaptive.sample_levels(1, 64) == [1, 3, 9, 27, 64]     # 64 off the ladder: last
+    assert adaptive.sample_levels(4, 64) == [4, 12, 36, 64]
     assert adaptive.sample_levels(1, 4) == [1, 4]
     assert adaptive.sample_levels(9, 9) == [9]
-    # A level keeps the samples of the one before when it refines its grid by 3.
-    levels = adaptive.sample_levels(1, 64)
-    assert [adaptive.kept_axis(levels, k) for k in range(3)] == [0, 1, 0]
-    assert adaptive.kept_axis(adaptive.sample_levels(4, 324), 2) == 6
+    levels = adaptive.ladder(1, 64)
+    # A round into a level traces what it adds; the last one (its own grid) replaces.
+    assert [level.traced for level in levels] == [1, 2, 6, 18, 64]
+    assert [level.parent for level in levels] == [0, 1, 1, 3, 0]
+    assert [level.grid for level in levels] == [1, 3, 3, 9, 8]
 
 
 def test_a_nested_grid_adds_the_strata_its_coarser_grid_lacks(llvm):
-    """The 8m² new strata of a 3m grid and the m² kept ones are the 9m² strata, once each,
-    and the kept ones are the m grid's centres (independent arithmetic in NumPy)."""
-    from mimarble.mitsuba.rendering.pixel_tracer import nested_stratum
+    """The new strata of the rounds into 3m² and 9m² samples and the m² kept centres are
+    the (3m)² strata once each; the kept ones are the m grid's centres, and the 2 a cell
+    gets first are symmetric about its centre (independent arithmetic in NumPy)."""
+    from mimarble.mitsuba.rendering.pixel_tracer import PassNumbers, nested_stratum
     for m in (1, 2, 3):
-        new = nested_stratum(dr.arange(mi.UInt32, 8 * m * m), dr.opaque(mi.UInt32, m)).numpy()
-        rows, columns = np.divmod(np.arange(m * m), m)
-        kept = (3 * rows + 1) * 3 * m + 3 * columns + 1
-        assert sorted(np.concatenate([new, kept]).tolist()) == list(range(9 * m * m))
-        # Their centres coincide: ((i + ½)/m) = ((3i + 1 + ½)/3m).
-        assert np.allclose((columns + 0.5) / m, (kept % (3 * m) + 0.5) / (3 * m))
+        for parity in (0, 1):
+            def strata(per_cell, offset):
+                numbers = PassNumbers(0, 0, per_cell * m * m, 9 * m * m, 0, True, m,
+                                      per_cell, offset)
+                new = dr.arange(mi.UInt32, per_cell * m * m)
+                return nested_stratum(new, numbers, dr.full(mi.UInt32, parity,
+                                                             dr.width(new))).numpy()
+            pairs, rest = strata(2, 0).astype(np.int64), strata(6, 2).astype(np.int64)
+            rows, columns = np.divmod(np.arange(m * m), m)
+            kept = (3 * rows + 1) * 3 * m + 3 * columns + 1
+            every = np.concatenate([kept, pairs, rest])
+            assert sorted(every.tolist()) == list(range(9 * m * m))
+            # Their centres coincide: (i + ½)/m = (3i + 1 + ½)/3m.
+            assert np.allclose((columns + 0.5) / m, (kept % (3 * m) + 0.5) / (3 * m))
+            # Each cell's pair: symmetric about its centre, on a diagonal.
+            y, x = np.divmod(pairs.reshape(m * m, 2), 3 * m)
+            assert np.all(x.sum(axis=1) == 2 * (3 * columns + 1))
+            assert np.all(y.sum(axis=1) == 2 * (3 * rows + 1))
+            assert np.all(np.abs(x[:, 0] - x[:, 1]) == 2) and np.all(np.abs(y[:, 0] - y[:, 1]) == 2)
 
 
 def test_the_estimate_falls_as_the_error_of_stratum_centres_does(llvm):
@@ -65,7 +80,7 @@ def test_the_estimate_falls_as_the_error_of_stratum_centres_does(llvm):
     contrast = f64([0.8, 0.8, 0.8, 0.0])
     edge = mi.Bool([False, False, True, False])
     at_1, at_3 = (adaptive.estimated_errors(n, doubt, spread, contrast, edge).numpy()
-                  for n in (1, 3))
+                  for n in (1, 3))          # 1 and 9 samples
     assert at_1[0] == 0.0                      # smooth and off any silhouette: no error
     assert at_1[1] == pytest.approx(adaptive.DOUBT_WEIGHT * 0.4)
     assert at_3[1] == pytest.approx(at_1[1] / 9)                  # 1/n², the midpoint rule
@@ -81,26 +96,44 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
     mean of point-sampled marble is the plain render's at that spp, bit for bit."""
     scene = small()
     m = loaded(scene)
-    result = adaptive.render_adaptive(m, 1, 0.0005, 81)
+    result = adaptive.render_adaptive(m, 1, 1e-6, 81)
     counts = {int(k): int(n) for k, n in zip(*np.unique(result.samples, return_counts=True))}
-    assert set(counts) == {1, 9, 81} and min(counts.values()) > 0
-    for spp in counts:
+    assert {1, 9, 81} <= set(counts) and min(counts.values()) > 0
+    for spp in (1, 9, 81):
         plain = render_in_passes(m, spp)
         where = result.samples == spp
         np.testing.assert_array_equal(result.image[where], plain[where])
     # The cost counts every sample traced for a pixel once: kept ones are not traced again.
     assert result.traced == int(result.samples.sum())
     # Deterministic, and the same in passes of any size (pixels split across passes too).
-    again = adaptive.render_adaptive(m, 1, 0.0005, 81, pass_samples=8)
+    again = adaptive.render_adaptive(m, 1, 1e-6, 81, pass_samples=8)
     np.testing.assert_array_equal(again.image, result.image)
     np.testing.assert_array_equal(again.samples, result.samples)
     # A level off the ladder (16 after 9) replaces: the plain render's again, at a cost.
-    off = adaptive.render_adaptive(m, 1, 0.0005, 16)
+    off = adaptive.render_adaptive(m, 1, 1e-6, 16)
     where = off.samples == 16
     assert where.any()
     np.testing.assert_array_equal(off.image[where], render_in_passes(m, 16)[where])
-    assert off.traced == int(np.sum(np.select([off.samples == 16, off.samples == 9],
-                                              [1 + 8 + 16, 9], 1)))
+    assert off.traced == int(np.sum(np.where(off.samples == 16, 9 + 16, off.samples)))
+
+
+def test_a_pixel_of_three_samples_is_its_centre_and_a_symmetric_pair(llvm):
+    """At 3 samples a pixel holds its centre and two points of the 3×3 grid symmetric
+    about it: the pair's mean, from a plain 9-spp render's strata traced one by one
+    (1-spp renders of a 3× larger image, whose pixel centres are those strata), is
+    (3·adaptive − plain 1)/2."""
+    scene = small(size=24)
+    m = loaded(scene)
+    result = adaptive.render_adaptive(m, 1, -1.0, 9, rounds=1)     # every pixel: a bar < 0
+    assert np.all(result.samples == 3)
+    strata = render_in_passes(loaded(resized(scene, 72)), 1)       # (72, 72, 3)
+    y, x = np.mgrid[0:24, 0:24]
+    main = (x + y) % 2 == 0            # the diagonals alternate from pixel to pixel
+    first = np.where(main[..., None], strata[3 * y, 3 * x], strata[3 * y, 3 * x + 2])
+    second = np.where(main[..., None], strata[3 * y + 2, 3 * x + 2], strata[3 * y + 2, 3 * x])
+    expected = (render_in_passes(m, 1) + first + second) / 3
+    off = np.abs(result.image - expected).max(axis=-1)
+    assert np.median(off) < 1e-6 and np.mean(off < 1e-4) > 0.97
 
 
 def test_a_prefiltered_pixel_keeps_its_first_sample_with_its_wider_footprint(llvm):
@@ -110,7 +143,7 @@ def test_a_prefiltered_pixel_keeps_its_first_sample_with_its_wider_footprint(llv
     third of the footprint — the centre pixels of a plain 1-spp render at 3× the size."""
     scene = small(size=30, filter="prefilter")
     m = loaded(scene)
-    result = adaptive.render_adaptive(m, 1, 0.0005, 9)
+    result = adaptive.render_adaptive(m, 1, 1e-6, 9)
     where = result.samples == 9
     assert where.sum() > 50
     finer = render_in_passes(loaded(resized(scene, 90)), 1)[1::3, 1::3]

@@ -2,31 +2,40 @@
 
 A first pass renders every pixel with ``spp`` = m² stratum centres, as a plain render
 does. Then rounds: every pixel of the last round whose estimated error E exceeds
-``threshold`` · n² (n² its samples) gets the samples of the next *level* — 3n×3n stratum
-centres while they fit under ``max_spp``, which keep its n×n ones (an odd refinement
-holds every old centre: the round traces only the 8n² others and adds them to the
-pixel's sum), then, if ``max_spp`` is not on that ladder, ``max_spp``'s own grid, which
-replaces them. Only the pixels a round refined are candidates in the next. Deterministic,
-like the rest of whitted mode.
+``threshold`` · n^BAR_POWER (n² its samples) goes one level up a ladder that triples its
+samples and keeps them (:func:`ladder`): the centre of stratum (i, j) of an m×m grid is the
+centre of stratum (3i + 1, 3j + 1) of the 3m×3m one — an odd refinement holds every old
+centre — so a round traces only new strata of the 3m grid, first 2 per cell of the m grid
+(3m² samples: the cell's centre and a pair symmetric about it, the diagonals alternating
+from cell to cell), then the other 6 (9m²: the whole 3m grid), and adds them to the
+pixel's sum. A ``max_spp`` off the ladder is a last level of its own grid, which replaces
+the pixel's samples. Only the pixels a round refined are candidates in the next.
+Deterministic, like the rest of whitted mode.
 
-**What a pixel is at the end.** A pixel that ends with N samples holds the stratum
-centres of the N-sample grid, one per stratum, summed as a plain render sums them (in
-float32 with compensation, the partial sums added in float64), so its mean is the plain
-render's at N spp up to the rounding of that sum's order (a float32 ulp at most, nearly
-always none) — for point-sampled marbles. A filtered marble (``bandlimit``,
-``prefilter``) averages each sample over its footprint, 1/√spp of the pixel at the level
-it was traced at: the samples a pixel keeps from a coarser level keep their wider
-footprints (tests/test_adaptive.py checks both).
+**What a pixel is at the end.** At 9^k·m² samples a pixel holds the stratum centres of
+the plain render's grid, one per stratum, summed as a plain render sums them (in float32
+with compensation, the partial sums added in float64), so for point-sampled marbles its
+mean is the plain render's at that spp up to the rounding of that sum's order (a float32
+ulp at most; none in the tests). At 3·9^k·m² it holds, in each of the 9^k·m² strata of
+the grid below, that stratum's centre and two points symmetric about it: a stratified
+estimate with equal weight per stratum, exact for an integrand linear across each
+stratum, as the midpoint rule is. A filtered marble (``bandlimit``, ``prefilter``)
+averages each sample over its footprint, 1/n of the pixel for a grid of n per axis: the
+samples a pixel keeps from a coarser grid keep their wider footprints
+(tests/test_adaptive.py checks each of these).
 
 Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample counts,
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
 (``dr.compress``); only its length comes back to size the passes. The lists are in Morton
 order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
+Only the first pass traces the marbles' doubts (its kernel costs about twice the plain
+one's); the rounds trace the plain kernel, and read the first pass's doubt.
 
-Why a bar that grows with n: a round costs a pixel about 8n² samples, so the error it
-removes per sample falls as n grows; a bar of ``threshold`` · n² leaves deeper rounds to
-fewer pixels (docs/design-decisions.md, "Adaptive sampling"). At 1 spp the threshold is
-the estimated error in colour units.
+Why a bar that grows with n: a round costs a pixel about twice its samples, so the error
+it removes per sample falls as n grows; ``threshold`` · n³ leaves deeper rounds to fewer
+pixels, and was measured best on this ladder (docs/design-decisions.md, "Adaptive samples
+at the price of plain ones"). At 1 spp the threshold is the estimated error in colour
+units.
 
 The estimate of a pixel of n² samples, in linear colour units (the largest of the
 three colours):
@@ -35,7 +44,8 @@ three colours):
     E = max(E, SPREAD_WEIGHT · spread / n²)                         n² ≥ SPREAD_SAMPLES
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
-``doubt`` is the mean over the pixel's samples of whitted's doubt (``Whitted.shade``):
+``doubt`` is the mean over the pixel's first-pass samples of whitted's doubt
+(``Whitted.shade``; the rounds do not trace it):
 the marbles' own estimate of how wrong one sample of them can be there — |the filter's
 colour − its other view of the footprint| (mimarble/texture/filters.py), large where the
 colour changes across the footprint, 0 where it is smooth. It says where a sample can be
@@ -52,7 +62,8 @@ pixel with its neighbours): a sliver of a sphere between the stratum centres sho
 neighbours only. The powers are those of the error of n×n stratum centres: 1/n² for a
 smooth integrand (the midpoint rule), about n^−1.5 for an edge across the pixel (n of the
 n² cells cut, errors of random sign). The weights were chosen by measurement
-(docs/benchmarks.md, "Adaptive sampling").
+(docs/benchmarks.md, "Adaptive sampling" and "Adaptive samples at the price of plain
+ones").
 
 Textures without a second estimate (``rgb``, ``bitmap``) have doubt 0: their pixels are
 refined on silhouettes and by their spread only.
@@ -60,6 +71,7 @@ refined on silhouettes and by their spread only.
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -80,10 +92,12 @@ dr, mi = environment.import_drjit_and_mitsuba()
 #: The estimate's weights (module docstring), chosen by measurement.
 DOUBT_WEIGHT = 0.5
 CONTRAST_WEIGHT = 0.25
-SPREAD_WEIGHT = 0.05
+SPREAD_WEIGHT = 0.02
+#: The bar a pixel of n² samples is refined over: ``threshold`` · n^BAR_POWER.
+BAR_POWER = 3.0
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
-SPREAD_SAMPLES = 4
+SPREAD_SAMPLES = 3
 #: Samples per pixel when ``max_spp`` is not given: two odd refinements of 1 spp.
 DEFAULT_MAX_SPP = 81
 
@@ -101,30 +115,48 @@ class AdaptiveRender(NamedTuple):
     rounds: int
 
 
+class Level(NamedTuple):
+    """One step of the ladder (:func:`ladder`): a pixel there has ``spp`` samples on the
+    ``grid``×``grid`` stratum centres. A round into it from the level before traces, in each
+    cell of the ``parent``×``parent`` grid (``grid`` = 3·``parent``), ``per_cell`` more of
+    the cell's strata from its ``offset``-th (``pixel_tracer.nested_stratum``) and keeps the
+    rest; ``parent`` 0: the first pass, or a level that replaces the pixel's samples."""
+    spp: int
+    grid: int
+    parent: int = 0
+    per_cell: int = 0
+    offset: int = 0
+
+    @property
+    def traced(self) -> int:
+        """Samples a round into this level traces per pixel."""
+        return self.parent ** 2 * self.per_cell if self.parent else self.spp
+
+
+def ladder(spp: int, max_spp: int) -> list[Level]:
+    """The levels of a render from ``spp`` = m² to ``max_spp`` (perfect squares, ``spp`` ≤
+    ``max_spp``): m², then per cell of the m grid 2 more strata of the 3m grid (3m²), then
+    its other 6 (9m², the whole 3m grid: the plain render's strata), then 3·9m², 81m², …
+    while they fit; then ``max_spp``'s own grid, replacing, if it is not on that ladder
+    (after one more third-way level if that is at most half of ``max_spp``)."""
+    m, most = samples_per_axis(spp), samples_per_axis(max_spp)
+    levels = [Level(spp, m)]
+    while 3 * m <= most:
+        levels += [Level(3 * m * m, 3 * m, m, 2, 0), Level(9 * m * m, 3 * m, m, 6, 2)]
+        m *= 3
+    if m < most:
+        if 3 * m * m <= max_spp // 2:      # a third of the way, if the last step doubles
+            levels.append(Level(3 * m * m, 3 * m, m, 2, 0))
+        levels.append(Level(max_spp, most))
+    return levels
+
+
 def sample_levels(spp: int, max_spp: int) -> list[int]:
-    """The spp of the first pass and of each round: m², (3m)², (9m)², … up to
-    ``max_spp``, then ``max_spp`` if it is not on that ladder (both perfect squares,
-    ``spp`` ≤ ``max_spp``)."""
-    n, most = samples_per_axis(spp), samples_per_axis(max_spp)
-    levels = [n]
-    while 3 * levels[-1] <= most:
-        levels.append(3 * levels[-1])
-    if levels[-1] < most:
-        levels.append(most)
-    return [k * k for k in levels]
+    """The spp of the first pass and of each round (:func:`ladder`)."""
+    return [level.spp for level in ladder(spp, max_spp)]
 
 
-def kept_axis(levels: list[int], level: int) -> int:
-    """The samples per axis a pixel keeps when it enters ``level`` of ``levels``: the level
-    before's, when this level's grid refines it by 3 (its centres are among this one's);
-    0 for the first pass and for a level that replaces them."""
-    if level == 0:
-        return 0
-    before, now = samples_per_axis(levels[level - 1]), samples_per_axis(levels[level])
-    return before if now == 3 * before else 0
-
-
-def estimated_errors(axis: int, doubt, spread, contrast, on_silhouette):
+def estimated_errors(axis: float, doubt, spread, contrast, on_silhouette):
     """E of pixels of ``axis``² samples (module docstring), from their mean doubt,
     their samples' spread, contrast and silhouette flags (Dr.Jit Float64 and Bool)."""
     errors = (DOUBT_WEIGHT / axis ** 2) * doubt
@@ -220,7 +252,7 @@ def _neighbours(pixels, width: int, height: int):
             yield mi.UInt32(y * w + x)
 
 
-def refine(state: PixelState, means, pixels, axis: int, threshold: float, width: int,
+def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
            height: int):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
     estimated error is above ``threshold`` · axis² (module docstring), in their order:
@@ -244,13 +276,14 @@ def refine(state: PixelState, means, pixels, axis: int, threshold: float, width:
     doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
     errors = estimated_errors(axis, doubt, mi.Float64(spread), mi.Float64(contrast),
                               on_silhouette)
-    keep = errors > dr.opaque(mi.Float64, threshold * axis ** 2)
+    keep = errors > dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
     return dr.gather(mi.UInt32, pixels, dr.compress(keep))
 
 
 def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                     max_spp: int = DEFAULT_MAX_SPP, progress=False, crop=None,
-                    pass_samples: int | None = None) -> AdaptiveRender:
+                    pass_samples: int | None = None, rounds: int | None = None
+                    ) -> AdaptiveRender:
     """Render a loaded whitted scene (JIT variants) adaptively: a first pass of ``spp``
     stratum centres, then rounds that refine every pixel whose estimated error is above
     ``threshold`` (linear colour units) up to ``max_spp`` (module docstring).
@@ -259,7 +292,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     ring of one pixel around it, so that its pixels' neighbourhoods are the image's in
     the first pass; a round's estimates at the window's border then see the ring's
     pixels only, so they can be refined otherwise than in the whole image. ``progress``:
-    as ``mimarble.render`` takes it (the total grows with each round)."""
+    as ``mimarble.render`` takes it (the total grows with each round). ``rounds``: stop
+    after that many rounds (the benchmark's oracle, mimarble/bench/oracle.py, takes every
+    pixel to each level with a threshold below 0)."""
     if not isinstance(mitsuba_scene.integrator(), Whitted):
         raise ValueError(f"render_adaptive: the scene's integrator is "
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
@@ -274,50 +309,51 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     done = report(progress, "render")
     traced, total = 0, count * spp
     done(0, total + 1)                         # open until the last round has said its size
-    levels = sample_levels(spp, max_spp)
+    levels = ladder(spp, max_spp)
+    if rounds is not None:
+        levels = levels[:rounds + 1]
     order = mi.UInt32(morton_order(width, height))       # every pixel, local indices
     pixels, listed = dr.arange(mi.UInt32, count), count  # the first pass: row by row
-    rounds = 0
-    for level, level_spp in enumerate(levels):
-        kept = kept_axis(levels, level)
-        last = level + 1 == len(levels)    # no estimates: nothing reads them after it
-        if level > 0 and not kept:
+    taken = 0
+    for number, level in enumerate(levels):
+        last = number + 1 == len(levels)   # no estimates: nothing reads them after it
+        if number > 0 and not level.parent:
             state.clear(pixels)
-        whole = level == 0 and window.whole
-        for part in trace_sums(target, level_spp, None if whole else _global(window, pixels),
-                               listed, with_estimates=not last, doubts=level == 0,
-                               parent_axis=kept,
-                               pass_samples=pass_samples, key=facts):
+        whole = number == 0 and window.whole
+        for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
+                               listed, with_estimates=not last, doubts=number == 0,
+                               parent_axis=level.parent, per_cell=level.per_cell,
+                               cell_offset=level.offset, pass_samples=pass_samples, key=facts):
             lanes = dr.width(part.sums)
-            if whole and part.count == count == lanes and part.samples == level_spp:
-                state.take(part, level_spp)          # the whole image in one pass
+            if whole and part.count == count == lanes and part.samples == level.spp:
+                state.take(part, level.spp)          # the whole image in one pass
             else:
                 at = dr.arange(mi.UInt32, lanes)
                 active = at < dr.opaque(mi.UInt32, part.count)
                 state.add(part, dr.gather(mi.UInt32, pixels,
                                           at + dr.opaque(mi.UInt32, part.start), active),
                           active, part.samples)
-            done(traced + (part.start + part.count) * (level_spp - kept ** 2), total + 1)
-        dr.scatter(state.samples, mi.UInt32(level_spp), pixels)
-        traced += listed * (level_spp - kept ** 2)
-        rounds += level > 0
+            done(traced + (part.start + part.count) * level.traced, total + 1)
+        dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
+        traced += listed * level.traced
+        taken += number > 0
         if last:
             break
-        axis = samples_per_axis(level_spp)
         means = state.means()
-        candidates = order if level == 0 else pixels
-        pixels = refine(state, means, candidates, axis, threshold, width, height)
+        candidates = order if number == 0 else pixels
+        pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
+                        height)
         dr.eval(pixels)
         listed = dr.width(pixels)
         if listed == 0:
             break
-        total = traced + listed * (levels[level + 1] - kept_axis(levels, level + 1) ** 2)
+        total = traced + listed * levels[number + 1].traced
     done(traced, traced)
     image = state.means()
     image = dr.ravel(image, order="F").numpy().reshape(height, width, 3)
     samples = state.samples.numpy().astype(np.int64).reshape(height, width)
     return AdaptiveRender(window.window_of(image), window.window_of(samples[..., None])[..., 0],
-                          traced, rounds)
+                          traced, taken)
 
 
 def _global(window: Window, pixels):

@@ -198,15 +198,18 @@ class PassSums(NamedTuple):
 
 
 def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: bool,
-               doubts: bool = True, parent_axis: int = 0, pass_samples: int | None = None,
+               doubts: bool = True, parent_axis: int = 0, per_cell: int = 8,
+               cell_offset: int = 0, pass_samples: int | None = None,
                key: tuple | None = None):
     """Yield a :class:`PassSums` per pass over ``count`` pixels (``pixels``: a Dr.Jit
     UInt32 list of whole-image indices, or None: every pixel in order), all on the device:
     the adaptive rounds' passes (mimarble/mitsuba/rendering/adaptive.py), which add or
     replace what a pixel holds without a copy to the host.
 
-    ``spp`` = (3m)² with ``parent_axis`` = m > 0: only the 8m² strata the m×m grid does
-    not hold are traced (each pixel keeps its m² samples); else ``spp`` stratum centres.
+    ``spp`` = (3m)² with ``parent_axis`` = m > 0: the pixels' samples are on the 3m grid,
+    each cell of the m grid holding its centre and ``cell_offset`` others, and ``per_cell``
+    more of each cell's are traced (``PassNumbers``, ``nested_stratum``); else ``spp``
+    stratum centres.
     A pass over a list traces a few pixels more (its last one again, up to
     :func:`padded_count`), so that lists of many lengths replay a few recordings.
     ``doubts``: estimates with whitted's doubts (else ``doubt_sums`` is None and the
@@ -214,11 +217,11 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
     pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
     doubts = doubts and with_estimates
     key, inputs = scene_facts(target.scene, target.params) if key is None else key
-    traced_spp = spp - (parent_axis ** 2 if parent_axis else 0)
+    traced_spp = parent_axis ** 2 * per_cell if parent_axis else spp
     for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, traced_spp,
                                                                 pass_samples)):
         numbers = PassNumbers(p0, q0, n_samples, spp, index, target.mode == "whitted",
-                              parent_axis)
+                              parent_axis, per_cell, cell_offset)
         subset, traced_pixels = None, n_pixels
         if pixels is not None:
             traced_pixels = padded_count(n_pixels, max(pass_samples // n_samples, 1))
@@ -287,7 +290,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
         dr.gather(mi.UInt32, subset, lane // numbers.samples)
     sub = numbers.first_sample + lane % numbers.samples
     if nested:
-        sub = nested_stratum(sub, numbers.parent_axis)
+        row = pixel // tracer.columns
+        sub = nested_stratum(sub, numbers, row + (pixel - row * tracer.columns))
     doubt = colour = None
     if with_estimates and doubts:
         colour, shapes, doubt = tracer.trace_with_doubts(pixel, sub, numbers)

@@ -24,16 +24,19 @@ class PassNumbers:
     values (one kernel serves them all, and a recording takes them as inputs): the
     first pixel and sample of the pass, samples per pixel in the pass, the spp's
     stratum count per axis and its reciprocal, the differentials' scale 1/√spp, the
-    sampler's seed (path mode), and ``parent_axis``: an adaptive round's previous
-    level's stratum count per axis (its samples are kept: only the others are traced,
-    :func:`nested_stratum`; 0 in any other pass)."""
+    sampler's seed (path mode), and an adaptive round's place in the grid it adds to
+    (:func:`nested_stratum`; 0 in any other pass): ``parent_axis`` m, the cells of the
+    pixel's grid, each of which gets ``per_cell`` more samples from its ``cell_offset``-th
+    on."""
 
     DRJIT_STRUCT = {"first_pixel": object, "first_sample": object, "samples": object,
                     "per_axis": object, "stratum": object, "differential_scale": object,
-                    "seed": object, "parent_axis": object}
+                    "seed": object, "parent_axis": object, "per_cell": object,
+                    "cell_offset": object}
 
     def __init__(self, first_pixel: int, first_sample: int, samples: int, spp: int,
-                 seed: int, whitted: bool, parent_axis: int = 0):
+                 seed: int, whitted: bool, parent_axis: int = 0, per_cell: int = 0,
+                 cell_offset: int = 0):
         """``whitted``: the samples are the n×n stratum centres (spp = n²)."""
         u32, f32 = (lambda v: dr.opaque(mi.UInt32, v)), (lambda v: dr.opaque(mi.Float, v))
         n = samples_per_axis(spp) if whitted else 1
@@ -44,21 +47,38 @@ class PassNumbers:
         self.differential_scale = f32(1.0 / spp ** 0.5)
         self.seed = u32(seed)
         self.parent_axis = u32(parent_axis)
+        self.per_cell, self.cell_offset = u32(per_cell), u32(cell_offset)
 
 
-def nested_stratum(new, parent_axis):
-    """The stratum index (row-major in the 3m×3m grid) of the ``new``-th sample that a
-    3m×3m grid of stratum centres adds to the m×m one it contains (``parent_axis`` = m).
+#: The order in which a cell of the m grid gets its 8 other strata of the 3m grid: (dx,
+#: dy) ∈ {0, 1, 2}², two bits each, pairs symmetric about the centre (1, 1) — both
+#: diagonals, then the middles of the sides — so that a cell with its centre and the
+#: first 2k of them is exact for a linear integrand, as the midpoint rule is.
+CELL_ORDER = ((0, 0), (2, 2), (2, 0), (0, 2), (1, 0), (1, 2), (0, 1), (2, 1))
+_DX = sum(dx << 2 * r for r, (dx, _) in enumerate(CELL_ORDER))
+_DY = sum(dy << 2 * r for r, (_, dy) in enumerate(CELL_ORDER))
+
+
+def nested_stratum(new, numbers: PassNumbers, parity):
+    """The stratum index (row-major in the 3m×3m grid, m = ``numbers.parent_axis``) of the
+    ``new``-th sample an adaptive round adds to a pixel whose samples lie on that grid:
+    each cell of the m grid holds its centre and its first ``numbers.cell_offset`` other
+    strata (:data:`CELL_ORDER`), and gets ``numbers.per_cell`` more.
 
     The centre of stratum (i, j) of the m grid, ((i + ½)/m, (j + ½)/m), is the centre of
-    stratum (3i + 1, 3j + 1) of the 3m grid — an odd refinement keeps every old centre —
-    so a pixel refined from m² to 9m² samples traces only the 8m² others: parent cell
-    c = ⌊new / 8⌋, its r-th other cell r = new mod 8, skipping the middle one (4)."""
-    cell, r = new // 8, new % 8
-    r = r + dr.select(r >= 4, 1, 0)
-    column = 3 * (cell % parent_axis) + r % 3
-    row = 3 * (cell // parent_axis) + r // 3
-    return row * (3 * parent_axis) + column
+    stratum (3i + 1, 3j + 1) of the 3m grid — an odd refinement keeps every old centre.
+    Sample ``new`` is in cell c = ⌊new / per_cell⌋, the (offset + new mod per_cell)-th of
+    its order; in cells where ``parity`` (UInt32, per lane: the pixel's x + y) plus the
+    cell's column and row is odd the order is mirrored left to right, so that neighbouring
+    cells take the two diagonals in turn."""
+    m = numbers.parent_axis
+    cell = new // numbers.per_cell
+    r = numbers.cell_offset + new % numbers.per_cell
+    cx, cy = cell % m, cell // m
+    dx = (mi.UInt32(_DX) >> (2 * r)) & 3
+    dy = (mi.UInt32(_DY) >> (2 * r)) & 3
+    dx = dr.select(((parity + cx + cy) & 1) == 1, 2 - dx, dx)
+    return (3 * cy + dy) * (3 * m) + 3 * cx + dx
 
 
 class PixelTracer:
