@@ -80,6 +80,7 @@ import numpy as np
 from mimarble.runtime import environment
 from mimarble.runtime.progress import report
 from mimarble.scene.model import samples_per_axis
+from mimarble.scene.rules import DEFAULT_MAX_SPP
 from mimarble.mitsuba.plugins.registration import largest_component
 from .loaded_scenes import LOADED
 from .passes import Target, trace_sums
@@ -98,8 +99,6 @@ BAR_POWER = 3.0
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
 SPREAD_SAMPLES = 3
-#: Samples per pixel when ``max_spp`` is not given: two odd refinements of 1 spp.
-DEFAULT_MAX_SPP = 81
 
 
 class AdaptiveRender(NamedTuple):
