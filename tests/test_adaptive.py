@@ -51,15 +51,14 @@ def test_a_nested_grid_adds_the_strata_its_coarser_grid_lacks(llvm):
     """The new strata of the rounds into 3m² and 9m² samples and the m² kept centres are
     the (3m)² strata once each; the kept ones are the m grid's centres, and the 2 a cell
     gets first are symmetric about its centre (independent arithmetic in NumPy)."""
-    from mimarble.mitsuba.rendering.pixel_tracer import PassNumbers, nested_stratum
+    from mimarble.mitsuba.rendering.pixel_tracer import nested_stratum
     for m in (1, 2, 3):
         for parity in (0, 1):
             def strata(per_cell, offset):
-                numbers = PassNumbers(0, 0, per_cell * m * m, 9 * m * m, 0, True, m,
-                                      per_cell, offset)
                 new = dr.arange(mi.UInt32, per_cell * m * m)
-                return nested_stratum(new, numbers, dr.full(mi.UInt32, parity,
-                                                             dr.width(new))).numpy()
+                column, row = nested_stratum(new, m, per_cell, dr.opaque(mi.UInt32, offset),
+                                             dr.full(mi.UInt32, parity, dr.width(new)))
+                return (row * 3 * m + column).numpy()
             pairs, rest = strata(2, 0).astype(np.int64), strata(6, 2).astype(np.int64)
             rows, columns = np.divmod(np.arange(m * m), m)
             kept = (3 * rows + 1) * 3 * m + 3 * columns + 1

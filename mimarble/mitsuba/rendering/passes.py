@@ -208,7 +208,7 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
 
     ``spp`` = (3m)² with ``parent_axis`` = m > 0: the pixels' samples are on the 3m grid,
     each cell of the m grid holding its centre and ``cell_offset`` others, and ``per_cell``
-    more of each cell's are traced (``PassNumbers``, ``nested_stratum``); else ``spp``
+    more of each cell's are traced (``nested_stratum``; a pixel list only); else ``spp``
     stratum centres.
     A pass over a list traces a few pixels more (its last one again, up to
     :func:`padded_count`), so that lists of many lengths replay a few recordings.
@@ -221,7 +221,8 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
     for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, traced_spp,
                                                                 pass_samples)):
         numbers = PassNumbers(p0, q0, n_samples, spp, index, target.mode == "whitted",
-                              parent_axis, per_cell, cell_offset)
+                              cell_offset)
+        nested = (parent_axis, per_cell) if parent_axis else None
         subset, traced_pixels = None, n_pixels
         if pixels is not None:
             traced_pixels = padded_count(n_pixels, max(pass_samples // n_samples, 1))
@@ -234,9 +235,9 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
         lanes = traced_pixels * n_samples
         values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, True, with_estimates,
-             with_estimates, True, bool(parent_axis), doubts), target.scene, inputs,
+             with_estimates, True, nested, doubts), target.scene, inputs,
             target.sampler, lanes, n_samples, numbers, subset, True, with_estimates,
-            with_estimates, True, target.mode, bool(parent_axis), doubts)
+            with_estimates, True, target.mode, nested, doubts)
         doubt_sums = low = high = None
         if estimates is not None:
             doubt_sums, low, high = estimates
@@ -254,7 +255,7 @@ def padded_count(count: int, most: int) -> int:
 
 def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples: int,
                 numbers: PassNumbers, subset, with_radiance: bool, with_shapes: bool,
-                with_estimates: bool, split: bool, mode: str, nested: bool = False,
+                with_estimates: bool, split: bool, mode: str, nested: tuple | None = None,
                 doubts: bool = True):
     """One pass, in Dr.Jit: (values, first, last, estimates) of each run of ``n_samples``
     lanes of ``lanes`` — the radiance summed (:func:`compensated_block_sum`: float64 per
@@ -266,9 +267,9 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     the least and the largest radiance per colour); None where not asked for.
     Lane k is sample
     ``first_sample + k mod n`` of pixel ``first_pixel + ⌊k / n⌋`` (n = ``numbers.samples``),
-    or of pixel ``subset[⌊k / n⌋]``; with ``nested`` (an adaptive round that keeps the
-    pixel's samples of the level before) sample index s is the s-th new stratum
-    (:func:`~mimarble.mitsuba.rendering.pixel_tracer.nested_stratum`). Estimates without
+    or of pixel ``subset[⌊k / n⌋]``; with ``nested`` = (m, per cell), an adaptive round
+    that keeps the pixel's samples of the level before, sample index s is the s-th new
+    stratum (:func:`~mimarble.mitsuba.rendering.pixel_tracer.nested_stratum`). Estimates without
     ``doubts`` leave the doubt out (None; the radiance's extremes and the shapes only),
     and the kernel is the plain one's.
 
@@ -289,9 +290,11 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     pixel = numbers.first_pixel + lane // numbers.samples if subset is None else \
         dr.gather(mi.UInt32, subset, lane // numbers.samples)
     sub = numbers.first_sample + lane % numbers.samples
-    if nested:
+    if nested:      # n_samples a literal here (a key of its own): no scalar divisions
+        pixel = dr.gather(mi.UInt32, subset, lane // n_samples)
         row = pixel // tracer.columns
-        sub = nested_stratum(sub, numbers, row + (pixel - row * tracer.columns))
+        sub = nested_stratum(numbers.first_sample + (lane - (lane // n_samples) * n_samples),
+                             *nested, numbers.cell_offset, row + (pixel - row * tracer.columns))
     doubt = colour = None
     if with_estimates and doubts:
         colour, shapes, doubt = tracer.trace_with_doubts(pixel, sub, numbers)

@@ -24,19 +24,15 @@ class PassNumbers:
     values (one kernel serves them all, and a recording takes them as inputs): the
     first pixel and sample of the pass, samples per pixel in the pass, the spp's
     stratum count per axis and its reciprocal, the differentials' scale 1/√spp, the
-    sampler's seed (path mode), and an adaptive round's place in the grid it adds to
-    (:func:`nested_stratum`; 0 in any other pass): ``parent_axis`` m, the cells of the
-    pixel's grid, each of which gets ``per_cell`` more samples from its ``cell_offset``-th
-    on."""
+    sampler's seed (path mode), and where an adaptive round starts in each cell's order of
+    strata (``cell_offset``, :func:`nested_stratum`; 0 in any other pass)."""
 
     DRJIT_STRUCT = {"first_pixel": object, "first_sample": object, "samples": object,
                     "per_axis": object, "stratum": object, "differential_scale": object,
-                    "seed": object, "parent_axis": object, "per_cell": object,
-                    "cell_offset": object}
+                    "seed": object, "cell_offset": object}
 
     def __init__(self, first_pixel: int, first_sample: int, samples: int, spp: int,
-                 seed: int, whitted: bool, parent_axis: int = 0, per_cell: int = 0,
-                 cell_offset: int = 0):
+                 seed: int, whitted: bool, cell_offset: int = 0):
         """``whitted``: the samples are the n×n stratum centres (spp = n²)."""
         u32, f32 = (lambda v: dr.opaque(mi.UInt32, v)), (lambda v: dr.opaque(mi.Float, v))
         n = samples_per_axis(spp) if whitted else 1
@@ -46,8 +42,7 @@ class PassNumbers:
         self.per_axis, self.stratum = u32(n), f32(1.0 / n)
         self.differential_scale = f32(1.0 / spp ** 0.5)
         self.seed = u32(seed)
-        self.parent_axis = u32(parent_axis)
-        self.per_cell, self.cell_offset = u32(per_cell), u32(cell_offset)
+        self.cell_offset = u32(cell_offset)
 
 
 #: The order in which a cell of the m grid gets its 8 other strata of the 3m grid: (dx,
@@ -59,11 +54,14 @@ _DX = sum(dx << 2 * r for r, (dx, _) in enumerate(CELL_ORDER))
 _DY = sum(dy << 2 * r for r, (_, dy) in enumerate(CELL_ORDER))
 
 
-def nested_stratum(new, numbers: PassNumbers, parity):
-    """The stratum index (row-major in the 3m×3m grid, m = ``numbers.parent_axis``) of the
-    ``new``-th sample an adaptive round adds to a pixel whose samples lie on that grid:
-    each cell of the m grid holds its centre and its first ``numbers.cell_offset`` other
-    strata (:data:`CELL_ORDER`), and gets ``numbers.per_cell`` more.
+def nested_stratum(new, parent_axis: int, per_cell: int, cell_offset, parity):
+    """The stratum (column, row) in the 3m×3m grid (m = ``parent_axis``) of the ``new``-th
+    sample an adaptive round adds to a pixel whose samples lie on that grid: each cell of
+    the m grid holds its centre and its first ``cell_offset`` (opaque) other strata
+    (:data:`CELL_ORDER`), and gets ``per_cell`` more. ``parent_axis`` and ``per_cell`` are
+    Python numbers, literals of the kernel: a division by an opaque integer is a scalar
+    loop in a vector kernel (it made a round's lanes 1.6× dearer), by a literal a
+    multiplication.
 
     The centre of stratum (i, j) of the m grid, ((i + ½)/m, (j + ½)/m), is the centre of
     stratum (3i + 1, 3j + 1) of the 3m grid — an odd refinement keeps every old centre.
@@ -71,14 +69,15 @@ def nested_stratum(new, numbers: PassNumbers, parity):
     its order; in cells where ``parity`` (UInt32, per lane: the pixel's x + y) plus the
     cell's column and row is odd the order is mirrored left to right, so that neighbouring
     cells take the two diagonals in turn."""
-    m = numbers.parent_axis
-    cell = new // numbers.per_cell
-    r = numbers.cell_offset + new % numbers.per_cell
-    cx, cy = cell % m, cell // m
+    m = parent_axis
+    cell = new // per_cell
+    r = cell_offset + (new - cell * per_cell)
+    cy = cell // m
+    cx = cell - cy * m
     dx = (mi.UInt32(_DX) >> (2 * r)) & 3
     dy = (mi.UInt32(_DY) >> (2 * r)) & 3
     dx = dr.select(((parity + cx + cy) & 1) == 1, 2 - dx, dx)
-    return (3 * cy + dy) * (3 * m) + 3 * cx + dx
+    return 3 * cx + dx, 3 * cy + dy
 
 
 class PixelTracer:
@@ -111,13 +110,15 @@ class PixelTracer:
         return dr.opaque(mi.Float, value)
 
     def ray(self, pixel, sub, numbers: PassNumbers):
-        """(ray with differentials, weight) of sample ``sub`` in ``pixel``."""
+        """(ray with differentials, weight) of sample ``sub`` in ``pixel`` (whitted mode: an
+        index, or the stratum's (column, row))."""
         y = pixel // self.columns
         x = pixel - y * self.columns
         wavelength_sample = 0.0
         if self.whitted:
-            offset = (mi.Point2f(mi.Float(sub % numbers.per_axis),
-                                 mi.Float(sub // numbers.per_axis)) + 0.5) * numbers.stratum
+            column, row = sub if isinstance(sub, tuple) else \
+                (sub % numbers.per_axis, sub // numbers.per_axis)
+            offset = (mi.Point2f(mi.Float(column), mi.Float(row)) + 0.5) * numbers.stratum
         else:
             self.sampler.seed(numbers.seed, dr.width(pixel))
             offset = self.sampler.next_2d()
