@@ -182,8 +182,9 @@ class PixelState:
     """What the rounds know of each pixel of the traced window, in Dr.Jit arrays of one
     lane per pixel (local indices, row-major): the radiance ``sums`` (Color3d), the
     ``samples`` they hold, the least and largest id of the first shape hit
-    (``first``, ``last``), the ``doubt_sums`` (Float64) and the least and largest sample
-    radiance (``low``, ``high``)."""
+    (``first``, ``last``), the ``doubt_sums`` (Float64) and how many samples they sum
+    (``doubted``: the first pass's), and the least and largest sample radiance (``low``,
+    ``high``)."""
 
     def __init__(self, count: int):
         self.count = count
