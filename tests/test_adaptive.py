@@ -34,54 +34,137 @@ def rmse(a, b):
     return float(np.sqrt(np.mean(np.square(np.asarray(a, np.float64) - b))))
 
 
-def test_levels_double_the_samples_per_axis_up_to_max_spp():
-    assert adaptive.sample_levels(1, 64) == [1, 4, 16, 64]
-    assert adaptive.sample_levels(4, 64) == [4, 16, 64]
-    assert adaptive.sample_levels(1, 36) == [1, 4, 16, 36]
+def test_levels_triple_the_samples_and_keep_them_up_to_max_spp():
+    assert adaptive.sample_levels(1, 81) == [1, 3, 9, 27, 81]
+    assert adaptive.sample_levels(1, 64) == [1, 3, 9, 27, 64]     # 64 off the ladder: last
+    assert adaptive.sample_levels(4, 64) == [4, 12, 36, 64]
+    assert adaptive.sample_levels(1, 4) == [1, 4]
     assert adaptive.sample_levels(9, 9) == [9]
+    levels = adaptive.ladder(1, 64)
+    # A round into a level traces what it adds; the last one (its own grid) replaces.
+    assert [level.traced for level in levels] == [1, 2, 6, 18, 64]
+    assert [level.parent for level in levels] == [0, 1, 1, 3, 0]
+    assert [level.grid for level in levels] == [1, 3, 3, 9, 8]
 
 
-def test_the_estimate_falls_as_the_error_of_stratum_centres_does():
-    doubt = np.array([0.0, 0.4, 0.4])
-    contrast = np.array([0.8, 0.8, 0.8])
-    edge = np.array([False, False, True])
-    at_1 = adaptive.estimated_errors(1, doubt, contrast, edge)
-    at_2 = adaptive.estimated_errors(2, doubt, contrast, edge)
+def test_a_nested_grid_adds_the_strata_its_coarser_grid_lacks(llvm):
+    """The new strata of the rounds into 3m² and 9m² samples and the m² kept centres are
+    the (3m)² strata once each; the kept ones are the m grid's centres, and the 2 a cell
+    gets first are symmetric about its centre (independent arithmetic in NumPy)."""
+    from mimarble.mitsuba.rendering.pixel_tracer import nested_stratum
+    for m in (1, 2, 3):
+        for parity in (0, 1):
+            def strata(per_cell, offset):
+                new = dr.arange(mi.UInt32, per_cell * m * m)
+                column, row = nested_stratum(new, m, per_cell, dr.opaque(mi.UInt32, offset),
+                                             dr.full(mi.UInt32, parity, dr.width(new)))
+                return (row * 3 * m + column).numpy()
+            pairs, rest = strata(2, 0).astype(np.int64), strata(6, 2).astype(np.int64)
+            rows, columns = np.divmod(np.arange(m * m), m)
+            kept = (3 * rows + 1) * 3 * m + 3 * columns + 1
+            every = np.concatenate([kept, pairs, rest])
+            assert sorted(every.tolist()) == list(range(9 * m * m))
+            # Their centres coincide: (i + ½)/m = (3i + 1 + ½)/3m.
+            assert np.allclose((columns + 0.5) / m, (kept % (3 * m) + 0.5) / (3 * m))
+            # Each cell's pair: symmetric about its centre, on a diagonal.
+            y, x = np.divmod(pairs.reshape(m * m, 2), 3 * m)
+            assert np.all(x.sum(axis=1) == 2 * (3 * columns + 1))
+            assert np.all(y.sum(axis=1) == 2 * (3 * rows + 1))
+            assert np.all(np.abs(x[:, 0] - x[:, 1]) == 2) and np.all(np.abs(y[:, 0] - y[:, 1]) == 2)
+
+
+def test_the_estimate_falls_as_the_error_of_stratum_centres_does(llvm):
+    f64 = mi.Float64
+    doubt, spread = f64([0.0, 0.4, 0.4, 0.0]), f64([0.0, 0.0, 0.0, 0.6])
+    contrast = f64([0.8, 0.8, 0.8, 0.0])
+    edge = mi.Bool([False, False, True, False])
+    at_1, at_3 = (adaptive.estimated_errors(n, doubt, spread, contrast, edge).numpy()
+                  for n in (1, 3))          # 1 and 9 samples
     assert at_1[0] == 0.0                      # smooth and off any silhouette: no error
     assert at_1[1] == pytest.approx(adaptive.DOUBT_WEIGHT * 0.4)
-    assert at_2[1] == pytest.approx(at_1[1] / 4)                  # 1/n², the midpoint rule
+    assert at_3[1] == pytest.approx(at_1[1] / 9)                  # 1/n², the midpoint rule
     assert at_1[2] == pytest.approx(adaptive.CONTRAST_WEIGHT * 0.8)   # the edge dominates
-    assert at_2[2] == pytest.approx(at_1[2] / 2 ** 1.5)
+    assert at_3[2] == pytest.approx(at_1[2] / 3 ** 1.5)
+    # A pixel's own spread is read once it has SPREAD_SAMPLES samples, not at 1.
+    assert at_1[3] == 0.0 and adaptive.SPREAD_SAMPLES <= 9
+    assert at_3[3] == pytest.approx(adaptive.SPREAD_WEIGHT * 0.6 / 9)
 
 
 def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
+    """Rounds add samples: a pixel's 1 centre is among its 9, its 9 among its 81, and the
+    mean of point-sampled marble is the plain render's at that spp, bit for bit."""
     scene = small()
     m = loaded(scene)
-    result = adaptive.render_adaptive(m, 1, 0.002, 16)
+    result = adaptive.render_adaptive(m, 1, 1e-6, 81)
     counts = {int(k): int(n) for k, n in zip(*np.unique(result.samples, return_counts=True))}
-    assert set(counts) == {1, 4, 16} and counts[1] > counts[16] > 0
-    for spp in counts:
+    assert {1, 9, 81} <= set(counts) and min(counts.values()) > 0
+    for spp in (1, 9, 81):
         plain = render_in_passes(m, spp)
         where = result.samples == spp
         np.testing.assert_array_equal(result.image[where], plain[where])
-    # The cost counts every sample traced for a pixel: each of its levels.
-    assert result.traced == sum(1 + (4 if k >= 4 else 0) + (16 if k >= 16 else 0)
-                                for k in result.samples.ravel())
+    # The cost counts every sample traced for a pixel once: kept ones are not traced again.
+    assert result.traced == int(result.samples.sum())
     # Deterministic, and the same in passes of any size (pixels split across passes too).
-    again = adaptive.render_adaptive(m, 1, 0.002, 16, pass_samples=8)
+    again = adaptive.render_adaptive(m, 1, 1e-6, 81, pass_samples=8)
     np.testing.assert_array_equal(again.image, result.image)
     np.testing.assert_array_equal(again.samples, result.samples)
+    # A level off the ladder (16 after 9) replaces: the plain render's again, at a cost.
+    off = adaptive.render_adaptive(m, 1, 1e-6, 16)
+    where = off.samples == 16
+    assert where.any()
+    np.testing.assert_array_equal(off.image[where], render_in_passes(m, 16)[where])
+    assert off.traced == int(np.sum(np.where(off.samples == 16, 9 + 16, off.samples)))
+
+
+def test_a_pixel_of_three_samples_is_its_centre_and_a_symmetric_pair(llvm):
+    """At 3 samples a pixel holds its centre and two points of the 3×3 grid symmetric
+    about it: the pair's mean, from a plain 9-spp render's strata traced one by one
+    (1-spp renders of a 3× larger image, whose pixel centres are those strata), is
+    (3·adaptive − plain 1)/2."""
+    scene = small(size=24)
+    m = loaded(scene)
+    result = adaptive.render_adaptive(m, 1, -1.0, 9, rounds=1)     # every pixel: a bar < 0
+    assert np.all(result.samples == 3)
+    strata = render_in_passes(loaded(resized(scene, 72)), 1)       # (72, 72, 3)
+    y, x = np.mgrid[0:24, 0:24]
+    main = (x + y) % 2 == 0            # the diagonals alternate from pixel to pixel
+    first = np.where(main[..., None], strata[3 * y, 3 * x], strata[3 * y, 3 * x + 2])
+    second = np.where(main[..., None], strata[3 * y + 2, 3 * x + 2], strata[3 * y + 2, 3 * x])
+    expected = (render_in_passes(m, 1) + first + second) / 3
+    off = np.abs(result.image - expected).max(axis=-1)
+    assert np.median(off) < 1e-6 and np.mean(off < 1e-4) > 0.97
+
+
+def test_a_prefiltered_pixel_keeps_its_first_sample_with_its_wider_footprint(llvm):
+    """A filtered marble averages a sample over 1/√spp of the pixel: the centre a pixel
+    keeps from its 1-spp pass has the whole pixel's footprint, where a plain 9-spp render's
+    has a third of it. So adaptive(9) = plain(9) + (plain(1) − c₉)/9, c₉ the centre at a
+    third of the footprint — the centre pixels of a plain 1-spp render at 3× the size."""
+    scene = small(size=30, filter="prefilter")
+    m = loaded(scene)
+    result = adaptive.render_adaptive(m, 1, 1e-6, 9)
+    where = result.samples == 9
+    assert where.sum() > 50
+    finer = render_in_passes(loaded(resized(scene, 90)), 1)[1::3, 1::3]
+    expected = render_in_passes(m, 9) + (render_in_passes(m, 1) - finer) / 9
+    # Equal to float32 rounding of the film positions (the larger image's pixel centres
+    # are computed otherwise) but where a position's rounding meets a vein or an edge.
+    off = np.abs(result.image - expected).max(axis=-1)[where]
+    assert np.median(off) < 1e-5 and np.mean(off < 1e-4) > 0.97
+    # … and it is not the plain render's: the footprints do differ.
+    plain_off = np.abs(result.image - render_in_passes(m, 9)).max(axis=-1)[where]
+    assert np.median(plain_off) > 30 * np.median(off) and plain_off.max() > 1e-3
 
 
 def test_a_lower_threshold_takes_more_samples_and_comes_closer_to_the_reference(llvm):
     scene = small(size=48)
     truth = reference.render(scene, spp=64)
     m = loaded(scene)
-    coarse, fine = (adaptive.render_adaptive(m, 1, t, 64) for t in (0.02, 0.0005))
+    coarse, fine = (adaptive.render_adaptive(m, 1, t, 81) for t in (0.02, 0.0005))
     assert fine.traced > coarse.traced
     assert rmse(fine.image, truth) < 0.6 * rmse(coarse.image, truth)
     # A threshold above every estimate is the first pass alone.
-    alone = adaptive.render_adaptive(m, 1, 1e9, 64)
+    alone = adaptive.render_adaptive(m, 1, 1e9, 81)
     np.testing.assert_array_equal(alone.image, render_in_passes(m, 1))
     assert alone.rounds == 0 and alone.traced == 48 * 48
 

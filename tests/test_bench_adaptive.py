@@ -8,7 +8,8 @@ import pytest
 
 from mimarble.bench import (run as bench, page as bench_page, plot as bench_plot,
     report as bench_report)
-from mimarble.bench.curves import speedups_at_equal_error, time_to_rmse, times_to_plain_rmse
+from mimarble.bench.curves import (adaptive_columns, speedups_at_equal_error, time_to_rmse,
+                                   times_to_plain_rmse)
 from mimarble.bench import modes as bench_modes
 
 MACHINE = {"processor": "AMD EPYC", "cores": 2, "variant": "llvm_ad_rgb"}
@@ -121,6 +122,41 @@ def test_time_to_plain_rmse_per_scene_with_means_and_missed_scenes():
                                        "mean_ms": None, "mean_spp": None}
 
 
+def test_the_adaptive_columns_per_traced_sample_oracle_and_soonest_mode():
+    """Issue 43's columns, by hand: fig01a's plain 16 spp takes 32 ms for 16 · 32² samples
+    (1953 ns each); adaptive crosses it at 4.5 ms and 2.4 spp (1831 ns: 0.94×)."""
+    results = synthetic_results()
+    results["oracle"] = {"fig01a": {"adaptive": {"16": 1.5, "64": 3.0}}}
+    columns = adaptive_columns(results)
+    fig = columns["fig01a"]
+    plain_ns = 1e6 * 32.0 / (16 * 32 ** 2)
+    assert fig["plain_ns"] == pytest.approx(plain_ns)
+    adaptive = fig["modes"]["adaptive"]
+    assert adaptive["ns"] == pytest.approx(1e6 * 4.5 / (2.4 * 32 ** 2))
+    assert adaptive["ratio"] == pytest.approx(adaptive["ns"] / plain_ns)
+    assert adaptive["spp"]["16"] == pytest.approx(2.4)
+    assert adaptive["oracle_spp"] == {"16": 1.5, "64": 3.0}
+    assert fig["best"] == {"16": "adaptive", "64": "adaptive"}
+    lines = "\n".join(bench_report.adaptive_column_lines(columns))
+    assert "fig01a" in lines and "1.5" in lines
+
+
+def test_the_oracle_refines_the_pixels_whose_error_it_knows():
+    """Four pixels, one wrong by 0.3 in each colour at the first level (cost 1), all right
+    at the second (cost 3): RMSE √(0.27 / 12) = 0.15 for 1 sample a pixel; the oracle
+    reaches RMSE 0 by refining only the wrong pixel, (1 + 1 + 1 + 3) / 4 = 1.5 samples."""
+    import numpy as np
+    from mimarble.bench.oracle import oracle_curve, oracle_samples
+    truth = np.zeros((1, 4, 3))
+    first = truth.copy()
+    first[0, 3] = 0.3
+    curve = oracle_curve([first, truth], truth, [1, 3])
+    assert curve[0] == {"mean_spp": 1.0, "rmse": pytest.approx(0.15)}
+    assert curve[-1] == {"mean_spp": 1.5, "rmse": 0.0}
+    assert oracle_samples([first, truth], truth, [1, 3], 0.1) == pytest.approx(1.5)
+    assert oracle_samples([first, first], truth, [1, 3], 0.1) is None     # never reached
+
+
 def test_a_scene_without_plain_64_has_only_the_16_spp_target():
     runs = [r for r in synthetic_runs() if not (r["mode"] == "plain" and r["spp"] == 64)]
     ttr = times_to_plain_rmse(runs)
@@ -180,9 +216,9 @@ def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
                               thresholds=(0.01, 0.001), max_spp=16)
     adaptive = [r for r in results["runs"] if r["mode"] == "adaptive"]
     assert [r["threshold"] for r in adaptive] == [0.01, 0.001]
-    for r in adaptive:        # traced samples count the replaced ones: 1 + 4 + 16 at most
+    for r in adaptive:        # levels 1, 3, 9 kept, then 16 replacing them: 9 + 16 at most
         assert 1 <= r["final_spp"] <= r["max_spp"] == 16
-        assert r["final_spp"] <= r["mean_spp"] <= 1 + 4 + 16
+        assert r["final_spp"] <= r["mean_spp"] <= 9 + 16
         assert r["rmse"] >= 0 and r["rounds"] >= 0
     assert all(r["mean_spp"] == r["spp"] for r in results["runs"] if r["mode"] == "plain")
     assert results["adaptive"] == {"thresholds": [0.01, 0.001], "first_spp": 1, "max_spp": 16}
@@ -190,6 +226,14 @@ def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
     assert set(ttr["by_scene"]["veins-p4-d4-s2"]) == {"16", "64"}
     assert set(ttr["groups"]) == {"veins-p4-d4-s2"}
     assert "Time to plain 16 spp's RMSE" in bench_report.format_report(results)
+    # The oracle beside the mode, in samples a pixel it never needs more of than the mode.
+    oracle = results["oracle"]["veins-p4-d4-s2"]["adaptive"]
+    assert set(oracle) == {"16", "64"}
+    columns = results["adaptive_columns"]["veins-p4-d4-s2"]
+    ours = columns["modes"]["adaptive"]["spp"]["16"]
+    if ours is not None and oracle["16"] is not None:
+        assert oracle["16"] <= ours * 1.05
+    assert "soonest" in bench_report.format_report(results)
 
 
 @pytest.mark.parametrize("args, message", [

@@ -124,6 +124,41 @@ def times_to_plain_rmse(runs, target_spps=TARGET_SPPS) -> dict:
     return {"targets": list(target_spps), "by_scene": by_scene, "groups": groups}
 
 
+def adaptive_columns(results: dict) -> dict:
+    """Per scene, what issue 43 adds beside the time to plain 16 and 64 spp's RMSE: plain 16
+    spp's time per traced sample, each adaptive mode's at its crossing of plain 16 spp's
+    RMSE (its time there over its samples there) and their ratio; the oracle's samples a
+    pixel for each target beside the mode's (``results["oracle"]``,
+    mimarble/bench/oracle.py); and the best mode, the one that reaches each target
+    soonest. ``{scene: {"plain_ns": …, "modes": {mode: {"ns", "ratio", "spp": {"16", "64"},
+    "oracle_spp": {…}}}, "best": {"16": mode or None, "64": …}}}``."""
+    pixels = results["size"] ** 2
+    by_scene = results.get("time_to_rmse", {}).get("by_scene", {})
+    oracle = results.get("oracle", {})
+    out = {}
+    for scene, at in by_scene.items():
+        if "16" not in at:
+            continue
+        plain_ns = 1e6 * at["16"]["plain_ms"] / (16 * pixels)
+        modes = {}
+        for mode in at["16"]["by_mode"]:
+            if not mode.startswith("adaptive"):
+                continue
+            crossing = at["16"]["by_mode"][mode]
+            ns = (1e6 * crossing["ms"] / (crossing["mean_spp"] * pixels)
+                  if crossing and crossing.get("mean_spp") else None)
+            modes[mode] = {"ns": ns, "ratio": None if ns is None else ns / plain_ns,
+                           "spp": {t: (at[t]["by_mode"].get(mode) or {}).get("mean_spp")
+                                   for t in at},
+                           "oracle_spp": oracle.get(scene, {}).get(mode, {})}
+        best = {}
+        for target in at:
+            reached = {m: v["ms"] for m, v in at[target]["by_mode"].items() if v}
+            best[target] = min(reached, key=reached.get) if reached else None
+        out[scene] = {"plain_ns": plain_ns, "modes": modes, "best": best}
+    return out
+
+
 def speedups_at_equal_error(runs) -> dict:
     """Per scene and mode: the fastest run of the mode whose RMSE is at most plain 16 spp's,
     and plain 16 spp's time over its time (None: no run of the mode got there)."""

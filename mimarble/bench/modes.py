@@ -5,17 +5,19 @@ from __future__ import annotations
 
 import dataclasses
 
+from mimarble.scene.rules import DEFAULT_MAX_SPP
+
 
 
 #: Edge samples of the runs' prefilter+edges mode unless --edge-spp says otherwise.
 DEFAULT_EDGE_SPP = 64
 #: The adaptive modes' thresholds unless --adaptive says otherwise: the estimated
-#: per-pixel error (linear colour) above which a pixel gets more samples, coarse to fine.
-ADAPTIVE_THRESHOLDS = (0.005, 0.0025, 0.00125, 0.0006, 0.0003, 0.00015, 7.5e-5, 3.7e-5,
-                       1.8e-5, 9e-6, 4.5e-6)
+#: per-pixel error (linear colour) above which a pixel gets more samples (times n³ at n²
+#: samples), coarse to fine: 0.005 quartered down to 7.6e-8 (the bar's n³ reaches the last
+#: level only far below the first pass's).
+ADAPTIVE_THRESHOLDS = tuple(float(f"{0.005 * 4.0 ** -k:.2g}") for k in range(9))
 #: The adaptive modes' first pass and cap on any pixel's samples (both perfect squares).
-ADAPTIVE_FIRST_SPP = 1
-DEFAULT_MAX_SPP = 64
+ADAPTIVE_FIRST_SPP = 1             # and DEFAULT_MAX_SPP, scene/rules.py's (imported above)
 #: The runs' spp (the adaptive modes' are their thresholds') and the converged reference's:
 #: finer than the runs' finest, so that plain 64 spp's RMSE is an error, not zero.
 DEFAULT_SPPS = (1, 4, 16, 64)

@@ -119,6 +119,29 @@ def time_to_rmse_lines(ttr: dict) -> list[str]:
     return lines
 
 
+def adaptive_column_lines(columns: dict) -> list[str]:
+    """Issue 43's columns: time per traced sample (plain 16 spp's, the adaptive mode's at
+    plain 16 spp's RMSE, their ratio), samples a pixel to plain 16 and 64 spp's RMSE
+    against the oracle's, and the mode that reaches each soonest."""
+    def number(v, form):
+        return "—" if v is None else format(v, form)
+    lines = ["", "Adaptive sampling against plain and the oracle: ns per traced sample (plain "
+                 "16 spp; the mode at plain 16 spp's RMSE) and their ratio; samples a pixel "
+                 "to plain 16 / 64 spp's RMSE, ours and the oracle's; the soonest mode",
+             f"{'scene':15} {'mode':18} {'plain ns':>8} {'ns':>7} {'ratio':>6} "
+             f"{'16: ours':>8} {'oracle':>6} {'64: ours':>8} {'oracle':>6}  soonest to 16 / 64"]
+    for scene, c in columns.items():
+        best = f"{c['best'].get('16') or '—'} / {c['best'].get('64') or '—'}"
+        for mode, m in c["modes"].items():
+            lines.append(
+                f"{scene:15} {mode:18} {c['plain_ns']:>8.1f} {number(m['ns'], '7.1f'):>7} "
+                f"{number(m['ratio'], '6.2f'):>6} {number(m['spp'].get('16'), '8.1f'):>8} "
+                f"{number(m['oracle_spp'].get('16'), '6.1f'):>6} "
+                f"{number(m['spp'].get('64'), '8.1f'):>8} "
+                f"{number(m['oracle_spp'].get('64'), '6.1f'):>6}  {best}")
+    return lines
+
+
 def best_of_words(p) -> str:
     """" (best of 5)" after the malformed scene's time, when it was the least of its runs
     (results of before issue 39 have its median)."""
@@ -206,6 +229,8 @@ def format_report(results: dict) -> str:
     lines += _speedup_lines(results.get("speedup_at_plain16_rmse") or {})
     if results.get("time_to_rmse"):
         lines += time_to_rmse_lines(results["time_to_rmse"])
+    if results.get("adaptive_columns"):
+        lines += adaptive_column_lines(results["adaptive_columns"])
     if results["paper"]:
         lines += ["", "Against the paper's render column (500×500, the scene's own spp):",
                   f"{'scene':8} {'spp':>4} {'ours s':>8} {'paper s':>8} {'ours/paper':>10} "

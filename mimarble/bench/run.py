@@ -25,9 +25,11 @@ import numpy as np
 
 from mimarble import reference
 from mimarble import scene as scene_language
-from mimarble.bench.curves import speedups_at_equal_error, times_to_plain_rmse
+from mimarble.bench.curves import adaptive_columns, speedups_at_equal_error, times_to_plain_rmse
+from mimarble.bench.oracle import level_images, oracle_samples
 from mimarble.bench.modes import (ADAPTIVE_FIRST_SPP, ADAPTIVE_THRESHOLDS, DEFAULT_CONVERGED_SPP,
-                                  DEFAULT_MAX_SPP, DEFAULT_SPPS, MODES, PAPER_SECONDS)
+                                  DEFAULT_MAX_SPP, DEFAULT_SPPS, MODES, PAPER_SECONDS,
+                                  TARGET_SPPS)
 from mimarble.bench.targets import against_povray, measure_targets, process_times
 from mimarble.bench.timing import converged, samples_taken, time_adaptive, time_render
 from mimarble.mitsuba.rendering.silhouettes import edge_mask
@@ -104,6 +106,13 @@ def run_bench(scene_paths, size=256, spps=DEFAULT_SPPS, converged_spp=DEFAULT_CO
                           final_spp=float(np.mean(timing.result.samples)),
                           rounds=int(timing.result.rounds))
                     step(f"{name}: {mode.name} threshold {threshold:g}")
+                # The oracle beside it: every pixel at its best level, knowing its error.
+                plain = {r["spp"]: r["rmse"] for r in results["runs"]
+                         if r["scene"] == name and r["mode"] == "plain"}
+                images, costs = level_images(loaded, ADAPTIVE_FIRST_SPP, max_spp)
+                results.setdefault("oracle", {}).setdefault(name, {})[mode.name] = {
+                    str(spp): oracle_samples(images, truth, costs, plain[spp])
+                    for spp in TARGET_SPPS if spp in plain}
                 continue
             loaded = mi.load_dict(to_mitsuba(variant, spp=1)) if mode.edge_spp else None
             for spp in spps:
@@ -113,6 +122,7 @@ def run_bench(scene_paths, size=256, spps=DEFAULT_SPPS, converged_spp=DEFAULT_CO
                 step(f"{name}: {mode.name} {spp} spp")
     results["speedup_at_plain16_rmse"] = speedups_at_equal_error(results["runs"])
     results["time_to_rmse"] = times_to_plain_rmse(results["runs"])
+    results["adaptive_columns"] = adaptive_columns(results)
 
     if paper:
         for name, scene in scenes:

@@ -15,6 +15,7 @@ from mimarble.contract import RENDER_MODES
 from mimarble.mitsuba.rendering.crop import CONVENTION
 from mimarble.runtime.image_formats import JPEG_QUALITIES, JPEG_QUALITY
 from mimarble.parameters import FILTERS, SWEEPABLE
+from mimarble.scene.rules import DEFAULT_MAX_SPP
 
 #: How a SCENE argument may also be given (mimarble/runtime/packaged_scenes.py's rule).
 PACKAGED_NAME = "or a packaged scene's name when no such file exists (`mimarble scenes`)"
@@ -106,13 +107,13 @@ def _add_adaptive(p):
     p.add_argument("--adaptive", type=_adaptive_threshold, metavar="T",
                    help="adaptive sampling (whitted mode): --spp is the first pass, then "
                         "every pixel whose estimated error is above T (linear colour "
-                        "units, e.g. 0.0003; times n² at n² samples) is "
-                        "rendered again with twice the samples per axis, up to --max-spp; "
+                        "units, e.g. 0.0003; times n³ at n² samples) gets three "
+                        "times its samples (keeping its own), up to --max-spp; "
                         "refines silhouettes itself (not with --edge-spp). With --filter "
                         "prefilter the estimate costs least (docs/rendering-model.md)")
     p.add_argument("--max-spp", type=int, metavar="N",
                    help="adaptive sampling's most samples per pixel, a perfect square "
-                        "(default 64)")
+                        f"(default {DEFAULT_MAX_SPP})")
 
 
 def _add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`
@@ -203,10 +204,11 @@ def _bench_command(sub) -> None:
     p.add_argument("--adaptive", type=float, nargs="+", metavar="T",
                    help="the adaptive modes' thresholds: a first pass of 1 spp, then more samples "
                         "where a pixel's estimated error (linear colour) is above T (times "
-                        "n² at n² samples), one run per T (default: 0.005 halving down to "
-                        "4.5e-6, mimarble.bench.modes.ADAPTIVE_THRESHOLDS)")
-    p.add_argument("--max-spp", type=int, default=64, metavar="N",
-                   help="the adaptive modes' most samples per pixel, a perfect square (default 64)")
+                        "n³ at n² samples), one run per T (default: 0.005 quartered down to "
+                        "7.6e-8, mimarble.bench.modes.ADAPTIVE_THRESHOLDS)")
+    p.add_argument("--max-spp", type=int, default=DEFAULT_MAX_SPP, metavar="N",
+                   help="the adaptive modes' most samples per pixel, a perfect square "
+                        f"(default {DEFAULT_MAX_SPP})")
     p.add_argument("--no-adaptive", action="store_true",
                    help="skip the adaptive modes (adaptive, adaptive+prefilter)")
     p.add_argument("--repeats", type=int, default=5, help="warm runs per timing (median)")

@@ -115,6 +115,12 @@ def spp_problem(spp, width: int, height: int) -> str | None:
     return None
 
 
+#: Adaptive sampling's most samples per pixel when ``max_spp`` is not given (at least the
+#: first pass's spp): 1 spp tripled four times (mimarble/mitsuba/rendering/adaptive.py's
+#: ladder, 1, 3, 9, 27, 81, whose every level keeps the samples before it).
+DEFAULT_MAX_SPP = 81
+
+
 def adaptive_problem(threshold, max_spp, spp: int, width: int, height: int) -> str | None:
     """Adaptive sampling's two numbers (``mimarble.render``'s ``adaptive`` and ``max_spp``,
     the command line's ``--adaptive`` and ``--max-spp``): a threshold that is a finite

@@ -96,8 +96,8 @@ class SphereTable:
     """
 
     DRJIT_STRUCT = {"columns": list}
-    #: Tables by scene, with what they were built for; a table holds its scene's shapes
-    #: (to tell a new scene that took a freed one's id), so few are kept.
+    #: Tables by scene, with what they were built for (and, in the scalar variant, its
+    #: shapes, to tell a new scene that took a freed one's id), a few kept.
     _tables: dict = {}
     KEPT = 4
 
@@ -112,8 +112,12 @@ class SphereTable:
         else:
             facts = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
         facts_then, table, held = cls._tables.pop(id(scene), (None, None, None))
-        # The very shapes too: a new scene may take a freed one's id.
-        if facts_then != facts or any(a is not b for a, b in zip(scene.shapes(), table.shapes)):
+        # A new scene may take a freed one's id. Its spheres' ``to_world`` are other
+        # variables than the held copies (whose indices cannot be reused while held), so
+        # the facts tell it; without spheres every table reads radius 0. The scalar
+        # variant compares the very shapes, which its table holds.
+        if facts_then != facts or (placements is None and any(
+                a is not b for a, b in zip(scene.shapes(), table.shapes))):
             if len(cls._tables) >= cls.KEPT:
                 cls._tables.pop(next(iter(cls._tables)))
             table = cls(scene)
@@ -142,12 +146,16 @@ class SphereTable:
         return (getattr(self, "size", None), self.large)
 
     def __init__(self, scene):
-        self.shapes = list(scene.shapes())
-        self.geometry = [_sphere_geometry(s) for s in self.shapes]
+        shapes = list(scene.shapes())
+        self.geometry = [_sphere_geometry(s) for s in shapes]
+        # Held only where the lookup needs them (the scalar variant): a table of a JIT
+        # variant holds no shape, so a dropped scene's shapes leave Dr.Jit's registry, which
+        # every recorded pass walks (issue 43: 0.57 → 1.07 ms a replay after three scenes).
+        self.shapes = None if dr.is_jit_v(mi.Float) else shapes
         if dr.is_jit_v(mi.Float):
             # Every shape's id sizes the table (a hit's id indexes it, clamped to its end):
             # a plane or mesh whose id is past the last sphere's finds r = 0.
-            ids = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in self.shapes]
+            ids = [int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in shapes]
             size = max(ids, default=0) + 1
             columns = [[0.0] * size for _ in range(4)]   # cx, cy, cz, r; r = 0: not a sphere
             for shape_id, geometry in zip(ids, self.geometry):

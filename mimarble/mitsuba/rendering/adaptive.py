@@ -1,46 +1,78 @@
 """Adaptive sampling in whitted mode: samples where the error is.
 
-A first pass renders every pixel with ``spp`` = n² stratum centres, as a plain render
+A first pass renders every pixel with ``spp`` = m² stratum centres, as a plain render
 does. Then rounds: every pixel of the last round whose estimated error E exceeds
-``threshold`` · n² is rendered again with (2n)² stratum centres (the last round:
-``max_spp``'s), which replace its samples — so each pixel ends equal to a plain render's
-at the spp it ended with. Only the pixels a round refined are candidates in the next.
+``threshold`` · n^BAR_POWER (n² its samples) goes one level up a ladder that triples its
+samples and keeps them (:func:`ladder`): the centre of stratum (i, j) of an m×m grid is the
+centre of stratum (3i + 1, 3j + 1) of the 3m×3m one — an odd refinement holds every old
+centre — so a round traces only new strata of the 3m grid, first 2 per cell of the m grid
+(3m² samples: the cell's centre and a pair symmetric about it, the diagonals alternating
+from cell to cell), then the other 6 (9m²: the whole 3m grid), and adds them to the
+pixel's sum. A ``max_spp`` off the ladder is a last level of its own grid, which replaces
+the pixel's samples. Only the pixels a round refined are candidates in the next.
 Deterministic, like the rest of whitted mode.
 
-Why a bar that grows with n: a round costs a pixel 4n² samples, so the error it removes
-per sample falls as n grows; a bar of ``threshold`` · n spends samples where they remove the
-most error per sample if E were exact, and ``threshold`` · n², which leaves deeper rounds
-to fewer pixels still, was measured better (docs/design-decisions.md, "Adaptive
-sampling"). At 1 spp the threshold is the estimated error in colour units.
+**What a pixel is at the end.** At 9^k·m² samples a pixel holds the stratum centres of
+the plain render's grid, one per stratum, summed as a plain render sums them (in float32
+with compensation, the partial sums added in float64), so for point-sampled marbles its
+mean is the plain render's at that spp up to the rounding of that sum's order (a float32
+ulp at most; none in the tests). At 3·9^k·m² it holds, in each of the 9^k·m² strata of
+the grid below, that stratum's centre and two points symmetric about it: a stratified
+estimate with equal weight per stratum, exact for an integrand linear across each
+stratum, as the midpoint rule is. A filtered marble (``bandlimit``, ``prefilter``)
+averages each sample over its footprint, 1/n of the pixel for a grid of n per axis: the
+samples a pixel keeps from a coarser grid keep their wider footprints
+(tests/test_adaptive.py checks each of these).
+
+Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample counts,
+first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
+(``dr.compress``); only its length comes back to size the passes. The lists are in Morton
+order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
+Only the first pass traces the marbles' doubts (its kernel costs about twice the plain
+one's); the rounds trace the plain kernel, and read the first pass's doubt.
+
+Why a bar that grows with n: a round costs a pixel about twice its samples, so the error
+it removes per sample falls as n grows; ``threshold`` · n³ leaves deeper rounds to fewer
+pixels, and was measured best on this ladder (docs/design-decisions.md, "Adaptive samples
+at the price of plain ones"). At 1 spp the threshold is the estimated error in colour
+units.
 
 The estimate of a pixel of n² samples, in linear colour units (the largest of the
 three colours):
 
     E = DOUBT_WEIGHT · doubt / n²                                   every pixel
+    E = max(E, SPREAD_WEIGHT · spread / n²)                         n² ≥ SPREAD_SAMPLES
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
-``doubt`` is the mean over the pixel's samples of whitted's doubt (``Whitted.shade``):
+``doubt`` is the mean over the pixel's first-pass samples of whitted's doubt
+(``Whitted.shade``; the rounds do not trace it):
 the marbles' own estimate of how wrong one sample of them can be there — |the filter's
 colour − its other view of the footprint| (mimarble/texture/filters.py), large where the
 colour changes across the footprint, 0 where it is smooth. It says where a sample can be
 wrong, not whether the prefilter is: inside fine veins a prefiltered pixel is refined as a
 point-sampled one is, and only a marble without noise (linear phase, where the prefilter is
-exact) gives a prefiltered pixel no doubt. A silhouette pixel is one whose 3×3
-neighbourhood sees more than one first-hit shape (the edge samples' test,
-mimarble/mitsuba/rendering/silhouettes.py); its ``contrast`` is what its own samples and its
-neighbours disagree on — the larger of its samples' range (high − low) and the range of
-its 3×3 neighbourhood's means (POV-Ray's ``+A`` compares a pixel with its neighbours): a
-sliver of a sphere between the stratum centres shows in the neighbours only. The powers
-are those of the error of n×n stratum centres: 1/n² for a smooth integrand (the midpoint
-rule), about n^−1.5 for an edge across the pixel (n of the n² cells cut, errors of random
-sign). The weights were chosen by measurement (docs/benchmarks.md, "Adaptive sampling").
+exact) gives a prefiltered pixel no doubt. ``spread`` is the range (high − low, the
+largest colour's) of the pixel's own samples: once it has ``SPREAD_SAMPLES`` of them it
+covers what no doubt sees — a highlight of a constant specular colour, a colour without
+a marble. A silhouette pixel is one whose 3×3 neighbourhood sees more than one first-hit
+shape (the edge samples' test, mimarble/mitsuba/rendering/silhouettes.py); its
+``contrast`` is what its own samples and its neighbours disagree on — the larger of its
+``spread`` and the range of its 3×3 neighbourhood's means (POV-Ray's ``+A`` compares a
+pixel with its neighbours): a sliver of a sphere between the stratum centres shows in the
+neighbours only. The powers are those of the error of n×n stratum centres: 1/n² for a
+smooth integrand (the midpoint rule), about n^−1.5 for an edge across the pixel (n of the
+n² cells cut, errors of random sign). The weights were chosen by measurement
+(docs/benchmarks.md, "Adaptive sampling" and "Adaptive samples at the price of plain
+ones").
 
 Textures without a second estimate (``rgb``, ``bitmap``) have doubt 0: their pixels are
-refined on silhouettes only.
+refined on silhouettes and by their spread only.
 """
 
 from __future__ import annotations
 
+import math
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
@@ -48,10 +80,11 @@ import numpy as np
 from mimarble.runtime import environment
 from mimarble.runtime.progress import report
 from mimarble.scene.model import samples_per_axis
+from mimarble.scene.rules import DEFAULT_MAX_SPP
+from mimarble.mitsuba.plugins.registration import largest_component
 from .loaded_scenes import LOADED
-from .passes import Target, trace_in_passes
+from .passes import Target, trace_sums
 from .replay import scene_facts
-from .silhouettes import silhouette_pixels
 from mimarble.mitsuba.plugins.whitted import Whitted
 from .window import Window
 
@@ -60,60 +93,197 @@ dr, mi = environment.import_drjit_and_mitsuba()
 #: The estimate's weights (module docstring), chosen by measurement.
 DOUBT_WEIGHT = 0.5
 CONTRAST_WEIGHT = 0.25
-#: Samples per pixel when ``max_spp`` is not given.
-DEFAULT_MAX_SPP = 64
+SPREAD_WEIGHT = 0.02
+#: The bar a pixel of n² samples is refined over: ``threshold`` · n^BAR_POWER.
+BAR_POWER = 3.0
+#: Samples a pixel has before its own spread is read (fewer say little: a range of
+#: one or two samples).
+SPREAD_SAMPLES = 3
 
 
 class AdaptiveRender(NamedTuple):
     """An adaptive render: ``image`` (H, W, 3) float32, as ``render_in_passes`` returns
     it; ``samples`` (H, W), each pixel's samples at the end; ``traced``, every sample
-    traced for a pixel, replaced ones included (the cost; not the few a pass over a pixel
-    list pads itself with, :func:`~mimarble.mitsuba.rendering.passes.padded_count`); ``rounds``, the
-    passes over pixel lists after the first pass."""
+    traced for a pixel (the samples a round replaces included: the cost; not the few a
+    pass over a pixel list pads itself with,
+    :func:`~mimarble.mitsuba.rendering.passes.padded_count`); ``rounds``, the passes over
+    pixel lists after the first pass."""
     image: np.ndarray
     samples: np.ndarray
     traced: int
     rounds: int
 
 
+class Level(NamedTuple):
+    """One step of the ladder (:func:`ladder`): a pixel there has ``spp`` samples on the
+    ``grid``×``grid`` stratum centres. A round into it from the level before traces, in each
+    cell of the ``parent``×``parent`` grid (``grid`` = 3·``parent``), ``per_cell`` more of
+    the cell's strata from its ``offset``-th (``pixel_tracer.nested_stratum``) and keeps the
+    rest; ``parent`` 0: the first pass, or a level that replaces the pixel's samples."""
+    spp: int
+    grid: int
+    parent: int = 0
+    per_cell: int = 0
+    offset: int = 0
+
+    @property
+    def traced(self) -> int:
+        """Samples a round into this level traces per pixel."""
+        return self.parent ** 2 * self.per_cell if self.parent else self.spp
+
+
+def ladder(spp: int, max_spp: int) -> list[Level]:
+    """The levels of a render from ``spp`` = m² to ``max_spp`` (perfect squares, ``spp`` ≤
+    ``max_spp``): m², then per cell of the m grid 2 more strata of the 3m grid (3m²), then
+    its other 6 (9m², the whole 3m grid: the plain render's strata), then 3·9m², 81m², …
+    while they fit; then ``max_spp``'s own grid, replacing, if it is not on that ladder
+    (after one more third-way level if that is at most half of ``max_spp``)."""
+    m, most = samples_per_axis(spp), samples_per_axis(max_spp)
+    levels = [Level(spp, m)]
+    while 3 * m <= most:
+        levels += [Level(3 * m * m, 3 * m, m, 2, 0), Level(9 * m * m, 3 * m, m, 6, 2)]
+        m *= 3
+    if m < most:
+        if 3 * m * m <= max_spp // 2:      # a third of the way, if the last step doubles
+            levels.append(Level(3 * m * m, 3 * m, m, 2, 0))
+        levels.append(Level(max_spp, most))
+    return levels
+
+
 def sample_levels(spp: int, max_spp: int) -> list[int]:
-    """The spp of the first pass and of each round: n², (2n)², (4n)², … below ``max_spp``,
-    then ``max_spp`` (both perfect squares, ``spp`` ≤ ``max_spp``)."""
-    n, most = samples_per_axis(spp), samples_per_axis(max_spp)
-    levels = [n]
-    while levels[-1] < most:
-        levels.append(min(2 * levels[-1], most))
-    return [k * k for k in levels]
+    """The spp of the first pass and of each round (:func:`ladder`)."""
+    return [level.spp for level in ladder(spp, max_spp)]
 
 
-def estimated_errors(axis: int, doubt: np.ndarray, contrast: np.ndarray,
-                     on_silhouette: np.ndarray) -> np.ndarray:
+def estimated_errors(axis: float, doubt, spread, contrast, on_silhouette):
     """E of pixels of ``axis``² samples (module docstring), from their mean doubt,
-    contrast and silhouette flags."""
-    errors = (DOUBT_WEIGHT / axis ** 2) * doubt.astype(np.float64)
-    silhouette = CONTRAST_WEIGHT / axis ** 1.5 * contrast.astype(np.float64)
-    return np.where(on_silhouette, np.maximum(errors, silhouette), errors)
+    their samples' spread, contrast and silhouette flags (Dr.Jit Float64 and Bool)."""
+    errors = (DOUBT_WEIGHT / axis ** 2) * doubt
+    if axis * axis >= SPREAD_SAMPLES:
+        errors = dr.maximum(errors, (SPREAD_WEIGHT / axis ** 2) * spread)
+    silhouette = (CONTRAST_WEIGHT / axis ** 1.5) * contrast
+    return dr.select(on_silhouette, dr.maximum(errors, silhouette), errors)
 
 
-def neighbourhoods(pixels: np.ndarray, width: int, height: int) -> np.ndarray:
-    """(9, len) indices of the 3×3 neighbourhood of each of ``pixels`` in a width × height
-    image (clipped at its border: an edge pixel's own row or column again)."""
-    rows, columns = np.divmod(pixels.astype(np.int64), width)
-    return np.stack([np.clip(rows + dy, 0, height - 1) * width
-                     + np.clip(columns + dx, 0, width - 1)
-                     for dy in (-1, 0, 1) for dx in (-1, 0, 1)])
+@lru_cache(maxsize=8)
+def morton_order(width: int, height: int) -> np.ndarray:
+    """The pixels of a width × height image (row-major indices, uint32) in Morton (Z)
+    order: the bits of x and y interleaved, so that nearby list positions are nearby
+    pixels (a round's lanes read nearby noise and texture data)."""
+    y, x = np.divmod(np.arange(width * height, dtype=np.uint64), width)
+    code = np.zeros_like(x)
+    for bit in range(16):
+        code |= ((x >> np.uint64(bit)) & np.uint64(1)) << np.uint64(2 * bit)
+        code |= ((y >> np.uint64(bit)) & np.uint64(1)) << np.uint64(2 * bit + 1)
+    return np.argsort(code, kind="stable").astype(np.uint32)
 
 
-def neighbourhood_range(image: np.ndarray, around: np.ndarray) -> np.ndarray:
-    """The largest over the colours of (max − min) of the (pixels, 3) ``image``'s means at
-    each neighbourhood of ``around`` (:func:`neighbourhoods`)."""
-    values = image[around]                                 # (9, len, 3)
-    return (values.max(axis=0) - values.min(axis=0)).max(axis=-1)
+class PixelState:
+    """What the rounds know of each pixel of the traced window, in Dr.Jit arrays of one
+    lane per pixel (local indices, row-major): the radiance ``sums`` (Color3d), the
+    ``samples`` they hold, the least and largest id of the first shape hit
+    (``first``, ``last``), the ``doubt_sums`` (Float64) and how many samples they sum
+    (``doubted``: the first pass's), and the least and largest sample radiance (``low``,
+    ``high``)."""
+
+    def __init__(self, count: int):
+        self.count = count
+        self.sums = dr.zeros(mi.Color3d, count)
+        self.samples = dr.zeros(mi.UInt32, count)
+        self.first = dr.full(mi.UInt32, 0xFFFFFFFF, count)
+        self.last = dr.zeros(mi.UInt32, count)
+        self.doubt_sums = dr.zeros(mi.Float64, count)
+        self.doubted = dr.zeros(mi.UInt32, count)
+        self.low = dr.full(mi.Color3f, dr.inf, count)
+        self.high = dr.full(mi.Color3f, -dr.inf, count)
+
+    def clear(self, pixels) -> None:
+        """Forget what ``pixels`` (UInt32 local indices) hold: a level that replaces them."""
+        for name, value in (("sums", 0.0), ("doubt_sums", 0.0), ("samples", 0), ("doubted", 0),
+                            ("first", 0xFFFFFFFF), ("last", 0), ("low", dr.inf),
+                            ("high", -dr.inf)):
+            array = getattr(self, name)
+            dr.scatter(array, type(array)(value), pixels)
+
+    def add(self, traced, pixels, active, samples: int) -> None:
+        """Add a pass's :class:`~mimarble.mitsuba.rendering.passes.PassSums` ``traced`` at
+        ``pixels`` (its lanes' local indices) where ``active`` (the padding is not), of
+        ``samples`` samples a pixel: sums and counts added, extremes kept. Gathered,
+        combined and scattered (a pixel is once in a pass): no atomic scatter."""
+        add, least, most = (lambda a, b: a + b), dr.minimum, dr.maximum
+        parts = [("sums", add, traced.sums)]
+        if traced.doubt_sums is not None:
+            parts += [("doubt_sums", add, traced.doubt_sums),
+                      ("doubted", add, dr.opaque(mi.UInt32, samples))]
+        if traced.first is not None:
+            parts += [("first", least, traced.first), ("last", most, traced.last),
+                      ("low", least, traced.low), ("high", most, traced.high)]
+        for name, combine, value in parts:
+            array = getattr(self, name)
+            dr.scatter(array, combine(dr.gather(type(array), array, pixels, active), value),
+                       pixels, active)
+
+    def take(self, traced, samples: int) -> None:
+        """What a first pass over every pixel in order (one pass, ``traced``) found: its
+        arrays are the state (nothing to add them to)."""
+        self.sums = traced.sums
+        if traced.doubt_sums is not None:
+            self.doubt_sums = traced.doubt_sums
+            self.doubted = dr.full(mi.UInt32, samples, self.count)
+        if traced.first is not None:
+            self.first, self.last, self.low, self.high = \
+                traced.first, traced.last, traced.low, traced.high
+
+    def means(self):
+        """Each pixel's mean (Color3f): its sum divided by its samples in float64 (a true
+        division, as a plain render's), rounded once."""
+        return mi.Color3f(self.sums / mi.Float64(dr.maximum(self.samples, 1)))
+
+
+def _neighbours(pixels, width: int, height: int):
+    """The 3×3 neighbourhood of each of ``pixels`` (UInt32 local indices of a width ×
+    height window), clipped at the border (an edge pixel's own row or column again)."""
+    row, column = mi.Int32(pixels // width), mi.Int32(pixels % width)
+    w, h = dr.opaque(mi.Int32, width), dr.opaque(mi.Int32, height)
+    for dy in (-1, 0, 1):
+        for dx in (-1, 0, 1):
+            y = dr.clip(row + dy, 0, h - 1)
+            x = dr.clip(column + dx, 0, w - 1)
+            yield mi.UInt32(y * w + x)
+
+
+def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
+           height: int):
+    """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
+    estimated error is above ``threshold`` · axis² (module docstring), in their order:
+    computed on the device, the list made there (``dr.compress``)."""
+    least = most = None
+    low_mean = high_mean = None
+    for around in _neighbours(pixels, width, height):
+        first = dr.gather(mi.UInt32, state.first, around)
+        last = dr.gather(mi.UInt32, state.last, around)
+        mean = dr.gather(mi.Color3f, means, around)
+        if least is None:
+            least, most, low_mean, high_mean = first, last, mean, mean
+        else:
+            least, most = dr.minimum(least, first), dr.maximum(most, last)
+            low_mean, high_mean = dr.minimum(low_mean, mean), dr.maximum(high_mean, mean)
+    on_silhouette = least != most
+    spread = largest_component(dr.gather(mi.Color3f, state.high, pixels)
+                               - dr.gather(mi.Color3f, state.low, pixels))
+    contrast = dr.maximum(spread, largest_component(high_mean - low_mean))
+    doubted = dr.gather(mi.UInt32, state.doubted, pixels)
+    doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
+    errors = estimated_errors(axis, doubt, mi.Float64(spread), mi.Float64(contrast),
+                              on_silhouette)
+    keep = errors > dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
+    return dr.gather(mi.UInt32, pixels, dr.compress(keep))
 
 
 def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                     max_spp: int = DEFAULT_MAX_SPP, progress=False, crop=None,
-                    pass_samples: int | None = None) -> AdaptiveRender:
+                    pass_samples: int | None = None, rounds: int | None = None
+                    ) -> AdaptiveRender:
     """Render a loaded whitted scene (JIT variants) adaptively: a first pass of ``spp``
     stratum centres, then rounds that refine every pixel whose estimated error is above
     ``threshold`` (linear colour units) up to ``max_spp`` (module docstring).
@@ -122,7 +292,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     ring of one pixel around it, so that its pixels' neighbourhoods are the image's in
     the first pass; a round's estimates at the window's border then see the ring's
     pixels only, so they can be refined otherwise than in the whole image. ``progress``:
-    as ``mimarble.render`` takes it (the total grows with each round)."""
+    as ``mimarble.render`` takes it (the total grows with each round). ``rounds``: stop
+    after that many rounds (the benchmark's oracle, mimarble/bench/oracle.py, takes every
+    pixel to each level with a threshold below 0)."""
     if not isinstance(mitsuba_scene.integrator(), Whitted):
         raise ValueError(f"render_adaptive: the scene's integrator is "
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
@@ -130,56 +302,64 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     target = Target.of(mitsuba_scene, "whitted", LOADED.parameters_of(mitsuba_scene))
     Whitted.prepare_doubts(mitsuba_scene)
     facts = scene_facts(target.scene, target.params)
-    traced_pixels = Window.of(target, crop, ring=1)
-    width, height = traced_pixels.width, traced_pixels.height
+    window = Window.of(target, crop, ring=1)
+    width, height = window.width, window.height
     count = width * height
-    image = np.empty((count, 3), dtype=np.float32)
-    shapes = np.zeros((2, count), dtype=np.uint32)
-    doubt = np.zeros(count, dtype=np.float32)
-    spread = np.zeros(count, dtype=np.float32)
-    samples = np.zeros(count, dtype=np.int64)
+    state = PixelState(count)
     done = report(progress, "render")
     traced, total = 0, count * spp
     done(0, total + 1)                         # open until the last round has said its size
-    levels = sample_levels(spp, max_spp)
-    candidates = np.arange(count, dtype=np.int64)          # local indices
-    rounds = 0
-    for level, level_spp in enumerate(levels):
-        pixels = None if level == 0 else traced_pixels.global_(candidates)
-        if level == 0 and not traced_pixels.whole:
-            pixels = traced_pixels.pixels
-        last = level + 1 == len(levels)    # no estimates: nothing reads them after it
-        for traced_pass in trace_in_passes(target, level_spp, pixels, with_shapes=not last,
-                                           with_estimates=not last, pass_samples=pass_samples,
-                                           key=facts):
-            local = traced_pixels.local(traced_pass.pixels)
-            image[local] = traced_pass.means
-            samples[local] = level_spp
-            estimates = traced_pass.estimates
-            if estimates is not None:
-                shapes[0, local] = traced_pass.first_shape
-                shapes[1, local] = traced_pass.last_shape
-                doubt[local] = estimates.doubt
-                spread[local] = estimates.spread
-            traced += traced_pass.samples
-            done(traced, total + 1)
-        rounds += level > 0
+    levels = ladder(spp, max_spp)
+    if rounds is not None:
+        levels = levels[:rounds + 1]
+    order = mi.UInt32(morton_order(width, height))       # every pixel, local indices
+    pixels, listed = dr.arange(mi.UInt32, count), count  # the first pass: row by row
+    taken = 0
+    for number, level in enumerate(levels):
+        last = number + 1 == len(levels)   # no estimates: nothing reads them after it
+        if number > 0 and not level.parent:
+            state.clear(pixels)
+        whole = number == 0 and window.whole
+        for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
+                               listed, with_estimates=not last, doubts=number == 0,
+                               parent_axis=level.parent, per_cell=level.per_cell,
+                               cell_offset=level.offset, pass_samples=pass_samples, key=facts):
+            lanes = dr.width(part.sums)
+            if whole and part.count == count == lanes and part.samples == level.spp:
+                state.take(part, level.spp)          # the whole image in one pass
+            else:
+                at = dr.arange(mi.UInt32, lanes)
+                active = at < dr.opaque(mi.UInt32, part.count)
+                state.add(part, dr.gather(mi.UInt32, pixels,
+                                          at + dr.opaque(mi.UInt32, part.start), active),
+                          active, part.samples)
+            done(traced + (part.start + part.count) * level.traced, total + 1)
+        dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
+        traced += listed * level.traced
+        taken += number > 0
         if last:
             break
-        edge = np.zeros(count, dtype=bool)
-        edge[silhouette_pixels(shapes, width, height)] = True
-        edge = edge[candidates]
-        contrast = np.zeros(len(candidates), dtype=np.float32)
-        edges = candidates[edge]
-        contrast[edge] = np.maximum(
-            spread[edges], neighbourhood_range(image, neighbourhoods(edges, width, height)))
-        axis = samples_per_axis(level_spp)
-        errors = estimated_errors(axis, doubt[candidates], contrast, edge)
-        candidates = candidates[errors > threshold * axis ** 2]
-        if len(candidates) == 0:
+        means = state.means()
+        candidates = order if number == 0 else pixels
+        pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
+                        height)
+        dr.eval(pixels)
+        listed = dr.width(pixels)
+        if listed == 0:
             break
-        total = traced + len(candidates) * levels[level + 1]
+        total = traced + listed * levels[number + 1].traced
     done(traced, traced)
-    window = traced_pixels.window_of
-    return AdaptiveRender(window(image.reshape(height, width, 3)),
-                          window(samples.reshape(height, width, 1))[..., 0], traced, rounds)
+    image = state.means()
+    image = dr.ravel(image, order="F").numpy().reshape(height, width, 3)
+    samples = state.samples.numpy().astype(np.int64).reshape(height, width)
+    return AdaptiveRender(window.window_of(image), window.window_of(samples[..., None])[..., 0],
+                          traced, taken)
+
+
+def _global(window: Window, pixels):
+    """Local indices of ``window``'s traced pixels (UInt32) → the whole image's."""
+    if window.whole:
+        return pixels
+    row, column = pixels // window.width, pixels % window.width
+    u32 = lambda v: dr.opaque(mi.UInt32, v)
+    return (row + u32(window.y0)) * u32(window.columns) + column + u32(window.x0)

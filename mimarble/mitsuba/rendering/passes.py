@@ -27,7 +27,7 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import largest_component
-from .pixel_tracer import PassNumbers, PixelTracer
+from .pixel_tracer import PassNumbers, PixelTracer, nested_stratum
 from .replay import Recorded, scene_facts
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -212,6 +212,75 @@ def trace_samples(target: Target, spp: int, first_sample: int, count: int, *,
     return sums
 
 
+class PassSums(NamedTuple):
+    """What one pass of :func:`trace_sums` traced, in Dr.Jit arrays of one lane per pixel
+    (and the padding's: only the first ``count`` are the list's): ``start``, the index in
+    the pixel list of its first pixel, ``count`` pixels of ``samples`` samples each;
+    ``sums`` (Color3d), their samples' radiance summed (as
+    :func:`compensated_block_sum` sums them); with estimates (else None) ``first``, ``last``
+    (UInt32: the smallest and largest id of the first shape hit), ``doubt_sums``
+    (Float64) and the least and largest radiance ``low``, ``high`` (Color3f). A pixel
+    split over passes has a partial sum (and extremes) in each: sums add, extremes take
+    their minimum and maximum."""
+    start: int
+    count: int
+    samples: int
+    sums: object
+    first: object = None
+    last: object = None
+    doubt_sums: object = None
+    low: object = None
+    high: object = None
+
+
+def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: bool,
+               doubts: bool = True, parent_axis: int = 0, per_cell: int = 8,
+               cell_offset: int = 0, pass_samples: int | None = None,
+               key: tuple | None = None):
+    """Yield a :class:`PassSums` per pass over ``count`` pixels (``pixels``: a Dr.Jit
+    UInt32 list of whole-image indices, or None: every pixel in order), all on the device:
+    the adaptive rounds' passes (mimarble/mitsuba/rendering/adaptive.py), which add or
+    replace what a pixel holds without a copy to the host.
+
+    ``spp`` = (3m)² with ``parent_axis`` = m > 0: the pixels' samples are on the 3m grid,
+    each cell of the m grid holding its centre and ``cell_offset`` others, and ``per_cell``
+    more of each cell's are traced (``nested_stratum``; a pixel list only); else ``spp``
+    stratum centres.
+    A pass over a list traces a few pixels more (its last one again, up to
+    :func:`padded_count`), so that lists of many lengths replay a few recordings.
+    ``doubts``: estimates with whitted's doubts (else ``doubt_sums`` is None and the
+    kernel is the plain one's)."""
+    pass_samples = PASS_SAMPLES if pass_samples is None else int(pass_samples)
+    doubts = doubts and with_estimates
+    key, inputs = scene_facts(target.scene, target.params) if key is None else key
+    traced_spp = parent_axis ** 2 * per_cell if parent_axis else spp
+    for index, (p0, q0, n_pixels, n_samples) in enumerate(_plan(count, traced_spp,
+                                                                pass_samples)):
+        numbers = PassNumbers(p0, q0, n_samples, spp, index, target.mode == "whitted",
+                              cell_offset)
+        nested = (parent_axis, per_cell) if parent_axis else None
+        subset, traced_pixels = None, n_pixels
+        if pixels is not None:
+            traced_pixels = padded_count(n_pixels, max(pass_samples // n_samples, 1))
+            # The list's pixels p0 … p0 + n − 1, the last one again up to the padded size;
+            # offsets opaque: one small kernel for every round.
+            at = dr.minimum(dr.arange(mi.UInt32, traced_pixels),
+                            dr.opaque(mi.UInt32, n_pixels - 1)) + dr.opaque(mi.UInt32, p0)
+            subset = dr.gather(mi.UInt32, pixels, at)
+            dr.eval(subset)
+        lanes = traced_pixels * n_samples
+        values, first, last, estimates = _pass_function(target.scene)(
+            (key, target.mode, lanes, n_samples, subset is None, True, with_estimates,
+             with_estimates, True, nested, doubts), target.scene, inputs,
+            target.sampler, lanes, n_samples, numbers, subset, True, with_estimates,
+            with_estimates, True, target.mode, nested, doubts)
+        doubt_sums = low = high = None
+        if estimates is not None:
+            doubt_sums, low, high = estimates
+            low, high = (dr.unravel(mi.Color3f, x, order="F") for x in (low, high))
+        yield PassSums(p0, n_pixels, n_samples, values, first, last, doubt_sums, low, high)
+
+
 def padded_count(count: int, most: int) -> int:
     """``count`` pixels rounded up to one of a few sizes — 16, then steps of a quarter
     octave (at most 19 % more) — but not above ``most`` (nor below ``count``): passes
@@ -222,7 +291,8 @@ def padded_count(count: int, most: int) -> int:
 
 def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples: int,
                 numbers: PassNumbers, subset, with_radiance: bool, with_shapes: bool,
-                with_estimates: bool, split: bool, mode: str):
+                with_estimates: bool, split: bool, mode: str, nested: tuple | None = None,
+                doubts: bool = True):
     """One pass, in Dr.Jit: (values, first, last, estimates) of each run of ``n_samples``
     lanes of ``lanes`` — the radiance summed (:func:`compensated_block_sum`: float64 per
     pixel), then (unless ``split``: the pass
@@ -233,7 +303,11 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     the least and the largest radiance per colour); None where not asked for.
     Lane k is sample
     ``first_sample + k mod n`` of pixel ``first_pixel + ⌊k / n⌋`` (n = ``numbers.samples``),
-    or of pixel ``subset[⌊k / n⌋]``.
+    or of pixel ``subset[⌊k / n⌋]``; with ``nested`` = (m, per cell), an adaptive round
+    that keeps the pixel's samples of the level before, sample index s is the s-th new
+    stratum (:func:`~mimarble.mitsuba.rendering.pixel_tracer.nested_stratum`). Estimates without
+    ``doubts`` leave the doubt out (None; the radiance's extremes and the shapes only),
+    and the kernel is the plain one's.
 
     Recorded and replayed (:class:`~mimarble.mitsuba.rendering.replay.Recorded`): everything it
     reads is an argument — the scene, what it does not hold (``inputs``:
@@ -252,11 +326,20 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     pixel = numbers.first_pixel + lane // numbers.samples if subset is None else \
         dr.gather(mi.UInt32, subset, lane // numbers.samples)
     sub = numbers.first_sample + lane % numbers.samples
+    if nested:      # n_samples a literal here (a key of its own): no scalar divisions
+        pixel = dr.gather(mi.UInt32, subset, lane // n_samples)
+        row = pixel // tracer.columns
+        sub = nested_stratum(numbers.first_sample + (lane - (lane // n_samples) * n_samples),
+                             *nested, numbers.cell_offset, row + (pixel - row * tracer.columns))
     doubt = colour = None
-    if with_estimates:
+    if with_estimates and doubts:
         colour, shapes, doubt = tracer.trace_with_doubts(pixel, sub, numbers)
         colour = colour + dr.zeros(mi.Color3f, lanes)                   # constants: full width
         doubt = mi.Float(doubt) + dr.zeros(mi.Float, lanes)
+        radiance = mi.Color3f(colour)
+    elif with_estimates:
+        colour, shapes = tracer.trace(pixel, sub, numbers, True)
+        colour = mi.Color3f(colour) + dr.zeros(mi.Color3f, lanes)       # constants: full width
         radiance = mi.Color3f(colour)
     elif with_radiance:
         radiance, shapes = tracer.trace(pixel, sub, numbers, with_shapes)
@@ -278,7 +361,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     estimates = None
     if with_estimates:
         low = high = colour
-        doubt = compensated_block_sum(doubt, n_samples, numbers.samples)   # Float64
+        if doubt is not None:
+            doubt = compensated_block_sum(doubt, n_samples, numbers.samples)   # Float64
         if n_samples > 1:
             low = dr.block_reduce(dr.ReduceOp.Min, colour, n_samples)
             high = dr.block_reduce(dr.ReduceOp.Max, colour, n_samples)

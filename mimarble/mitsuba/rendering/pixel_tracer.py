@@ -23,15 +23,16 @@ class PassNumbers:
     """The numbers of one pass that vary between passes and renders, as opaque Dr.Jit
     values (one kernel serves them all, and a recording takes them as inputs): the
     first pixel and sample of the pass, samples per pixel in the pass, the spp's
-    stratum count per axis and its reciprocal, the differentials' scale 1/√spp, and
-    the sampler's seed (path mode)."""
+    stratum count per axis and its reciprocal, the differentials' scale 1/√spp, the
+    sampler's seed (path mode), and where an adaptive round starts in each cell's order of
+    strata (``cell_offset``, :func:`nested_stratum`; 0 in any other pass)."""
 
     DRJIT_STRUCT = {"first_pixel": object, "first_sample": object, "samples": object,
                     "per_axis": object, "stratum": object, "differential_scale": object,
-                    "seed": object}
+                    "seed": object, "cell_offset": object}
 
     def __init__(self, first_pixel: int, first_sample: int, samples: int, spp: int,
-                 seed: int, whitted: bool):
+                 seed: int, whitted: bool, cell_offset: int = 0):
         """``whitted``: the samples are the n×n stratum centres (spp = n²)."""
         u32, f32 = (lambda v: dr.opaque(mi.UInt32, v)), (lambda v: dr.opaque(mi.Float, v))
         n = samples_per_axis(spp) if whitted else 1
@@ -41,6 +42,42 @@ class PassNumbers:
         self.per_axis, self.stratum = u32(n), f32(1.0 / n)
         self.differential_scale = f32(1.0 / spp ** 0.5)
         self.seed = u32(seed)
+        self.cell_offset = u32(cell_offset)
+
+
+#: The order in which a cell of the m grid gets its 8 other strata of the 3m grid: (dx,
+#: dy) ∈ {0, 1, 2}², two bits each, pairs symmetric about the centre (1, 1) — both
+#: diagonals, then the middles of the sides — so that a cell with its centre and the
+#: first 2k of them is exact for a linear integrand, as the midpoint rule is.
+CELL_ORDER = ((0, 0), (2, 2), (2, 0), (0, 2), (1, 0), (1, 2), (0, 1), (2, 1))
+_DX = sum(dx << 2 * r for r, (dx, _) in enumerate(CELL_ORDER))
+_DY = sum(dy << 2 * r for r, (_, dy) in enumerate(CELL_ORDER))
+
+
+def nested_stratum(new, parent_axis: int, per_cell: int, cell_offset, parity):
+    """The stratum (column, row) in the 3m×3m grid (m = ``parent_axis``) of the ``new``-th
+    sample an adaptive round adds to a pixel whose samples lie on that grid: each cell of
+    the m grid holds its centre and its first ``cell_offset`` (opaque) other strata
+    (:data:`CELL_ORDER`), and gets ``per_cell`` more. ``parent_axis`` and ``per_cell`` are
+    Python numbers, literals of the kernel: a division by an opaque integer is a scalar
+    loop in a vector kernel (it made a round's lanes 1.6× dearer), by a literal a
+    multiplication.
+
+    The centre of stratum (i, j) of the m grid, ((i + ½)/m, (j + ½)/m), is the centre of
+    stratum (3i + 1, 3j + 1) of the 3m grid — an odd refinement keeps every old centre.
+    Sample ``new`` is in cell c = ⌊new / per_cell⌋, the (offset + new mod per_cell)-th of
+    its order; in cells where ``parity`` (UInt32, per lane: the pixel's x + y) plus the
+    cell's column and row is odd the order is mirrored left to right, so that neighbouring
+    cells take the two diagonals in turn."""
+    m = parent_axis
+    cell = new // per_cell
+    r = cell_offset + (new - cell * per_cell)
+    cy = cell // m
+    cx = cell - cy * m
+    dx = (mi.UInt32(_DX) >> (2 * r)) & 3
+    dy = (mi.UInt32(_DY) >> (2 * r)) & 3
+    dx = dr.select(((parity + cx + cy) & 1) == 1, 2 - dx, dx)
+    return 3 * cx + dx, 3 * cy + dy
 
 
 class PixelTracer:
@@ -73,13 +110,15 @@ class PixelTracer:
         return dr.opaque(mi.Float, value)
 
     def ray(self, pixel, sub, numbers: PassNumbers):
-        """(ray with differentials, weight) of sample ``sub`` in ``pixel``."""
+        """(ray with differentials, weight) of sample ``sub`` in ``pixel`` (whitted mode: an
+        index, or the stratum's (column, row))."""
         y = pixel // self.columns
         x = pixel - y * self.columns
         wavelength_sample = 0.0
         if self.whitted:
-            offset = (mi.Point2f(mi.Float(sub % numbers.per_axis),
-                                 mi.Float(sub // numbers.per_axis)) + 0.5) * numbers.stratum
+            column, row = sub if isinstance(sub, tuple) else \
+                (sub % numbers.per_axis, sub // numbers.per_axis)
+            offset = (mi.Point2f(mi.Float(column), mi.Float(row)) + 0.5) * numbers.stratum
         else:
             self.sampler.seed(numbers.seed, dr.width(pixel))
             offset = self.sampler.next_2d()

@@ -76,8 +76,8 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
     (:func:`render_in_passes`; whitted mode, JIT variants; default: none).
     ``adaptive``: adaptive sampling (whitted mode, JIT variants): ``spp`` is the first pass,
     then every pixel whose estimated error is above ``adaptive`` (linear colour units, at
-    1 spp; times n² at n² samples) is rendered again with twice the samples per
-    axis, up to ``max_spp`` (a perfect square; default 64) — mimarble/mitsuba/rendering/adaptive.py.
+    1 spp; times n³ at n² samples) gets three times its samples, which keep the ones it
+    has, up to ``max_spp`` (a perfect square; default 81) — mimarble/mitsuba/rendering/adaptive.py.
     It refines silhouettes itself, so it does not take ``edge_spp``. NumPy's scalars are
     taken as the Python numbers they hold (mimarble/scene/python_numbers.py).
     """

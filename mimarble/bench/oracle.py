@@ -1,0 +1,61 @@
+"""What an oracle that knows every pixel's true error needs: the samples a pixel for an
+RMSE, when each pixel may end at any level of adaptive sampling's ladder.
+
+The oracle is given, for each level, the image every pixel would have there (an adaptive
+render that takes every pixel to that level, :func:`level_images`; at 1, 9, 81 spp a
+point-sampled one is the plain render's) and the converged image. For a price λ per sample each pixel ends at the
+level k that minimises e_k² + λ·c_k — e_k² its squared error summed over the colours,
+c_k the samples traced to end there (the ladder's kept samples are not traced again;
+a level that replaces traces its own anew) — which is the least total squared error for
+that many samples (a Lagrangian relaxation of the budget: exact on the curve's convex
+hull). Swept over λ, coarse to fine, it is a curve of (samples a pixel, RMSE) that no
+estimate of the error can beat with these levels; :func:`oracle_samples` reads where it
+reaches an RMSE. NumPy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mimarble.bench.curves import _interpolated
+
+
+def level_images(mitsuba_scene, spp: int, max_spp: int) -> tuple[list[np.ndarray], list[int]]:
+    """(images, costs): every pixel of a loaded whitted scene taken to each level of
+    adaptive sampling's ladder from ``spp`` to ``max_spp`` (a threshold below every
+    estimate), and the samples a pixel traces to end at each level."""
+    from mimarble.mitsuba.rendering.adaptive import ladder, render_adaptive
+    levels = ladder(spp, max_spp)
+    runs = [render_adaptive(mitsuba_scene, spp, -1.0, max_spp, rounds=k)
+            for k in range(len(levels))]
+    pixels = runs[0].image.shape[0] * runs[0].image.shape[1]
+    return [r.image for r in runs], [r.traced // pixels for r in runs]
+
+
+def oracle_curve(images: list[np.ndarray], truth: np.ndarray, costs: list[int],
+                 prices: int = 64) -> list[dict]:
+    """The oracle's runs, coarse to fine: ``{"mean_spp", "rmse"}`` for each of ``prices``
+    prices per sample (logarithmically from one that keeps every pixel at the first level
+    to one that takes every pixel to the last). ``images``: (H, W, 3) per level, in the
+    ladder's order; ``costs``: the samples a pixel traces to end at each
+    (:func:`level_images`)."""
+    truth = np.asarray(truth, np.float64)
+    errors = np.stack([np.sum(np.square(np.asarray(i, np.float64) - truth), axis=-1).ravel()
+                       for i in images])                            # (levels, pixels)
+    cost = np.asarray(costs, np.float64)[:, None]
+    gains = np.abs(np.diff(errors, axis=0)) / np.diff(cost, axis=0)
+    top = max(float(gains.max()) if gains.size else 1.0, 1e-30) * 2
+    runs = []
+    for price in np.geomspace(top, top * 1e-12, prices):
+        chosen = np.argmin(errors + price * cost, axis=0)
+        pixels = np.arange(errors.shape[1])
+        runs.append({"mean_spp": float(np.mean(cost[chosen, 0])),
+                     "rmse": float(np.sqrt(np.mean(errors[chosen, pixels]) / 3.0))})
+    return runs
+
+
+def oracle_samples(images: list[np.ndarray], truth: np.ndarray, costs: list[int],
+                   target: float) -> float | None:
+    """Samples a pixel the oracle needs for RMSE ``target`` (interpolated in log-log
+    between its runs), None when even every pixel at its best level misses it."""
+    return _interpolated(oracle_curve(images, truth, costs), target, "mean_spp")
