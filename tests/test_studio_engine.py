@@ -432,3 +432,23 @@ def test_a_state_that_cannot_render_is_said_and_undone():
         assert s.state()["error"] is None
     finally:
         s.close()
+
+
+def test_a_first_state_that_cannot_render_is_said_once():
+    """No frame yet to go back to (a translucent scene opened in whitted mode): the
+    error is said and the render thread waits for an edit — it does not submit the
+    failing state again and again (it did: ~10⁴ versions a second, a core busy)."""
+    s = _session("fig11a-translucent", mode="whitted")
+    try:
+        deadline = time.monotonic() + 60
+        while s.state()["error"] is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        version = s.state()["version"]
+        time.sleep(1.0)
+        assert s.state()["version"] == version
+        assert "subsurface" in s.state()["error"]["message"]
+        s.edit("mode", "path")                              # an edit renders again
+        assert s.wait_frame().mode == "path"
+    finally:
+        s.close()

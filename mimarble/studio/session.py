@@ -178,10 +178,14 @@ class StudioSession:
 
     def _render_failed(self, request: Request, error: Exception) -> None:
         """A state the render thread could not render: said, and the session goes back
-        to the state its last frame showed (when no newer edit has come)."""
+        to the state its last frame showed (when no newer edit has come, and when that
+        state is not the one that failed: a first state that cannot render, before any
+        frame, stays said, not submitted again and again)."""
         with self._lock:
             self._error = {**error_dict(error), "kind": "render"}
-            if request.version == self._version:
+            shown_scene, shown_mode = self._shown
+            if request.version == self._version and (
+                    request.scene is not shown_scene or request.mode != shown_mode):
                 self._scene, self._mode = self._shown
                 self._version += 1
                 self._worker.submit(Request(self._version, self._scene, self._mode))
