@@ -485,8 +485,10 @@ class StudioSession:
         reloading it, or ``{"reloaded": False, "error": …}`` (a parse error: the last good
         scene and frame stay) or ``{"reloaded": False, "disk_changed": True}`` (unsaved
         edits kept: :meth:`reload` takes the file's)."""
-        facts = _facts(self.path)
         with self._lock:
+            # Looked at under the lock: a save between the look and the lock would make the
+            # file's old facts look like an editor's change (Save then refused, or a reload).
+            facts = _facts(self.path)
             if facts == self._stat or self._closed:
                 return None
             if self._edits:
