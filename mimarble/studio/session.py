@@ -39,14 +39,15 @@ from mimarble.scene.edits import KeyPathError, with_image_size, with_value
 from mimarble.scene.rewrite import SaveRefused, read_scene_text, rewrite, save_atomic
 from .camera import orbited_eye, zoomed_fov
 from .compare import Comparison
-from .controls import HEIGHT, WIDTH, controls
+from .controls import HEIGHT, MODE, WIDTH, controls
 from .frames import FRAME_FORMAT, Frame
 from .worker import RenderThread, Request
 
 #: Seconds between two looks at the scene file's modification time.
 WATCH_SECONDS = 0.5
-#: The modes the studio renders in (the command line's, less ``preview``).
-MODES = ("whitted", "path")
+#: The modes the studio renders in (the command line's, less ``preview``): the view's
+#: mode control's choices (controls.MODE), declared there once.
+MODES = MODE.choices
 #: The keys of the view: not in the file, not saved.
 VIEW_KEYS = ("mode", "image.width", "image.height")
 
