@@ -452,3 +452,19 @@ def test_a_first_state_that_cannot_render_is_said_once():
         assert s.wait_frame().mode == "path"
     finally:
         s.close()
+
+
+def test_save_as_where_the_scenes_files_are_not_writes_nothing(tmp_path):
+    """Save as into a folder without the scene's image map (maps/flagstones.png): the
+    file was written, then its reading failed, and the session was left half switched
+    (its path the new file's, its text the old's)."""
+    from mimarble.studio import StudioError
+    s = _session("veins-over-image")
+    try:
+        before = s.state()["path"]
+        with pytest.raises(StudioError, match="flagstones.png"):
+            s.save_as(tmp_path / "mine.scene")
+        assert not (tmp_path / "mine.scene").exists() and list(tmp_path.iterdir()) == []
+        assert s.state()["path"] == before
+    finally:
+        s.close()

@@ -444,13 +444,22 @@ class StudioSession:
     def save_as(self, path) -> str:
         """Write the scene as edited now to ``path`` (the file's text with the edits
         written in, whole or not at all); the session then edits that file. Returns the
-        text written; StudioError for a name or folder that cannot be written."""
+        text written; StudioError for a name or folder that cannot be written, or a
+        folder where the scene's relative files (meshes, image maps) are not: nothing is
+        written then, and the session keeps its file."""
         from mimarble.runtime.files import output_name_problem
         problem = output_name_problem(path)
         if problem:
             raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
         with self._lock:
             text = self._rewritten()
+            try:      # read as it would be there: its meshes and image maps beside it
+                scene_language.parse(text, filename=str(path), source=str(path))
+            except scene_language.SceneError as e:
+                first = str(e).splitlines()[0]
+                raise StudioError(f"save as: the scene would not read at {path} ({first}); "
+                                  f"save it beside the files it names (nothing was "
+                                  f"written)") from None
             try:
                 save_atomic(path, text, None)
             except OSError as e:
