@@ -468,3 +468,16 @@ def test_save_as_where_the_scenes_files_are_not_writes_nothing(tmp_path):
         assert s.state()["path"] == before
     finally:
         s.close()
+
+
+def test_snapshot_and_export_into_a_missing_folder_are_one_sentence(session, tmp_path):
+    """The folder the user typed does not exist: the system's reason and the path typed,
+    not an OSError naming the writer's temporary file (.x.mimarble-PID-….png)."""
+    from mimarble.studio import StudioError
+    session.wait_frame()
+    for write, name in ((session.snapshot, "x.png"), (session.export, "x.xml")):
+        target = tmp_path / "no-such-folder" / name
+        with pytest.raises(StudioError) as caught:
+            write(target)
+        assert str(caught.value).endswith(f"{target}: No such file or directory")
+    assert list(tmp_path.iterdir()) == []

@@ -342,7 +342,10 @@ class StudioSession:
         frame = self.latest_frame()
         if frame is None:
             raise StudioError("snapshot: no frame has been rendered yet")
-        write_image(path, frame.pixels)
+        try:
+            write_image(path, frame.pixels)
+        except OSError as e:      # the system's words, not the temporary file's name
+            raise StudioError(f"snapshot: {path}: {e.strerror or e}") from None
         return frame
 
     def export(self, path, python: bool = False) -> str:
@@ -352,7 +355,10 @@ class StudioSession:
         from mimarble.tools.export import export
         with self._lock:
             scene, mode = self._scene, self._mode
-        return export(scene, path, mode=mode, python=python)
+        try:
+            return export(scene, path, mode=mode, python=python)
+        except OSError as e:      # the system's words, not the temporary file's name
+            raise StudioError(f"export: {path}: {e.strerror or e}") from None
 
     # -- Compare ---------------------------------------------------------------------------
 
