@@ -150,3 +150,54 @@ def test_the_notebooks_studio_is_an_iframe_of_the_same_page(tmp_path):
     finally:
         view.close()
     assert "closed" in view._repr_html_()
+
+
+def test_a_packaged_scene_opened_by_name_is_not_saved_over(monkeypatch):
+    """``mimarble.studio("fig11a")`` and ``mimarble studio fig11a``: the packaged file is
+    the package's (or the checkout's scenes/), so Save refuses it. The callers resolved the
+    name before the session saw it, and the session took it for a user's file."""
+    import mimarble
+    from mimarble.studio import StudioError
+    packaged = packaged_scenes.find("fig11a")
+    before = packaged.read_bytes()
+    view = mimarble.studio("fig11a")
+    try:
+        assert view.session.state()["packaged"]
+        view.session.edit("marble.period", 2.0)
+        with pytest.raises(StudioError, match="packaged scene"):
+            view.session.save()
+    finally:
+        view.close()
+        if packaged.read_bytes() != before:             # never leave the checkout changed
+            packaged.write_bytes(before)
+    assert packaged.read_bytes() == before
+
+
+def test_the_command_does_not_save_over_a_packaged_scene_named():
+    from websockets.sync.client import connect
+    import json
+    packaged = packaged_scenes.find("fig11a")
+    before = packaged.read_bytes()
+    process = start("fig11a", "--no-browser")
+    try:
+        url, _ = read_url(process)
+        port, token = url.split(":")[2].split("/")[0], url.split("token=")[1]
+        with connect(f"ws://127.0.0.1:{port}/ws?token={token}",
+                     origin=f"http://127.0.0.1:{port}", max_size=None) as socket_:
+            socket_.send(json.dumps({"type": "edit", "key": "marble.period", "value": 2.0}))
+            socket_.send(json.dumps({"type": "save"}))
+            deadline = time.time() + 120
+            while time.time() < deadline:
+                data = socket_.recv(timeout=120)
+                if isinstance(data, str) and json.loads(data).get("action") == "save":
+                    answer = json.loads(data)
+                    break
+        assert answer["type"] == "problem" and "packaged scene" in answer["message"]
+        process.send_signal(signal.SIGINT)
+        process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+        if packaged.read_bytes() != before:             # never leave the checkout changed
+            packaged.write_bytes(before)
+    assert packaged.read_bytes() == before

@@ -432,3 +432,52 @@ def test_a_state_that_cannot_render_is_said_and_undone():
         assert s.state()["error"] is None
     finally:
         s.close()
+
+
+def test_a_first_state_that_cannot_render_is_said_once():
+    """No frame yet to go back to (a translucent scene opened in whitted mode): the
+    error is said and the render thread waits for an edit — it does not submit the
+    failing state again and again (it did: ~10⁴ versions a second, a core busy)."""
+    s = _session("fig11a-translucent", mode="whitted")
+    try:
+        deadline = time.monotonic() + 60
+        while s.state()["error"] is None:
+            assert time.monotonic() < deadline
+            time.sleep(0.02)
+        version = s.state()["version"]
+        time.sleep(1.0)
+        assert s.state()["version"] == version
+        assert "subsurface" in s.state()["error"]["message"]
+        s.edit("mode", "path")                              # an edit renders again
+        assert s.wait_frame().mode == "path"
+    finally:
+        s.close()
+
+
+def test_save_as_where_the_scenes_files_are_not_writes_nothing(tmp_path):
+    """Save as into a folder without the scene's image map (maps/flagstones.png): the
+    file was written, then its reading failed, and the session was left half switched
+    (its path the new file's, its text the old's)."""
+    from mimarble.studio import StudioError
+    s = _session("veins-over-image")
+    try:
+        before = s.state()["path"]
+        with pytest.raises(StudioError, match="flagstones.png"):
+            s.save_as(tmp_path / "mine.scene")
+        assert not (tmp_path / "mine.scene").exists() and list(tmp_path.iterdir()) == []
+        assert s.state()["path"] == before
+    finally:
+        s.close()
+
+
+def test_snapshot_and_export_into_a_missing_folder_are_one_sentence(session, tmp_path):
+    """The folder the user typed does not exist: the system's reason and the path typed,
+    not an OSError naming the writer's temporary file (.x.mimarble-PID-….png)."""
+    from mimarble.studio import StudioError
+    session.wait_frame()
+    for write, name in ((session.snapshot, "x.png"), (session.export, "x.xml")):
+        target = tmp_path / "no-such-folder" / name
+        with pytest.raises(StudioError) as caught:
+            write(target)
+        assert str(caught.value).endswith(f"{target}: No such file or directory")
+    assert list(tmp_path.iterdir()) == []

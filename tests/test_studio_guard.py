@@ -135,6 +135,8 @@ def test_well_formed_messages_are_returned_as_dicts():
     ('{"type": "orbit", "dx": true, "dy": 0}', "'dx' must be a number"),
     ('{"type": "zoom", "factor": NaN}', "not a number JSON allows"),
     ('{"type": "zoom", "factor": 1e999}', "finite"),
+    ('{"type": "zoom", "factor": 1' + "0" * 400 + '}', "finite"),
+    ('{"type": "edit", "key": "k", "value": [-1' + "0" * 400 + ']}', "finite"),
     ('{"type": "save_as", "path": "' + "a" * 5000 + '"}', "at most 4096"),
     ('{"type": "edit", "key": "k", "value": [[[[[[1]]]]]]}', "nested too deeply"),
 ])

@@ -26,7 +26,9 @@ def _studio(args) -> int:
     from mimarble.studio import StudioSession
     from mimarble.studio.server import StudioServer
     try:
-        session = StudioSession(path, mode=args.mode)
+        # The argument as given, not ``path``: the session resolves a packaged scene's
+        # name itself, and only then knows it is packaged (Save refuses to overwrite it).
+        session = StudioSession(args.scene, mode=args.mode)
     except ValueError as e:                    # a mode the studio does not render
         raise UsageError(f"--mode {args.mode}: {e}") from None
     try:

@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import math
 import struct
+import sys
 
 #: The largest message the page may send, in bytes (a ramp of 64 colours is ~2 KB): a
 #: bigger one is answered and dropped. The websocket itself closes at :data:`MAX_WIRE_BYTES`.
@@ -97,6 +98,10 @@ def _no_constant(name):
     raise ValueError(f"{name} is not a number JSON allows")
 
 
+#: The largest finite float: a JSON integer past it is no number the studio can use.
+_LARGEST_FLOAT = sys.float_info.max
+
+
 def _check_sizes(value, where: str, depth: int = 0) -> None:
     """Strings within :data:`MAX_TEXT`, numbers finite, nesting shallow."""
     if depth > 4:
@@ -105,6 +110,9 @@ def _check_sizes(value, where: str, depth: int = 0) -> None:
         raise MessageError(f"{where} is {len(value)} characters long; at most {MAX_TEXT}")
     if isinstance(value, float) and not math.isfinite(value):
         raise MessageError(f"{where} must be a finite number")
+    if isinstance(value, int) and abs(value) > _LARGEST_FLOAT:
+        # JSON's 1 followed by 400 zeros is a Python int: float() of it overflows later.
+        raise MessageError(f"{where} must be a finite number (it is past a float's range)")
     if isinstance(value, list):
         for item in value:
             _check_sizes(item, where, depth + 1)

@@ -78,10 +78,11 @@ def studio(scene, mode: str | None = None, *, port: int = 0, height: int = HEIGH
     """
     from mimarble.runtime.extras import require_extra
     require_extra("studio")
-    from mimarble.runtime import packaged_scenes
     from mimarble.studio.server import StudioServer
     from mimarble.studio.session import StudioSession
-    session = StudioSession(packaged_scenes.resolve(str(scene)), mode=mode)
+    # The name as given: the session resolves a packaged scene's name and then refuses
+    # to save over it (resolved here first, it was an ordinary path, saved over).
+    session = StudioSession(scene, mode=mode)
     try:
         server = StudioServer(session, port=port).start()
     except BaseException:

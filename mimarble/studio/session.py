@@ -39,14 +39,15 @@ from mimarble.scene.edits import KeyPathError, with_image_size, with_value
 from mimarble.scene.rewrite import SaveRefused, read_scene_text, rewrite, save_atomic
 from .camera import orbited_eye, zoomed_fov
 from .compare import Comparison
-from .controls import HEIGHT, WIDTH, controls
+from .controls import HEIGHT, MODE, WIDTH, controls
 from .frames import FRAME_FORMAT, Frame
 from .worker import RenderThread, Request
 
 #: Seconds between two looks at the scene file's modification time.
 WATCH_SECONDS = 0.5
-#: The modes the studio renders in (the command line's, less ``preview``).
-MODES = ("whitted", "path")
+#: The modes the studio renders in (the command line's, less ``preview``): the view's
+#: mode control's choices (controls.MODE), declared there once.
+MODES = MODE.choices
 #: The keys of the view: not in the file, not saved.
 VIEW_KEYS = ("mode", "image.width", "image.height")
 
@@ -178,10 +179,14 @@ class StudioSession:
 
     def _render_failed(self, request: Request, error: Exception) -> None:
         """A state the render thread could not render: said, and the session goes back
-        to the state its last frame showed (when no newer edit has come)."""
+        to the state its last frame showed (when no newer edit has come, and when that
+        state is not the one that failed: a first state that cannot render, before any
+        frame, stays said, not submitted again and again)."""
         with self._lock:
             self._error = {**error_dict(error), "kind": "render"}
-            if request.version == self._version:
+            shown_scene, shown_mode = self._shown
+            if request.version == self._version and (
+                    request.scene is not shown_scene or request.mode != shown_mode):
                 self._scene, self._mode = self._shown
                 self._version += 1
                 self._worker.submit(Request(self._version, self._scene, self._mode))
@@ -337,7 +342,10 @@ class StudioSession:
         frame = self.latest_frame()
         if frame is None:
             raise StudioError("snapshot: no frame has been rendered yet")
-        write_image(path, frame.pixels)
+        try:
+            write_image(path, frame.pixels)
+        except OSError as e:      # the system's words, not the temporary file's name
+            raise StudioError(f"snapshot: {path}: {e.strerror or e}") from None
         return frame
 
     def export(self, path, python: bool = False) -> str:
@@ -347,7 +355,10 @@ class StudioSession:
         from mimarble.tools.export import export
         with self._lock:
             scene, mode = self._scene, self._mode
-        return export(scene, path, mode=mode, python=python)
+        try:
+            return export(scene, path, mode=mode, python=python)
+        except OSError as e:      # the system's words, not the temporary file's name
+            raise StudioError(f"export: {path}: {e.strerror or e}") from None
 
     # -- Compare ---------------------------------------------------------------------------
 
@@ -439,13 +450,22 @@ class StudioSession:
     def save_as(self, path) -> str:
         """Write the scene as edited now to ``path`` (the file's text with the edits
         written in, whole or not at all); the session then edits that file. Returns the
-        text written; StudioError for a name or folder that cannot be written."""
+        text written; StudioError for a name or folder that cannot be written, or a
+        folder where the scene's relative files (meshes, image maps) are not: nothing is
+        written then, and the session keeps its file."""
         from mimarble.runtime.files import output_name_problem
         problem = output_name_problem(path)
         if problem:
             raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
         with self._lock:
             text = self._rewritten()
+            try:      # read as it would be there: its meshes and image maps beside it
+                scene_language.parse(text, filename=str(path), source=str(path))
+            except scene_language.SceneError as e:
+                first = str(e).splitlines()[0]
+                raise StudioError(f"save as: the scene would not read at {path} ({first}); "
+                                  f"save it beside the files it names (nothing was "
+                                  f"written)") from None
             try:
                 save_atomic(path, text, None)
             except OSError as e:
@@ -481,8 +501,10 @@ class StudioSession:
         reloading it, or ``{"reloaded": False, "error": …}`` (a parse error: the last good
         scene and frame stay) or ``{"reloaded": False, "disk_changed": True}`` (unsaved
         edits kept: :meth:`reload` takes the file's)."""
-        facts = _facts(self.path)
         with self._lock:
+            # Looked at under the lock: a save between the look and the lock would make the
+            # file's old facts look like an editor's change (Save then refused, or a reload).
+            facts = _facts(self.path)
             if facts == self._stat or self._closed:
                 return None
             if self._edits:
