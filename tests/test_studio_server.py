@@ -439,3 +439,21 @@ def test_save_refuses_a_file_changed_on_disk_and_reload_takes_the_files(tmp_path
         tab.send({"type": "reload"})
         tab.wait(lambda m: m["type"] == "done" and m["action"] == "reload")
         assert session.edits_made == {} and session.text == theirs
+
+
+@pytest.mark.parametrize("packaged", [False, True])
+def test_a_relative_name_is_from_the_scenes_folder_or_for_a_packaged_scene_the_working_one(
+        tmp_path, monkeypatch, packaged):
+    """Save as, Snapshot and Export: a packaged scene's folder (the installed package, or the
+    checkout's scenes/) is not where a user's files go."""
+    class Session:                       # what the server reads of the session here
+        def state(self):
+            return {"path": str(tmp_path / "scenes" / "a.scene"), "packaged": packaged}
+
+    monkeypatch.chdir(tmp_path)
+    server = StudioServer(Session())
+    try:
+        chosen = server._user_path("shot.png")
+    finally:
+        server._socket.close()
+    assert chosen == (tmp_path if packaged else tmp_path / "scenes") / "shot.png"

@@ -378,11 +378,14 @@ class StudioServer:
 
     def _user_path(self, text: str) -> Path:
         """A path the user typed: ``~`` expanded, a relative one taken from the scene
-        file's folder (the server's own working folder means nothing to the page)."""
+        file's folder — or, for a packaged scene (opened by name), from the folder the
+        command was started in: the package's folder is not the user's to write in."""
         path = Path(text).expanduser()
         if not path.is_absolute():
-            scene = self.session.state().get("path")
-            path = (Path(scene).parent if scene else Path.cwd()) / path
+            state = self.session.state()
+            scene = state.get("path")
+            folder = Path(scene).parent if scene and not state.get("packaged") else Path.cwd()
+            path = folder / path
         return path
 
 
