@@ -37,7 +37,7 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.mitsuba.rendering.loaded_scenes import LoadedScenes
-from mimarble.mitsuba.rendering.passes import Target, trace_samples, _traced_pass
+from mimarble.mitsuba.rendering.passes import Target, samples_pass_key, trace_samples, _traced_pass
 from mimarble.mitsuba.rendering.replay import enabled as replay_enabled, scene_facts
 from .frames import FRAME_FORMAT, Frame, encode
 from .histogram import Histograms
@@ -147,7 +147,7 @@ class RenderThread(threading.Thread):
         target = Target.of(mitsuba_scene, mode, self.loaded.parameters_of(mitsuba_scene))
         facts = scene_facts(target.scene, target.params)
         pixels = target.width * target.height
-        first_key = (facts.key, mode, pixels, 1, True, True, False, False, True)
+        first_key = samples_pass_key(facts.key, mode, pixels, 1)
         # A recording is made again when its key is new, or when the loaded scenes have
         # changed since it was made (Dr.Jit checks the registry of instances it saw:
         # going back to octaves 8 after 9 was loaded records 8's pass once more).

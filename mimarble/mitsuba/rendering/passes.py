@@ -176,6 +176,13 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
                          Estimates(*traced[3:]) if estimates is not None else None)
 
 
+def samples_pass_key(scene_key, mode: str, lanes: int, count: int) -> tuple:
+    """The recording key of a pass of :func:`trace_samples` over ``lanes`` lanes of
+    ``count`` samples a pixel: the radiance, summed per pixel (split), without shapes or
+    estimates. The studio reads it to tell a replay from a new recording."""
+    return (scene_key, mode, lanes, count, True, True, False, False, True)
+
+
 def trace_samples(target: Target, spp: int, first_sample: int, count: int, *,
                   seed: int = 0, key: tuple | None = None) -> np.ndarray:
     """The radiance of samples ``first_sample … first_sample + count − 1`` of ``spp`` in
@@ -205,7 +212,7 @@ def trace_samples(target: Target, spp: int, first_sample: int, count: int, *,
                               (seed * 0x9E3779B1 + index) & 0xFFFFFFFF, target.mode == "whitted")
         lanes = n_pixels * count
         values = _pass_function(target.scene)(
-            (key, target.mode, lanes, count, True, True, False, False, True), target.scene,
+            samples_pass_key(key, target.mode, lanes, count), target.scene,
             inputs, target.sampler, lanes, count, numbers, None, True, False, False, True,
             target.mode)[0]
         sums[p0:p0 + n_pixels] = values.numpy().T
