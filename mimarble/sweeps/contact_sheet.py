@@ -177,8 +177,9 @@ def draw_contact_sheet(path, title: str, settings, cells, cell: int = 160,
             text = ", ".join(_label(setting, values[setting["key"]]) for setting in settings)
             draw.text((lx, ly), fitted_line(draw, text, lw), fill="black")
     if len(settings) == 2:               # the values along the top and the left
+        width = layout.cells[0][2]       # the cells' width, shrunk for a large sweep
         for (cx, cy), value in zip(layout.columns, settings[1]["values"]):
-            draw.text((cx, cy), fitted_line(draw, _label(settings[1], value), cell),
+            draw.text((cx, cy), fitted_line(draw, _label(settings[1], value), width),
                       fill="black")
         for (rx, ry), value in zip(layout.rows, settings[0]["values"]):
             draw.text((rx, ry), _label(settings[0], value), fill="black")
