@@ -116,6 +116,14 @@ def _header_only_exr(path, width, height):
     path.write_bytes(bytes(data))
 
 
+def _small_8_bit(path, kind):
+    """A PNG of 4×2 or a JPEG of 1×5 pixels, each pixel its own colour."""
+    from PIL import Image
+    size = (4, 2) if kind == "PNG" else (1, 5)
+    pixels = (np.arange(size[0] * size[1] * 3).reshape(size[1], size[0], 3) * 9).astype(np.uint8)
+    Image.fromarray(pixels).save(path, format=kind)
+
+
 @pytest.mark.parametrize("make, words", [
     (lambda p: _header_only_exr(p, 60000, 60000), "60000x60000 = 3600000000 pixels"),
     (lambda p: _header_only_exr(p, 4, 1), "at least 2x3"),
@@ -126,6 +134,11 @@ def _header_only_exr(path, width, height):
      "XYZ colours"),
     (lambda p: p.write_bytes(b"just some text, no image"), "not an environment image"),
     (lambda p: p.write_bytes(p.with_name("sky.png").read_bytes()[:-20]), "a truncated PNG"),
+    # as small as the OpenEXR above, in 8 bits: Mitsuba pads it, the reference would not
+    (lambda p: _small_8_bit(p, "PNG"), "an image of 4x2 pixels; an environment image is at "
+                                       "least 2x3"),
+    (lambda p: _small_8_bit(p, "JPEG"), "an image of 1x5 pixels; an environment image is at "
+                                        "least 2x3"),
 ])
 def test_huge_truncated_or_non_image_files_exit_2_in_one_sentence(files, make, words, capsys):
     folder, _ = files

@@ -8,8 +8,9 @@ file's string, before any pixel is decoded:
 * anything that is not a regular file (runtime/reading.py), or not one of the formats;
 * an image of more than :data:`~mimarble.scene.limits.MAX_IMAGE_MAP_PIXELS` pixels (the
   image maps' limit: a small file that decodes into gigabytes is refused from its
-  header), or narrower than 2 or shorter than 3 pixels (Mitsuba pads such a map; say
-  ``color`` for a uniform sky);
+  header), or narrower than 2 or shorter than 3 pixels, in every format (Mitsuba pads
+  such a map, which the reference does not: a 4×2 PNG's backgrounds differed by 0.34;
+  say ``color`` for a uniform sky);
 * **OpenEXR**: a single-part scanline image (not tiled, deep or multi-part) whose header
   ends within :data:`EXR_HEADER_MOST` bytes, with channels R, G and B of HALF or FLOAT
   samples (other channels, such as A, are ignored), and complete: its table of chunk
@@ -31,7 +32,7 @@ from dataclasses import dataclass
 
 from mimarble.runtime.reading import open_failure, open_regular, shortened
 
-from .image_header import image_file_problem
+from .image_header import image_file_problem, image_size
 from .limits import MAX_IMAGE_MAP_PIXELS
 
 __all__ = ["ENVIRONMENT_FORMATS", "EXR_HEADER_MOST", "EXR_COMPRESSIONS", "ExrLayout",
@@ -110,9 +111,16 @@ def environment_file_problem(path: str) -> str | None:
         return str(p)
     except OSError as e:
         return open_failure(e, where)
-    problem = image_file_problem(path)
-    if problem is None:
+    size = image_size(path)         # 8 bits: held to the least size as the others are
+    if size is not None:
+        try:
+            _size("image", *size)
+        except EnvironmentFileProblem as p:
+            return str(p)
         return None
+    problem = image_file_problem(path)
+    if problem is None:             # changed between the two reads: read it again later
+        return "the file changed while it was read"
     if problem.startswith("not a PNG or JPEG"):
         return f"not an environment image; environments are {ENVIRONMENT_FORMATS} files"
     return problem
