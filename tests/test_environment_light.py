@@ -153,6 +153,28 @@ def test_huge_truncated_or_non_image_files_exit_2_in_one_sentence(files, make, w
     assert "Traceback" not in err and not out.exists()
 
 
+def test_an_unchanged_file_is_walked_once_and_a_rewritten_one_again(files, tmp_path,
+                                                                    monkeypatch):
+    """to_mitsuba checks the environment file for every scene (each sweep frame, each
+    studio edit): an HDR's scanlines are walked once per version of the file, and a file
+    cut since is refused."""
+    from mimarble.scene import environment_header
+    folder, _ = files
+    walked = []
+    real_walk = environment_header.walk_hdr
+    monkeypatch.setattr(environment_header, "walk_hdr",
+                        lambda *a, **k: walked.append(1) or real_walk(*a, **k))
+    sky_file = tmp_path / "kept.hdr"
+    sky_file.write_bytes((folder / "sky.hdr").read_bytes())
+    scene = load(tmp_path, scene_text('environment { file "kept.hdr" }'))
+    for _ in range(3):
+        to_mitsuba(scene, "path")
+    assert len(walked) == 1
+    sky_file.write_bytes((folder / "sky.hdr").read_bytes()[:-5])
+    with pytest.raises(SceneError, match="a truncated Radiance HDR"):
+        to_mitsuba(scene, "path")
+
+
 def test_a_huge_header_is_refused_from_a_bounded_read(files, monkeypatch):
     """60000² float RGB would be 43 GB: a file of 1 GiB (sparse) whose header claims it is
     refused from its header, the check having read at most EXR_HEADER_MOST bytes and the

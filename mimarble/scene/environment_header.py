@@ -27,6 +27,7 @@ Standard library only: the scene package imports no imaging library.
 
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass
 
@@ -96,7 +97,28 @@ class HdrLayout:
 
 
 def environment_file_problem(path: str) -> str | None:
-    """Why ``path`` cannot be an environment image (None: it can)."""
+    """Why ``path`` cannot be an environment image (None: it can). The answer is kept
+    per version of the file (its size, modification and change times, inode, device):
+    ``to_mitsuba`` checks the file again for every scene it translates — each sweep frame,
+    each edit in the studio — and a Radiance HDR's check walks every scanline (0.13 s of
+    every ``to_mitsuba`` for a 2048×1024 sky: docs/benchmarks.md), which an unchanged
+    file need not repeat."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):   # not there, or no path: the check says why, uncached
+        return _environment_file_problem(path)
+    return _kept_problem(os.fspath(path), (st.st_size, st.st_mtime_ns, st.st_ctime_ns,
+                                           st.st_ino, st.st_dev))
+
+
+@functools.lru_cache(maxsize=16)
+def _kept_problem(path: str, version: tuple) -> str | None:
+    """:func:`_environment_file_problem` of one version of the file at ``path``."""
+    return _environment_file_problem(path)
+
+
+def _environment_file_problem(path: str) -> str | None:
+    """Why ``path`` cannot be an environment image (None: it can), read now."""
     where = shortened(path, 1024)
     try:
         with open_regular(path) as f:
