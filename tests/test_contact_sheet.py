@@ -106,3 +106,26 @@ def test_a_label_is_shortened_to_its_width(text):
     line = cs.fitted_line(d, text, 100)
     assert d.textlength(line) <= 100
     assert line == text if d.textlength(text) <= 100 else line.endswith("…")
+
+
+
+def test_column_values_fit_the_cells_of_a_shrunk_sheet(tmp_path, monkeypatch):
+    """Two settings in a sheet too large for the pixel budget: the cells shrink, and each
+    column's value is shortened to the shrunk cell's width (not the cell asked for), so
+    nothing is drawn in the gaps between the columns' values."""
+    import math
+    from PIL import ImageDraw
+    monkeypatch.setattr(cs, "CONTACT_SHEET_PIXELS", 240 * 160)
+    settings = [{"key": "marble.period", "values": [1, 2, 3]},
+                {"key": "marble.distortion", "values": [1.25, 2.5, 3.75]}]
+    values = [{"marble.period": p, "marble.distortion": d}
+              for p in (1, 2, 3) for d in (1.25, 2.5, 3.75)]
+    paths, _ = frames(tmp_path, 9)
+    sheet = draw(tmp_path, settings, values, paths)
+    measure = ImageDraw.Draw(Image.new("RGB", (1, 1)))
+    left = math.ceil(max(measure.textlength(cs._label(settings[0], v)) for v in (1, 2, 3)))
+    layout = cs.sheet_layout(settings, 9, 160, 40 / 30, left)
+    width = layout.cells[0][2]
+    assert width < 60 < measure.textlength(cs._label(settings[1], 1.25))   # shrunk, too long
+    for (cx, cy) in layout.columns[:-1]:
+        assert (sheet[cy:cy + cs.LINE, cx + width:cx + width + cs.GAP] == 255).all()

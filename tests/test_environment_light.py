@@ -116,6 +116,14 @@ def _header_only_exr(path, width, height):
     path.write_bytes(bytes(data))
 
 
+def _small_8_bit(path, kind):
+    """A PNG of 4×2 or a JPEG of 1×5 pixels, each pixel its own colour."""
+    from PIL import Image
+    size = (4, 2) if kind == "PNG" else (1, 5)
+    pixels = (np.arange(size[0] * size[1] * 3).reshape(size[1], size[0], 3) * 9).astype(np.uint8)
+    Image.fromarray(pixels).save(path, format=kind)
+
+
 @pytest.mark.parametrize("make, words", [
     (lambda p: _header_only_exr(p, 60000, 60000), "60000x60000 = 3600000000 pixels"),
     (lambda p: _header_only_exr(p, 4, 1), "at least 2x3"),
@@ -126,6 +134,11 @@ def _header_only_exr(path, width, height):
      "XYZ colours"),
     (lambda p: p.write_bytes(b"just some text, no image"), "not an environment image"),
     (lambda p: p.write_bytes(p.with_name("sky.png").read_bytes()[:-20]), "a truncated PNG"),
+    # as small as the OpenEXR above, in 8 bits: Mitsuba pads it, the reference would not
+    (lambda p: _small_8_bit(p, "PNG"), "an image of 4x2 pixels; an environment image is at "
+                                       "least 2x3"),
+    (lambda p: _small_8_bit(p, "JPEG"), "an image of 1x5 pixels; an environment image is at "
+                                        "least 2x3"),
 ])
 def test_huge_truncated_or_non_image_files_exit_2_in_one_sentence(files, make, words, capsys):
     folder, _ = files
@@ -138,6 +151,28 @@ def test_huge_truncated_or_non_image_files_exit_2_in_one_sentence(files, make, w
     err = capsys.readouterr().err
     assert f"{scene}:1:20: environment file 'bad.img': " in err and words in err, err
     assert "Traceback" not in err and not out.exists()
+
+
+def test_an_unchanged_file_is_walked_once_and_a_rewritten_one_again(files, tmp_path,
+                                                                    monkeypatch):
+    """to_mitsuba checks the environment file for every scene (each sweep frame, each
+    studio edit): an HDR's scanlines are walked once per version of the file, and a file
+    cut since is refused."""
+    from mimarble.scene import environment_header
+    folder, _ = files
+    walked = []
+    real_walk = environment_header.walk_hdr
+    monkeypatch.setattr(environment_header, "walk_hdr",
+                        lambda *a, **k: walked.append(1) or real_walk(*a, **k))
+    sky_file = tmp_path / "kept.hdr"
+    sky_file.write_bytes((folder / "sky.hdr").read_bytes())
+    scene = load(tmp_path, scene_text('environment { file "kept.hdr" }'))
+    for _ in range(3):
+        to_mitsuba(scene, "path")
+    assert len(walked) == 1
+    sky_file.write_bytes((folder / "sky.hdr").read_bytes()[:-5])
+    with pytest.raises(SceneError, match="a truncated Radiance HDR"):
+        to_mitsuba(scene, "path")
 
 
 def test_a_huge_header_is_refused_from_a_bounded_read(files, monkeypatch):

@@ -150,6 +150,8 @@ def test_each_presets_written_values_are_the_preset(name):
     ('marble { preset "" }', 42, "no preset ''"),
     ('marble { preset "jade" preset "onyx" }', 49, "duplicate 'preset'"),
     ('marble { preset "jade" octaves 99 }', 57, "octaves must be in 0..64"),
+    ('marble { preset carrara }', 42, "expected a quoted preset name like \"carrara\" after "
+                                      "'preset', found"),
 ])
 def test_preset_mistakes_are_positioned(text, col, start):
     with pytest.raises(SceneError) as e:

@@ -156,6 +156,12 @@ REFUSED = {
                       "a vertex normal (0 0 0) has no direction"),
     "a normal too short for float32": ("bad.ply", ply_text(GOOD[:2] + ["0 1 0 1e-20 0 0"]),
                                        "", "has no direction"),
+    # Mitsuba's float32 |n|² overflows: (1e30, 0, 0) loads as (0, 0, 0) there
+    "a normal too long for float32": ("bad.ply", ply_text(GOOD[:2] + ["0 1 0 1e30 0 0"]),
+                                      "", "a vertex normal (1e+30 0 0) is too long"),
+    "an OBJ vn too long for float32": (
+        "bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 -2e19 0\nf 1//1 2//1 3//1\n",
+        "smooth true", "line 4: a vertex normal (0 -2e+19 0) is too long"),
     "integer normals": ("bad.ply", ply_text(["0 0 0 0 0 1", "1 0 0 0 0 1", "0 1 0 0 0 1"],
                                             "int"), "", "normals are float or double"),
     "an OBJ zero vn": ("bad.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 0\nf 1//1 2//1 3//1\n",
@@ -175,6 +181,23 @@ def test_bad_normals_are_refused_at_the_file_string(tmp_path, case):
     assert (info.value.line, info.value.column) == (MESH_LINE, FILE_COLUMN)
     assert info.value.message.startswith(f"mesh file '{name}': ")
     assert words in info.value.message, info.value.message
+
+
+def test_the_normal_limits_are_where_mitsubas_float32_normalisation_holds(llvm, tmp_path):
+    """The limits' reason, measured on Mitsuba itself: normals at MIN_NORMAL and at
+    MAX_NORMAL load as unit vectors, one whose |n|² overflows float32 as zero (the reader
+    refuses it: the reference's float64 normal would be a unit vector)."""
+    from mimarble.meshes.limits import MAX_NORMAL, MIN_NORMAL
+
+    def loaded(nx):
+        path = tmp_path / "n.ply"
+        path.write_text(ply_text(GOOD[:2] + [f"0 1 0 {nx!r} 0 0"], "double"))
+        shape = mi.load_dict({"type": "ply", "filename": str(path), "face_normals": False})
+        return np.array(mi.traverse(shape)["vertex_normals"], dtype=np.float64)[6:9]
+
+    for nx in (MIN_NORMAL, MAX_NORMAL, -MAX_NORMAL):
+        np.testing.assert_array_equal(loaded(nx), [np.sign(nx), 0, 0])
+    np.testing.assert_array_equal(loaded(1e30), [0, 0, 0])
 
 
 def test_an_obj_whose_faces_lack_normals_is_shaded_flat_by_default(tmp_path):

@@ -45,7 +45,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .limits import MAX_MESH_TRIANGLES, MIN_NORMAL, MeshFileError, open_mesh, zero_normal
+from .limits import (MAX_MESH_TRIANGLES, MAX_NORMAL, MIN_NORMAL, MeshFileError, long_normal,
+                     open_mesh, zero_normal)
 from .obj_lines import obj_statements
 from .ply_header import PLY_NORMAL_NAMES, PLY_TYPES, PlyHeader, ply_header
 
@@ -194,9 +195,13 @@ def _ply_mesh(header: PlyHeader, vertices: dict, faces) -> MeshData:
         normals = np.stack([column(c) for c in PLY_NORMAL_NAMES], axis=1)
         if not np.all(np.isfinite(normals)):
             raise MeshFileError("a vertex normal is not finite")
-        short = np.max(np.abs(normals), axis=1) < MIN_NORMAL
+        largest = np.max(np.abs(normals), axis=1)
+        short = largest < MIN_NORMAL
         if short.any():
             raise MeshFileError(zero_normal(normals[np.argmax(short)]))
+        long = largest > MAX_NORMAL
+        if long.any():
+            raise MeshFileError(long_normal(normals[np.argmax(long)]))
     indices, sizes = faces
     if indices.dtype.kind == "f":                # ascii: numbers, to be whole
         if not np.all(np.abs(indices) < 2.0 ** 62) or not np.all(indices == np.floor(indices)):

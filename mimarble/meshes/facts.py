@@ -20,7 +20,8 @@ What is read (and what is refused, in one sentence each):
   double ``x y z`` and optionally ``u v``, ``texture_u texture_v`` or ``s t`` (Mitsuba's
   order of preference; a lone ``u`` or ``v`` beside another pair is refused: Mitsuba
   renames the pair onto it) and ``nx ny nz`` (vertex normals, all three, float or double,
-  each finite within float32 and not zero: ``limits.MIN_NORMAL``), other properties
+  each finite within float32, neither zero nor overflowing when squared:
+  ``limits.MIN_NORMAL``, ``limits.MAX_NORMAL``), other properties
   skipped; ``element face`` with an integer
   ``list`` property ``vertex_index`` or ``vertex_indices`` (Mitsuba's preference), the
   file's only list (Mitsuba reads every list as a length and 3 values, so another list, on

@@ -17,9 +17,10 @@ Limits, each checked before anything in proportion to it is read or allocated:
 * **OBJ**: the lines are streamed; the triangles (Σ (n − 2) over the faces) are refused the
   line they pass the limit, the ``v``, ``vt`` and ``vn`` lines past :data:`MAX_MESH_VERTICES`
   (obj_lines.py);
-* **vertex normals** (PLY ``nx ny nz``, OBJ ``vn``): each finite, within float32, and at
-  least :data:`MIN_NORMAL` long in its largest component (Mitsuba normalises every normal
-  it reads, in float32: a zero one becomes NaN).
+* **vertex normals** (PLY ``nx ny nz``, OBJ ``vn``): each finite, within float32, and
+  its largest component at least :data:`MIN_NORMAL` and at most :data:`MAX_NORMAL` in
+  magnitude (Mitsuba normalises every normal it reads, in float32: a zero one becomes
+  NaN, one whose |n|² overflows becomes zero).
 
 The scene language's limits (mimarble/scene/limits.py) take the two that are a scene's
 (:data:`MAX_MESH_TRIANGLES`, :data:`MAX_MESH_BYTES`) from here. Standard library only.
@@ -33,8 +34,8 @@ from mimarble.contract import FLT_MAX
 from mimarble.runtime.reading import open_failure, open_regular, shortened
 
 __all__ = ["MAX_MESH_TRIANGLES", "MAX_MESH_BYTES", "MAX_MESH_VERTICES", "MAX_PLY_HEADER_BYTES",
-           "MAX_OBJ_LINE_BYTES", "MAX_PRECISE_UV", "MIN_NORMAL", "READ_CHUNK", "MeshFileError", "open_mesh",
-           "beyond_float32", "zero_normal"]
+           "MAX_OBJ_LINE_BYTES", "MAX_PRECISE_UV", "MIN_NORMAL", "MAX_NORMAL", "READ_CHUNK", "MeshFileError", "open_mesh",
+           "beyond_float32", "zero_normal", "long_normal"]
 
 #: Triangles over all the meshes of a scene (2²⁰, about a million): the reference tracer
 #: holds them in float64 with a bounding-volume hierarchy (~0.3 GB at the limit), and a
@@ -69,6 +70,11 @@ MAX_PRECISE_UV = float(1 << 10)
 #: n·rsqrt(|n|²), and |n|² must stay a normal float32 number (≥ 2⁻¹²⁶) for that to be a
 #: unit vector; a zero normal becomes NaN there. Shorter normals are refused.
 MIN_NORMAL = 2.0 ** -40
+#: The greatest largest component |n_k| of a vertex normal in a file (2⁶⁰, about 1.2·10¹⁸):
+#: past 2⁶⁴ or so |n|² overflows float32 to ∞ in that normalisation, rsqrt(∞) = 0, and
+#: Mitsuba's normal becomes (0, 0, 0) (checked with Mitsuba 3.9.1: (10³⁰, 0, 0) loads as
+#: zero) while the reference's float64 one is a unit vector. Longer normals are refused.
+MAX_NORMAL = 2.0 ** 60
 
 #: A PLY body is taken about this many bytes (binary) or words (ascii) at a time, an OBJ
 #: file's lines and a file's digest this many bytes at a time.
@@ -101,6 +107,14 @@ def zero_normal(normal) -> str:
     return (f"a vertex normal ({shown}) has no direction: Mitsuba normalises normals in "
             f"float32, so each needs a component of at least {MIN_NORMAL:g} (2^-40) in "
             f"magnitude")
+
+
+def long_normal(normal) -> str:
+    """The sentence for a vertex normal too long to normalise in float32 (MAX_NORMAL)."""
+    shown = " ".join(f"{c:g}" for c in normal)
+    return (f"a vertex normal ({shown}) is too long: Mitsuba normalises normals in float32, "
+            f"where its squared length overflows, so no component may pass {MAX_NORMAL:g} "
+            f"(2^60) in magnitude")
 
 
 def beyond_float32(value: float) -> str:

@@ -3,8 +3,8 @@ reads them: ``v``, ``vt``, ``vn`` and ``f`` (fans from the first corner), indice
 the triangles and vertices within the limits the line they pass them.
 
 ``v x y z`` (further numbers ignored), ``vt u v`` (each finite, within ±FLT_MAX), ``vn x y
-z`` (finite, within ±FLT_MAX, a component at least MIN_NORMAL in magnitude: Mitsuba
-normalises it), ``f`` with 3 or more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, each referring
+z`` (finite, within ±FLT_MAX, its largest component between MIN_NORMAL and MAX_NORMAL in
+magnitude: Mitsuba normalises it in float32), ``f`` with 3 or more corners ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, each referring
 to an element defined before the face. Negative (relative) indices, which the OBJ format
 allows, are refused for the facts (Mitsuba 3.9.1 reads indices with ``strtoul``: −1
 becomes 2³² − 1, "an invalid vertex") and read for the arrays (``relative``). Everything
@@ -26,8 +26,8 @@ import math
 from mimarble.contract import FLT_MAX
 from mimarble.runtime.reading import shortened
 from . import limits
-from .limits import (MAX_MESH_TRIANGLES, MAX_MESH_VERTICES, MAX_OBJ_LINE_BYTES, MIN_NORMAL,
-                     MeshFileError, beyond_float32, zero_normal)
+from .limits import (MAX_MESH_TRIANGLES, MAX_MESH_VERTICES, MAX_NORMAL, MAX_OBJ_LINE_BYTES,
+                     MIN_NORMAL, MeshFileError, beyond_float32, long_normal, zero_normal)
 
 __all__ = ["obj_statements"]
 
@@ -71,8 +71,11 @@ def obj_statements(f, relative: bool = False, notes: dict | None = None):
             if keyword == b"vn":
                 if len(numbers) < 3:
                     raise MeshFileError(f"line {number}: a normal (vn) needs three numbers")
-                if max(map(abs, numbers[:3])) < MIN_NORMAL:
+                largest = max(map(abs, numbers[:3]))
+                if largest < MIN_NORMAL:
                     raise MeshFileError(f"line {number}: {zero_normal(numbers[:3])}")
+                if largest > MAX_NORMAL:
+                    raise MeshFileError(f"line {number}: {long_normal(numbers[:3])}")
             need = 2 if keyword == b"vt" else 3
             if len(numbers) < need:
                 what = "a vertex (v)" if keyword == b"v" else "a texture coordinate (vt)"

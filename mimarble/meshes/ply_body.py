@@ -20,7 +20,7 @@ import sys
 from mimarble.contract import FLT_MAX
 from mimarble.runtime.reading import shortened
 from . import limits
-from .limits import MeshFileError, beyond_float32, zero_normal
+from .limits import MeshFileError, beyond_float32, long_normal, zero_normal
 from .ply_header import PLY_NORMAL_NAMES, PLY_TYPES, PlyHeader
 
 __all__ = ["ply_body"]
@@ -38,7 +38,8 @@ def ply_body(f, header: PlyHeader, size: int) -> tuple:
     * a coordinate x, y, z (or the (u, v) or normal nx, ny, nz read) not finite or beyond
       ±FLT_MAX (Mitsuba stores float32, where it would be ±∞, and refuses such a mesh
       with a traceback); a normal shorter than :data:`limits.MIN_NORMAL` in every
-      component (Mitsuba normalises it: zero becomes NaN);
+      component, or longer than :data:`limits.MAX_NORMAL` in one (Mitsuba normalises it
+      in float32: zero becomes NaN, an overflowing one zero);
     * a body that ends inside an element, or goes on past the last one (Mitsuba refuses
       both).
 
@@ -81,11 +82,14 @@ def ply_body(f, header: PlyHeader, size: int) -> tuple:
 
 def _normals_have_length(nx, ny, nz) -> None:
     """Every normal (nx, ny, nz) of a chunk has a component of at least
-    :data:`limits.MIN_NORMAL` in magnitude (Mitsuba normalises it in float32)."""
-    least = limits.MIN_NORMAL
+    :data:`limits.MIN_NORMAL` in magnitude and none past :data:`limits.MAX_NORMAL`
+    (Mitsuba normalises it in float32)."""
+    least, most = limits.MIN_NORMAL, limits.MAX_NORMAL
     for x, y, z in zip(nx, ny, nz):
         if -least < x < least and -least < y < least and -least < z < least:
             raise MeshFileError(zero_normal((x, y, z)))
+        if not (-most <= x <= most and -most <= y <= most and -most <= z <= most):
+            raise MeshFileError(long_normal((x, y, z)))
 
 
 def _coordinate_range(values, what: str) -> tuple[float, float]:

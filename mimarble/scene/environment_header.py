@@ -8,8 +8,9 @@ file's string, before any pixel is decoded:
 * anything that is not a regular file (runtime/reading.py), or not one of the formats;
 * an image of more than :data:`~mimarble.scene.limits.MAX_IMAGE_MAP_PIXELS` pixels (the
   image maps' limit: a small file that decodes into gigabytes is refused from its
-  header), or narrower than 2 or shorter than 3 pixels (Mitsuba pads such a map; say
-  ``color`` for a uniform sky);
+  header), or narrower than 2 or shorter than 3 pixels, in every format (Mitsuba pads
+  such a map, which the reference does not: a 4×2 PNG's backgrounds differed by 0.34;
+  say ``color`` for a uniform sky);
 * **OpenEXR**: a single-part scanline image (not tiled, deep or multi-part) whose header
   ends within :data:`EXR_HEADER_MOST` bytes, with channels R, G and B of HALF or FLOAT
   samples (other channels, such as A, are ignored), and complete: its table of chunk
@@ -26,12 +27,13 @@ Standard library only: the scene package imports no imaging library.
 
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import dataclass
 
 from mimarble.runtime.reading import open_failure, open_regular, shortened
 
-from .image_header import image_file_problem
+from .image_header import image_file_problem, image_size
 from .limits import MAX_IMAGE_MAP_PIXELS
 
 __all__ = ["ENVIRONMENT_FORMATS", "EXR_HEADER_MOST", "EXR_COMPRESSIONS", "ExrLayout",
@@ -95,7 +97,28 @@ class HdrLayout:
 
 
 def environment_file_problem(path: str) -> str | None:
-    """Why ``path`` cannot be an environment image (None: it can)."""
+    """Why ``path`` cannot be an environment image (None: it can). The answer is kept
+    per version of the file (its size, modification and change times, inode, device):
+    ``to_mitsuba`` checks the file again for every scene it translates — each sweep frame,
+    each edit in the studio — and a Radiance HDR's check walks every scanline (0.13 s of
+    every ``to_mitsuba`` for a 2048×1024 sky: docs/benchmarks.md), which an unchanged
+    file need not repeat."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):   # not there, or no path: the check says why, uncached
+        return _environment_file_problem(path)
+    return _kept_problem(os.fspath(path), (st.st_size, st.st_mtime_ns, st.st_ctime_ns,
+                                           st.st_ino, st.st_dev))
+
+
+@functools.lru_cache(maxsize=16)
+def _kept_problem(path: str, version: tuple) -> str | None:
+    """:func:`_environment_file_problem` of one version of the file at ``path``."""
+    return _environment_file_problem(path)
+
+
+def _environment_file_problem(path: str) -> str | None:
+    """Why ``path`` cannot be an environment image (None: it can), read now."""
     where = shortened(path, 1024)
     try:
         with open_regular(path) as f:
@@ -110,9 +133,16 @@ def environment_file_problem(path: str) -> str | None:
         return str(p)
     except OSError as e:
         return open_failure(e, where)
-    problem = image_file_problem(path)
-    if problem is None:
+    size = image_size(path)         # 8 bits: held to the least size as the others are
+    if size is not None:
+        try:
+            _size("image", *size)
+        except EnvironmentFileProblem as p:
+            return str(p)
         return None
+    problem = image_file_problem(path)
+    if problem is None:             # changed between the two reads: read it again later
+        return "the file changed while it was read"
     if problem.startswith("not a PNG or JPEG"):
         return f"not an environment image; environments are {ENVIRONMENT_FORMATS} files"
     return problem

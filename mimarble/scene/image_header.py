@@ -28,7 +28,7 @@ from mimarble.runtime.reading import open_failure, open_regular
 from .rules import shortened
 
 __all__ = ["image_file_problem", "image_file_sentence", "check_image_maps", "png_facts",
-           "MAX_IMAGE_MAP_PIXELS"]
+           "image_size", "MAX_IMAGE_MAP_PIXELS"]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_END = b"IEND\xaeB`\x82"            # the IEND chunk's type and CRC (its length is 0)
@@ -77,6 +77,16 @@ def image_file_sentence(name: str, path: str) -> str | None:
     return None
 
 
+def image_size(path: str) -> tuple[int, int] | None:
+    """(width, height) of the image map in ``path``, from its header, or None where
+    :func:`image_file_problem` has a problem with it (an environment's least size is
+    checked on it)."""
+    try:
+        return _check(path)
+    except _Problem:
+        return None
+
+
 def check_image_maps(scene) -> None:
     """Every image map of ``scene`` passes the header check, else a SceneError at its
     ``file`` string in the parser's own sentence: for a scene built in Python, which the
@@ -89,15 +99,16 @@ def check_image_maps(scene) -> None:
             raise SceneError.in_file(scene.source, channel.pos, sentence)
 
 
-def _check(path: str) -> None:
+def _check(path: str) -> tuple[int, int]:
+    """(width, height) of an image map that passes every check, else a :class:`_Problem`."""
     where = shortened(path, 1024)           # longer is no path the system takes
     try:
         with open_regular(path) as f:
             head = f.read(33)       # the PNG signature and its IHDR chunk
             if head.startswith(_PNG_SIGNATURE):
-                _png(f, head)
+                return _png(f, head)
             elif head.startswith(_JPEG_SIGNATURE):
-                _jpeg(f)
+                return _jpeg(f)
             else:
                 raise _Problem("not a PNG or JPEG file; image maps are 8-bit PNG or JPEG")
     except OSError as e:
@@ -137,7 +148,7 @@ def _ends_with(f, end: bytes, kind: str, what: str) -> None:
         raise _Problem(f"a truncated {kind}: it does not end with {what}", undecodable=True)
 
 
-def _png(f, head: bytes) -> None:
+def _png(f, head: bytes) -> tuple[int, int]:
     if len(head) < 33 or head[12:16] != b"IHDR":
         raise _Problem("a truncated PNG (no IHDR header)")
     width, height = int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")
@@ -146,9 +157,10 @@ def _png(f, head: bytes) -> None:
     if depth != 8:
         raise _Problem(f"a {depth}-bit PNG; image maps are 8-bit PNG or JPEG")
     _ends_with(f, _PNG_END, "PNG", "its IEND chunk")
+    return width, height
 
 
-def _jpeg(f) -> None:
+def _jpeg(f) -> tuple[int, int]:
     """Walk the markers from SOI to the frame header (SOFn): its precision and size."""
     f.seek(2)
     skipped = 0
@@ -188,5 +200,5 @@ def _jpeg(f) -> None:
             if precision != 8:
                 raise _Problem(f"a {precision}-bit JPEG; image maps are 8-bit PNG or JPEG")
             _ends_with(f, _JPEG_END, "JPEG", "its end marker (EOI, FF D9)")
-            return
+            return width, height
         f.seek(length - 2, os.SEEK_CUR)

@@ -235,7 +235,9 @@ def _unclosed_note(tok: Token, blocks) -> str:
 #: open block and the keyword); a material's name otherwise (material, and every shape's
 #: material key).
 _STRING_AFTER = {"texture": 'texture name like "veins"', "file": 'file name like "maps/veins.png"',
-                 "mesh file": 'file name like "models/vase.ply"'}
+                 "mesh file": 'file name like "models/vase.ply"',
+                 "environment file": 'file name like "sky.exr"',
+                 "preset": 'preset name like "carrara"'}
 
 #: What is said at a bracket that is no part of the language, where a vector goes.
 _BRACKETS = {"(": ")", "[": "]"}

@@ -3,8 +3,8 @@
 A row for one setting (the paper's figure layout; a grid past :data:`ONE_ROW` values), a
 grid of rows × columns for two (values along the top and the left), a grid of cells for
 more; drawn with Pillow (a sheet of 64 frames in a fraction of a second). Each frame fills
-its cell: scaled to the cell's width, up or down (up by whole pixels, nearest, so a small
-render shows its own pixels), the cells shaped as the frames are (``size``, else the first
+its cell: scaled to the cell's width, up or down (up first by the largest whole factor,
+nearest, so a small render shows its own pixels, then Lanczos for the rest), the cells shaped as the frames are (``size``, else the first
 frame's header), :data:`GAP` pixels apart; each cell's values are one line under it,
 shortened with "…" to the cell's width (issue 42, item 6). A failed frame is a grey cell.
 The images are read without following links (mimarble/runtime/reading.py): the sheet reads
@@ -177,8 +177,9 @@ def draw_contact_sheet(path, title: str, settings, cells, cell: int = 160,
             text = ", ".join(_label(setting, values[setting["key"]]) for setting in settings)
             draw.text((lx, ly), fitted_line(draw, text, lw), fill="black")
     if len(settings) == 2:               # the values along the top and the left
+        width = layout.cells[0][2]       # the cells' width, shrunk for a large sweep
         for (cx, cy), value in zip(layout.columns, settings[1]["values"]):
-            draw.text((cx, cy), fitted_line(draw, _label(settings[1], value), cell),
+            draw.text((cx, cy), fitted_line(draw, _label(settings[1], value), width),
                       fill="black")
         for (rx, ry), value in zip(layout.rows, settings[0]["values"]):
             draw.text((rx, ry), _label(settings[0], value), fill="black")
@@ -188,8 +189,8 @@ def draw_contact_sheet(path, title: str, settings, cells, cell: int = 160,
 
 def _filled(image, width: int, height: int):
     """``image`` scaled to fill a ``width`` × ``height`` box, its aspect kept (fitted
-    inside): up by a whole factor with nearest-neighbour (its pixels shown as they are),
-    then, or else, down with Lanczos to the box."""
+    inside): up by the largest whole factor with nearest-neighbour (its pixels shown as
+    they are) where it is at least 2, then Lanczos, up or down, for what is left."""
     from PIL import Image
     scale = min(width / image.width, height / image.height)
     if scale >= 2:
