@@ -525,3 +525,18 @@ def test_damaged_and_cut_files_are_refused_or_read_never_an_exception(files, nam
                 reference_environment.load_environment(path)
             except reference_environment.Unreadable as e:
                 assert "\n" not in str(e)
+
+
+def test_only_the_r_g_b_channels_must_hold_half_or_float_samples():
+    """An extra UINT channel whose name is part of "RGB" ("RG", "") is not one of them."""
+    import struct
+    from mimarble.scene.environment_header import EnvironmentFileProblem, _exr_channels
+
+    def channel(name: str, kind: int) -> bytes:      # name, type, pLinear + 3 reserved, x/y sampling
+        return name.encode() + b"\0" + struct.pack("<iBxxxii", kind, 0, 1, 1)
+
+    rgb = channel("B", 2) + channel("G", 2) + channel("R", 2)
+    assert [name for name, _ in _exr_channels(rgb + channel("RG", 0) + b"\0", 256)] == \
+        ["B", "G", "R", "RG"]
+    with pytest.raises(EnvironmentFileProblem, match="channel G holds UINT"):
+        _exr_channels(channel("B", 2) + channel("G", 0) + channel("R", 2) + b"\0", 256)

@@ -278,7 +278,7 @@ def _exr_channels(data: bytes, most: int) -> tuple:
             f"{', '.join(missing)} (it has {', '.join(map(shortened, names)) or 'none'}); "
             f"environments are RGB")
     for name, kind, xs, ys in channels:
-        if name in "RGB" and kind == 0:
+        if name in ("R", "G", "B") and kind == 0:
             raise EnvironmentFileProblem(f"an OpenEXR file whose channel {name} holds UINT "
                                          f"samples; environments are HALF or FLOAT")
         if (xs, ys) != (1, 1):
