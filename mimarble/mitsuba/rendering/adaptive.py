@@ -255,7 +255,8 @@ def _neighbours(pixels, width: int, height: int):
 def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
            height: int):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
-    estimated error is above ``threshold`` · axis² (module docstring), in their order:
+    estimated error is above ``threshold`` · axis^:data:`BAR_POWER` (module docstring), in
+    their order:
     computed on the device, the list made there (``dr.compress``)."""
     least = most = None
     low_mean = high_mean = None
