@@ -137,7 +137,8 @@ class SphereTable:
 
     @classmethod
     def forget(cls, scene) -> None:
-        """Drop the table of ``scene`` (which holds its shapes alive)."""
+        """Drop the table of ``scene`` (and the copies of its spheres' ``to_world`` it holds;
+        the scalar variant's holds its shapes alive too)."""
         cls._tables.pop(id(scene), None)
 
     @property
