@@ -204,6 +204,11 @@ def test_adaptive_numbers_are_checked():
     assert adaptive_problem(np.float32(0.01), np.int64(16), 1, 10, 10) is None
 
 
+def test_the_default_max_spp_is_81_or_the_first_pass_when_more():
+    from mimarble.scene.rules import default_max_spp
+    assert (default_max_spp(1), default_max_spp(100), default_max_spp(1, 16)) == (81, 100, 16)
+
+
 def test_render_refuses_what_adaptive_sampling_cannot_do(llvm):
     scene = small(size=8)
     with pytest.raises(ValueError, match="needs mimarble's 'whitted'"):

@@ -113,7 +113,7 @@ def _add_adaptive(p):
                         "prefilter the estimate costs least (docs/rendering-model.md)")
     p.add_argument("--max-spp", type=int, metavar="N",
                    help="adaptive sampling's most samples per pixel, a perfect square "
-                        f"(default {DEFAULT_MAX_SPP})")
+                        f"(default {DEFAULT_MAX_SPP}, or --spp when that is more)")
 
 
 def _add_variant(p):   # also after the command: `render x.scene --variant scalar_rgb`

@@ -226,10 +226,9 @@ def _spp(args, scene) -> int:
 
 def _max_spp(args, spp: int) -> int:
     """An adaptive render's most samples per pixel: ``--max-spp``, else the default
-    (``scene.rules.DEFAULT_MAX_SPP``, or the first pass's spp when that is more:
-    mimarble.render's rule)."""
-    from mimarble.scene.rules import DEFAULT_MAX_SPP
-    return max(DEFAULT_MAX_SPP, spp) if args.max_spp is None else args.max_spp
+    (``scene.rules.default_max_spp``: mimarble.render's rule)."""
+    from mimarble.scene.rules import default_max_spp
+    return default_max_spp(spp, args.max_spp)
 
 
 def _write(out: Path, image, eight_bit: bool = False, quality: int | None = None,

@@ -121,6 +121,13 @@ def spp_problem(spp, width: int, height: int) -> str | None:
 DEFAULT_MAX_SPP = 81
 
 
+def default_max_spp(spp: int, max_spp=None):
+    """``max_spp`` as given, else adaptive sampling's default for a first pass of ``spp``:
+    :data:`DEFAULT_MAX_SPP`, or ``spp`` when that is more (the one rule of
+    ``mimarble.render``, ``render_in_passes`` and the command line)."""
+    return max(DEFAULT_MAX_SPP, spp) if max_spp is None else max_spp
+
+
 def adaptive_problem(threshold, max_spp, spp: int, width: int, height: int) -> str | None:
     """Adaptive sampling's two numbers (``mimarble.render``'s ``adaptive`` and ``max_spp``,
     the command line's ``--adaptive`` and ``--max-spp``): a threshold that is a finite

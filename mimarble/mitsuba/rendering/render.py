@@ -21,9 +21,10 @@ from mimarble.mitsuba.rendering.crop import as_integers, crop_problem
 from mimarble.runtime.progress import report
 from mimarble.scene.python_numbers import plain_numbers
 from mimarble.scene.model import samples_per_axis
-from mimarble.scene.rules import adaptive_problem, seed_problem, shortened, spp_problem
+from mimarble.scene.rules import (adaptive_problem, default_max_spp, seed_problem, shortened,
+                                  spp_problem)
 from mimarble.scene.edits import with_image_size
-from .adaptive import DEFAULT_MAX_SPP, render_adaptive
+from .adaptive import render_adaptive
 from .passes import Target, trace_in_passes
 from .silhouettes import edge_sample_passes
 from .loaded_scenes import LOADED
@@ -123,8 +124,8 @@ def render(scene_or_path, *, spp: int | None = None, mode: str | None = None,
         raise
     spp = scene.image.samples if spp is None else spp
     total = scene.image.width * scene.image.height * spp
-    if adaptive is not None and max_spp is None:
-        max_spp = max(DEFAULT_MAX_SPP, spp)
+    if adaptive is not None:
+        max_spp = default_max_spp(spp, max_spp)
     check_adaptive(adaptive, max_spp, mode, edge_spp, spp, scene.image.width, scene.image.height)
     if adaptive is not None:                    # NumPy's numbers too, as Python's
         adaptive, max_spp = float(adaptive), int(max_spp)
@@ -188,8 +189,8 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
     if problem:
         raise ValueError(f"render: {problem}")
     check_edge_spp(edge_spp, "whitted" if whitted else "path")
-    if adaptive is not None and max_spp is None:
-        max_spp = max(DEFAULT_MAX_SPP, spp)
+    if adaptive is not None:
+        max_spp = default_max_spp(spp, max_spp)
     check_adaptive(adaptive, max_spp, "whitted" if whitted else "path", edge_spp, spp, width,
                    height)
     if adaptive is not None:
@@ -324,7 +325,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     """
     check_edge_spp(edge_spp, mode)
     if adaptive is not None:
-        max_spp = max(DEFAULT_MAX_SPP, spp) if max_spp is None else max_spp
+        max_spp = default_max_spp(spp, max_spp)
         return render_adaptive(mitsuba_scene, spp, adaptive, max_spp, progress, crop,
                                pass_samples).image
     if edge_spp is not None and edge_spp <= spp:
