@@ -113,6 +113,25 @@ def test_few_scenes_are_kept_and_their_sphere_tables_go_with_them(llvm):
     assert all(k in kept for k in SphereTable._tables)
 
 
+def test_a_sphere_table_holds_no_shape_and_a_scene_at_a_freed_id_gets_its_own(llvm):
+    """JIT variants' tables hold no shape (a dropped scene's shapes leave Dr.Jit's registry,
+    issue 43); what tells a new scene at a dropped one's id (Python reuses ids) is the
+    held copies of the old spheres' ``to_world``: the new scene's are other variables. The
+    reuse is simulated by moving the old scene's entry to the new scene's id."""
+    from mimarble.mitsuba.plugins.sphere_hit import SphereTable
+    def sphere_at(x):
+        return mi.load_dict({"type": "scene", "s": {"type": "sphere", "center": [x, 0, 0],
+                                                     "radius": 1.0}})
+    old, new = sphere_at(0.0), sphere_at(5.0)
+    table = SphereTable.for_trace(old)
+    assert table.shapes is None
+    SphereTable._tables[id(new)] = SphereTable._tables.pop(id(old))
+    assert SphereTable.for_trace(new) is not table
+    centre, _ = SphereTable.for_trace(new).lookup(mi.ShapePtr(new.shapes()[0]))
+    assert centre.x.numpy()[0] == pytest.approx(5.0)
+    SphereTable.forget(new)
+
+
 def test_an_image_map_copied_over_with_its_old_modification_time_is_seen(llvm, tmp_path):
     # What cp -p, rsync -t and tar x do: the same size and modification time, new bytes.
     import os
