@@ -249,3 +249,16 @@ def test_progress_counts_the_samples_asked_for(llvm):
     adaptive.render_adaptive(loaded(small(size=24)), 1, 0.002, 16,
                              progress=lambda done, total: calls.append((done, total)))
     assert all(done <= total for done, total in calls) and calls[-1][0] == calls[-1][1]
+
+
+def test_the_morton_order_interleaves_the_bits_of_x_and_y():
+    """Against the definition, bit by bit in Python: pixel (x, y)'s code has x's bit k at
+    2k and y's at 2k + 1; the order is every pixel once, by code (ties cannot occur)."""
+    from mimarble.mitsuba.rendering.adaptive import morton_order
+    width, height = 37, 23
+
+    def code(x, y):
+        return sum(((x >> k) & 1) << 2 * k | ((y >> k) & 1) << 2 * k + 1 for k in range(16))
+
+    expected = sorted(range(width * height), key=lambda i: code(i % width, i // width))
+    assert morton_order(width, height).tolist() == expected

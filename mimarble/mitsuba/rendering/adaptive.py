@@ -170,11 +170,14 @@ def morton_order(width: int, height: int) -> np.ndarray:
     """The pixels of a width × height image (row-major indices, uint32) in Morton (Z)
     order: the bits of x and y interleaved, so that nearby list positions are nearby
     pixels (a round's lanes read nearby noise and texture data)."""
-    y, x = np.divmod(np.arange(width * height, dtype=np.uint64), width)
+    # uint32 throughout: a side is at most 2¹⁴ pixels (the image limit), so a code has at
+    # most 28 bits, and the arrays take 4 bytes a pixel each.
+    y, x = np.divmod(np.arange(width * height, dtype=np.uint32), np.uint32(width))
     code = np.zeros_like(x)
+    one = np.uint32(1)
     for bit in range(16):
-        code |= ((x >> np.uint64(bit)) & np.uint64(1)) << np.uint64(2 * bit)
-        code |= ((y >> np.uint64(bit)) & np.uint64(1)) << np.uint64(2 * bit + 1)
+        code |= ((x >> np.uint32(bit)) & one) << np.uint32(2 * bit)
+        code |= ((y >> np.uint32(bit)) & one) << np.uint32(2 * bit + 1)
     return np.argsort(code, kind="stable").astype(np.uint32)
 
 
@@ -313,7 +316,6 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     levels = ladder(spp, max_spp)
     if rounds is not None:
         levels = levels[:rounds + 1]
-    order = mi.UInt32(morton_order(width, height))       # every pixel, local indices
     pixels, listed = dr.arange(mi.UInt32, count), count  # the first pass: row by row
     taken = 0
     for number, level in enumerate(levels):
@@ -341,7 +343,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         if last:
             break
         means = state.means()
-        candidates = order if number == 0 else pixels
+        # The first round's candidates: every pixel (local indices) in Morton order, made
+        # only when a round follows.
+        candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
         pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
                         height)
         dr.eval(pixels)
