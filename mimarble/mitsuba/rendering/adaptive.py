@@ -28,10 +28,10 @@ Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
 (``dr.compress``); only its length comes back to size the passes. The lists are in Morton
 order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
-Only the first pass traces the marbles' doubts (its kernel costs about twice the plain
-one's); the rounds trace the plain kernel, and read the first pass's doubt.
+Only the first pass traces the marbles' doubts (its kernel costs more than the plain
+one: docs/benchmarks.md); the rounds trace the plain kernel, and read the first pass's doubt.
 
-Why a bar that grows with n: a round costs a pixel about twice its samples, so the error
+Why a bar that grows with n: a round costs a pixel more than its samples, so the error
 it removes per sample falls as n grows; ``threshold`` · n³ leaves deeper rounds to fewer
 pixels, and was measured best on this ladder (docs/design-decisions.md, "Adaptive samples
 at the price of plain ones"). At 1 spp the threshold is the estimated error in colour
