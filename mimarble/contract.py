@@ -18,7 +18,7 @@ __all__ = ["T_MIN_REL", "EPS_REL", "FLT_MAX", "FLT_MIN_NORMAL", "FLOAT32_EPSILON
            "FLOAT32_INTEGER_LIMIT",
            "NOISE_BOUND", "MAX_OCTAVES", "MAX_OCTAVES_EVALUATED", "SKIPPED_OCTAVES_BOUND",
            "VOLPATH_MAX_DEPTH", "VOLPATH_RR_DEPTH", "ROULETTE_DEPTH", "ROULETTE_MAX",
-           "SPHERICAL_ALBEDO_FIT_B", "SPHERICAL_ALBEDO_FIT_C", "RENDER_MODES"]
+           "SPHERICAL_ALBEDO_FIT_B", "SPHERICAL_ALBEDO_FIT_C", "DEFAULT_MAX_SPP", "RENDER_MODES"]
 
 # ---------------------------------------------------------------------------
 # Tracing (docs/rendering-model.md)
@@ -100,6 +100,11 @@ ROULETTE_MAX = 0.95
 #: in tests/test_subsurface_reflectance.py.
 SPHERICAL_ALBEDO_FIT_B = 0.139
 SPHERICAL_ALBEDO_FIT_C = 1.17
+
+#: Adaptive sampling's most samples per pixel when ``max_spp`` is not given (at least the
+#: first pass's spp): 1 spp tripled four times (mimarble/mitsuba/rendering/adaptive.py's
+#: ladder, 1, 3, 9, 27, 81, whose every level keeps the samples before it).
+DEFAULT_MAX_SPP = 81
 
 # ---------------------------------------------------------------------------
 # Names

@@ -38,6 +38,8 @@ def test_help_imports_neither_drjit_nor_mitsuba():
     assert result.returncode == 0 and "render" in result.stdout
     assert "mimarble.cli" in names                     # the check sees the imports at all
     assert heavy(names) == []
+    # Nor the scene language: its package brings Lark and the cached parser (~40 ms).
+    assert {"lark", "mimarble.scene"} & names == set()
 
 
 def test_a_malformed_scene_is_reported_before_drjit_loads(tmp_path):

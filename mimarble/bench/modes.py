@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 
-from mimarble.scene.rules import DEFAULT_MAX_SPP
+from mimarble.contract import DEFAULT_MAX_SPP
 
 
 
@@ -17,7 +17,7 @@ DEFAULT_EDGE_SPP = 64
 #: level only far below the first pass's).
 ADAPTIVE_THRESHOLDS = tuple(float(f"{0.005 * 4.0 ** -k:.2g}") for k in range(9))
 #: The adaptive modes' first pass and cap on any pixel's samples (both perfect squares).
-ADAPTIVE_FIRST_SPP = 1             # and DEFAULT_MAX_SPP, scene/rules.py's (imported above)
+ADAPTIVE_FIRST_SPP = 1             # and DEFAULT_MAX_SPP, contract.py's (imported above)
 #: The runs' spp (the adaptive modes' are their thresholds') and the converged reference's:
 #: finer than the runs' finest, so that plain 64 spp's RMSE is an error, not zero.
 DEFAULT_SPPS = (1, 4, 16, 64)

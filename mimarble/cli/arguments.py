@@ -15,7 +15,7 @@ from mimarble.contract import RENDER_MODES
 from mimarble.mitsuba.rendering.crop import CONVENTION
 from mimarble.runtime.image_formats import JPEG_QUALITIES, JPEG_QUALITY
 from mimarble.parameters import FILTERS, SWEEPABLE
-from mimarble.scene.rules import DEFAULT_MAX_SPP
+from mimarble.contract import DEFAULT_MAX_SPP
 
 #: How a SCENE argument may also be given (mimarble/runtime/packaged_scenes.py's rule).
 PACKAGED_NAME = "or a packaged scene's name when no such file exists (`mimarble scenes`)"

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import numbers
 
+from mimarble.contract import DEFAULT_MAX_SPP
 from mimarble.parameters import single_precision
 from mimarble.runtime.reading import shortened
 from .limits import (FLT_MAX, FLT_MIN_NORMAL, LIMITS, MAX_AREA_LIGHT_SIZE, MAX_CHANNEL_DEPTH, MAX_CHANNEL_SIZE,
@@ -115,10 +116,6 @@ def spp_problem(spp, width: int, height: int) -> str | None:
     return None
 
 
-#: Adaptive sampling's most samples per pixel when ``max_spp`` is not given (at least the
-#: first pass's spp): 1 spp tripled four times (mimarble/mitsuba/rendering/adaptive.py's
-#: ladder, 1, 3, 9, 27, 81, whose every level keeps the samples before it).
-DEFAULT_MAX_SPP = 81
 
 
 def default_max_spp(spp: int, max_spp=None):

@@ -80,7 +80,7 @@ import numpy as np
 from mimarble.runtime import environment
 from mimarble.runtime.progress import report
 from mimarble.scene.model import samples_per_axis
-from mimarble.scene.rules import DEFAULT_MAX_SPP
+from mimarble.contract import DEFAULT_MAX_SPP
 from mimarble.mitsuba.plugins.registration import largest_component
 from .loaded_scenes import LOADED
 from .passes import Target, trace_sums
