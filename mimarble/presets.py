@@ -20,16 +20,10 @@ The standard library only (``tomllib``; ``tomli`` before Python 3.11): the comma
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import functools
 import re
 from pathlib import Path
 from typing import Any
-
-try:                                    # Python ≥ 3.11
-    import tomllib
-except ModuleNotFoundError:             # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 from mimarble.parameters import (BY_NAME, COLOURS, ParameterError, checked,
                                  parse_positioned_ramp, ramp_count_problem)
@@ -141,6 +135,12 @@ def _entry(name: str, table, where: str) -> Preset:
 def read_presets(text: str, where: str = "presets.toml") -> dict[str, Preset]:
     """The presets of a library's ``text`` (TOML), by name, in the file's order; a
     :class:`PresetError` naming ``where`` and the entry at fault."""
+    # Imported here, as difflib below: every render imports this module (the plugin's
+    # ``preset``), and only a preset used needs the reader.
+    try:                                    # Python ≥ 3.11
+        import tomllib
+    except ModuleNotFoundError:             # pragma: no cover - Python 3.10
+        import tomli as tomllib
     try:
         tables = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
@@ -157,6 +157,7 @@ def presets() -> dict[str, Preset]:
 def unknown_preset_sentence(name) -> str:
     """The sentence for a preset that does not exist, naming the closest one (difflib,
     case-insensitive) or, when none is close, pointing at the list."""
+    import difflib
     names = list(presets())
     shown = str(name) if len(str(name)) <= 40 else str(name)[:37] + "..."
     close = difflib.get_close_matches(str(name).lower(), names, n=1, cutoff=0.6)
