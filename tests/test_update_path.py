@@ -345,7 +345,10 @@ def test_an_expression_edited_and_put_back_renders_as_a_fresh_load_in_path_mode(
     the edits before (the operands' means combined, evaluated), so a period edited on the
     device and put back renders the bits the scene had when loaded (before: sampled at
     load, combined after an edit). (The same scene: another loaded beside it has other
-    instance ids in the traced code, and mi.render's bits may differ by an ulp.)"""
+    instance ids in the traced code, and mi.render's bits may differ by an ulp.) Compared
+    within a few float32 ulps: in a whole suite's process the two renders have differed by
+    up to 9e-8 (2026-12-04, Zen 4, --jit-debug; the test alone gave the same bits), while a
+    mean sampled at load instead of combined moves the lobe choice and the image by far more."""
     scene = mi.load_dict(path_dict())
     fresh = np.array(mi.render(scene, spp=4, seed=0))
     params = mi.traverse(scene)
@@ -353,4 +356,5 @@ def test_an_expression_edited_and_put_back_renders_as_a_fresh_load_in_path_mode(
     for value in (on_device(1.7), 3.0):
         params[key] = value
         params.update()
-    np.testing.assert_array_equal(np.array(mi.render(scene, spp=4, seed=0)), fresh)
+    np.testing.assert_allclose(np.array(mi.render(scene, spp=4, seed=0)), fresh,
+                               rtol=2e-6, atol=1e-7)
