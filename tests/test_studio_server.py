@@ -332,6 +332,44 @@ def test_a_slow_tab_gets_only_the_newest_frame():
     assert any(isinstance(s, str) and '"edited"' in s for s in sent)
 
 
+def test_a_tab_that_does_not_read_holds_a_bounded_mailbox_newest_answers_last():
+    import asyncio
+
+    class StalledSocket:                  # a tab that sends and never reads: send blocks
+        def __init__(self):
+            self.sent, self.go = [], None
+
+        async def send_text(self, text):
+            await self.go.wait()
+            self.sent.append(json.loads(text))
+
+        async def send_bytes(self, data):
+            await self.go.wait()
+            self.sent.append(data)
+
+    async def run():
+        socket = StalledSocket()
+        socket.go = asyncio.Event()
+        box = _Mailbox(socket, limit=8)
+        pump = asyncio.ensure_future(box.pump())
+        await asyncio.sleep(0)
+        for seq in range(1000):                       # 1000 answers, 1000 frames unread
+            box.answer({"type": "edited", "seq": seq})
+            box.put("frame", b"frame %d" % seq)
+        held = len(box.answers), len(box.latest), box.dropped
+        socket.go.set()
+        await asyncio.sleep(0.05)
+        pump.cancel()
+        return held, socket.sent
+
+    (answers, latest, dropped), sent = asyncio.run(run())
+    assert answers == 8 and latest == 1
+    assert dropped == 1000 - 8
+    seqs = [m["seq"] for m in sent if isinstance(m, dict)]
+    assert seqs == list(range(992, 1000))            # the oldest dropped, order kept
+    assert [m for m in sent if isinstance(m, bytes)] == [b"frame 999"]
+
+
 # ---- stopping ------------------------------------------------------------------------------
 
 

@@ -54,6 +54,11 @@ STATIC_TYPES = {"studio.js": "text/javascript; charset=utf-8",
 _VALUE_KINDS = ("number", "integer", "choice", "boolean", "colour", "vector")
 #: How soon after an edit every tab gets every control's value again (seconds).
 CONTROLS_DELAY = 0.25
+#: The most answers one tab's mailbox holds unsent. A tab that sends but does not read
+#: (a stalled or modified page) would otherwise grow it without end, one answer per
+#: message; past this the oldest unsent answers are dropped (the page's own list of
+#: edits in flight already forgets those it hears nothing of).
+ANSWER_LIMIT = 256
 #: The page's Content-Security-Policy: its own scripts and styles only, images from the
 #: frames' blobs, the websocket back to this server; nothing from elsewhere.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
@@ -63,15 +68,20 @@ CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' 
 class _Mailbox:
     """What the server has to send one tab: answers in order, and the latest message of
     each coalesced kind (frame, state, controls, compare) — a newer one replaces an unsent
-    older one, so a slow tab is never behind by more than one frame."""
+    older one, so a slow tab is never behind by more than one frame. Both are bounded:
+    the latest messages by the kinds there are (one each), the answers by
+    :data:`ANSWER_LIMIT` (the oldest unsent ones dropped, counted in :attr:`dropped`)."""
 
-    def __init__(self, websocket: WebSocket):
+    def __init__(self, websocket: WebSocket, limit: int = ANSWER_LIMIT):
         self.websocket = websocket
-        self.answers = collections.deque()
+        self.answers = collections.deque(maxlen=limit)
+        self.dropped = 0
         self.latest: dict = {}
         self.wake = asyncio.Event()
 
     def answer(self, message) -> None:
+        if len(self.answers) == self.answers.maxlen:
+            self.dropped += 1                  # append drops the oldest of a full deque
         self.answers.append(message)
         self.wake.set()
 
