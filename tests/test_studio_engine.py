@@ -353,6 +353,45 @@ def test_save_changes_only_the_edited_values(tmp_path):
         s.close()
 
 
+def test_an_edit_during_a_slow_save_is_not_held_up_and_stays_unsaved(tmp_path, monkeypatch):
+    import mimarble.studio.session as session_module
+    path = _copy(tmp_path)
+    started, release = threading.Event(), threading.Event()
+    real = session_module.rewrite
+
+    def slow_rewrite(*args, **kwargs):            # a save whose rewrite takes its time
+        started.set()
+        release.wait(10.0)
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+    s = _session(str(path))
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        saver = threading.Thread(target=s.save)
+        saver.start()
+        assert started.wait(10.0)
+        t0 = time.perf_counter()
+        s.edit("material.marble.ambient.period", 1.75)      # while the save is rewriting
+        took = time.perf_counter() - t0
+        assert saver.is_alive()                  # the save was still under way
+        release.set()
+        saver.join(10.0)
+        assert not saver.is_alive()
+        assert took < 2.0, took                  # not held until the save ended (10 s)
+        saved = mimarble.scene.parse(path.read_text())
+        assert saved.materials["marble"].diffuse.period == 2.25      # saved
+        assert saved.materials["marble"].ambient.period == 1.3       # made after: not
+        assert s.edits_made == {"material.marble.ambient.period": 1.75}
+        assert s.state()["dirty"]
+        s.save()
+        assert mimarble.scene.parse(path.read_text()).materials["marble"].ambient.period == 1.75
+        assert not s.state()["dirty"]
+    finally:
+        release.set()
+        s.close()
+
+
 def test_save_refuses_a_file_changed_on_disk_and_a_packaged_scene(tmp_path):
     from mimarble.studio import StudioError
     path = _copy(tmp_path)

@@ -427,66 +427,92 @@ class StudioSession:
         (``scene.rewrite``: comments, layout, order, every other byte kept), whole or not
         at all; returns the text written. StudioError (one sentence, nothing written) for
         a packaged scene (Save as writes a copy), a file that changed on disk since it was
-        loaded (:meth:`reload` first), or an edit the text cannot say."""
+        loaded (:meth:`reload` first), or an edit the text cannot say.
+
+        The rewrite and the parse of its result (tens of ms for a large scene, more on a
+        loaded machine) run outside the session's lock, on the edits as they were when
+        save began: an edit meanwhile is not held up, and stays unsaved (dirty) after.
+        The write itself is under the lock, so the watcher never mistakes it for an
+        editor's change."""
         with self._lock:
-            if self.packaged:
-                raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
-                                  f"to overwrite; use Save as to write a copy")
-            if self._disk_changed:
-                raise StudioError(f"save: {self.path} changed on disk since it was loaded; "
-                                  f"reload it (nothing was written)")
-            text = self._rewritten()
+            self._check_savable()
+            text0, edits, path = self._text, dict(self._edits), self.path
+        text = self._rewritten(text0, edits, path)
+        base = scene_language.parse(text, filename=str(path), source=str(path))
+        with self._lock:
+            if self._text is not text0 or self.path != path:
+                raise StudioError(f"save: {path} was reloaded or saved while saving; "
+                                  f"save again (nothing was written)")
+            self._check_savable()
             try:
-                save_atomic(self.path, text, self._text)
+                save_atomic(path, text, text0)
             except SaveRefused as e:
                 self._disk_changed = True
                 raise StudioError(f"save: {e}") from None
             except OSError as e:
-                raise StudioError(f"save: {self.path}: {e.strerror or e}") from None
-            self._saved(text)
+                raise StudioError(f"save: {path}: {e.strerror or e}") from None
+            self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
+
+    def _check_savable(self) -> None:
+        """StudioError unless save may write the session's own file (under the lock)."""
+        if self.packaged:
+            raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
+                              f"to overwrite; use Save as to write a copy")
+        if self._disk_changed:
+            raise StudioError(f"save: {self.path} changed on disk since it was loaded; "
+                              f"reload it (nothing was written)")
 
     def save_as(self, path) -> str:
         """Write the scene as edited now to ``path`` (the file's text with the edits
         written in, whole or not at all); the session then edits that file. Returns the
         text written; StudioError for a name or folder that cannot be written, or a
         folder where the scene's relative files (meshes, image maps) are not: nothing is
-        written then, and the session keeps its file."""
+        written then, and the session keeps its file. As in :meth:`save`, the rewrite
+        and the parse run outside the lock."""
         from mimarble.runtime.files import output_name_problem
         problem = output_name_problem(path)
         if problem:
             raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
         with self._lock:
-            text = self._rewritten()
-            try:      # read as it would be there: its meshes and image maps beside it
-                scene_language.parse(text, filename=str(path), source=str(path))
-            except scene_language.SceneError as e:
-                first = str(e).splitlines()[0]
-                raise StudioError(f"save as: the scene would not read at {path} ({first}); "
-                                  f"save it beside the files it names (nothing was "
-                                  f"written)") from None
+            text0, edits, source = self._text, dict(self._edits), self.path
+        text = self._rewritten(text0, edits, source)
+        try:          # read as it would be there: its meshes and image maps beside it
+            base = scene_language.parse(text, filename=str(path), source=str(path))
+        except scene_language.SceneError as e:
+            first = str(e).splitlines()[0]
+            raise StudioError(f"save as: the scene would not read at {path} ({first}); "
+                              f"save it beside the files it names (nothing was "
+                              f"written)") from None
+        with self._lock:
+            if self._text is not text0 or self.path != source:
+                raise StudioError(f"save as: {source} was reloaded or saved meanwhile; "
+                                  f"save again (nothing was written)")
             try:
                 save_atomic(path, text, None)
             except OSError as e:
                 raise StudioError(f"save as: {path}: {e.strerror or e}") from None
             self.path, self.packaged = Path(path), False
-            self._saved(text)
+            self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
 
-    def _rewritten(self) -> str:
-        """The file's text with the edits written in (StudioError: an edit it cannot say)."""
+    @staticmethod
+    def _rewritten(text: str, edits: dict, path: Path) -> str:
+        """``text`` with ``edits`` written in (StudioError: an edit it cannot say)."""
         try:
-            return rewrite(self._text, self._edits, filename=str(self.path),
-                           source=str(self.path))
+            return rewrite(text, edits, filename=str(path), source=str(path))
         except (KeyPathError, scene_language.SceneError) as e:
             raise StudioError(f"save: {e}") from None
 
-    def _saved(self, text: str) -> None:
-        """The file now holds ``text``: it is what the session was loaded from."""
-        self._text, self._stat, self._edits = text, _facts(self.path), {}
-        self._base = scene_language.parse(text, filename=str(self.path), source=str(self.path))
+    def _saved(self, text: str, base, edits: dict) -> None:
+        """The file now holds ``text`` (parsed: ``base``), the session's text with
+        ``edits`` written in: it is what the session was loaded from. Edits made since
+        (a key absent from ``edits`` or set to another value) stay unsaved."""
+        self._text, self._stat, self._base = text, _facts(self.path), base
+        self._edits = {key: value for key, value in self._edits.items()
+                       if key not in edits or edits[key] != value}
         self._disk_changed = False
 
     def _watch(self) -> None:
