@@ -18,6 +18,15 @@ request never waits for a render or a compile. Its contract:
   float64 rounding of the runs' sums (tests/test_studio_engine.py); path mode's runs are
   seeded one by one (run r: seed r + 1), so its frames converge as the render does.
   A new edit stops refinement between runs.
+* **Reduced frames while a control moves.** When a state comes less than
+  :data:`MOTION_GAP_S` after the one before (a drag, a slider held: a stream of edits)
+  and the last whole 1 spp frame took longer than :data:`FRAME_BUDGET_S` (render and
+  encode: a loaded machine), the state's first frame is the whole image's pixels of
+  every second row and column (every fourth when the last frame took over four budgets)
+  — a quarter (a sixteenth) of the lanes, traced by a pass over that pixel list of the
+  same loaded scene (``trace_sums``: no new structure, one small recording per size),
+  the page scaling it up. Once the edits stop (``idle_s``) the whole 1 spp frame
+  follows, then refinement.
 * **Compiling.** Before a state whose structure no loaded scene holds, or whose passes
   have no recording, is rendered, ``compiling`` is published as True, then False with
   its frame: a structure rendered before (octaves 9 → 8) is loaded and recorded already.
@@ -37,7 +46,8 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.mitsuba.rendering.loaded_scenes import LoadedScenes
-from mimarble.mitsuba.rendering.passes import Target, samples_pass_key, trace_samples, _traced_pass
+from mimarble.mitsuba.rendering.passes import (Target, samples_pass_key, trace_samples,
+                                               trace_sums, _traced_pass)
 from mimarble.mitsuba.rendering.replay import enabled as replay_enabled, scene_facts
 from .frames import FRAME_FORMAT, Frame, encode
 from .histogram import Histograms
@@ -53,6 +63,13 @@ FIRST_RUN = 4
 #: Loaded scenes a session keeps: its structures (octaves 8 and 9, both modes, …), so
 #: that going back to one reuses its loaded scene and its recorded passes.
 KEPT_SCENES = 6
+#: The time a whole 1 spp frame may take (render and encode) before the frames of a drag
+#: are reduced: 40 ms leaves 10 ms of the 50 ms a frame has at 20 frames/s (the issue's
+#: target) to the socket, the decode and the paint.
+FRAME_BUDGET_S = 0.040
+#: Edits closer together than this are a control moving (a drag sends one per animation
+#: frame, ~16 ms; a held arrow key one per ~33 ms).
+MOTION_GAP_S = 0.1
 
 
 class Request(NamedTuple):
@@ -80,6 +97,10 @@ class RenderThread(threading.Thread):
         self._condition = threading.Condition()
         self._pending: Request | None = None
         self._last_submit = 0.0
+        self._moving = False         # the pending state came within MOTION_GAP_S
+        self.frame_budget_s = FRAME_BUDGET_S
+        #: Seconds the last whole 1 spp frame took (render and encode; None: none yet).
+        self.last_frame_s: float | None = None
         self._stopping = False
         #: Versions rendered (their first frame), in order: what a test of dropping reads.
         self.rendered: list[int] = []
@@ -93,8 +114,10 @@ class RenderThread(threading.Thread):
     def submit(self, request: Request) -> None:
         """Make ``request`` the state to render next, replacing any waiting one."""
         with self._condition:
+            now = time.monotonic()
             self._pending = request
-            self._last_submit = time.monotonic()
+            self._moving = now - self._last_submit < MOTION_GAP_S
+            self._last_submit = now
             self._condition.notify()
 
     def stop(self, timeout: float | None = 30.0) -> None:
@@ -115,8 +138,9 @@ class RenderThread(threading.Thread):
                 if self._stopping:
                     return
                 request, self._pending = self._pending, None
+                moving = self._moving
             try:
-                self._render(request)
+                self._render(request, moving)
             except Exception as error:       # a state that cannot render: said, not fatal
                 self.publish("status", {"compiling": False, "rendering": False})
                 self.failed(request, error)
@@ -136,7 +160,16 @@ class RenderThread(threading.Thread):
                 self._condition.wait(left)
             return False
 
-    def _render(self, request: Request) -> None:
+    def stride(self, moving: bool) -> int:
+        """1 (the whole image), or the stride of a reduced frame: 2, or 4 when the last
+        whole frame took over four frame budgets (module docstring)."""
+        last = self.last_frame_s
+        if not moving or last is None or self.frame_budget_s is None \
+                or last <= self.frame_budget_s:
+            return 1
+        return 2 if last <= 4.0 * self.frame_budget_s else 4
+
+    def _render(self, request: Request, moving: bool = False) -> None:
         scene, mode = request.scene, request.mode
         options = {"mode": mode, "spp": None, "tolerance": None, "filter": None}
         new_structure = not self.loaded.is_loaded(scene, **options)
@@ -158,15 +191,21 @@ class RenderThread(threading.Thread):
         self._recorded[first_key] = self._loads
         if compiling and not new_structure:
             self.publish("status", {"compiling": True, "rendering": True})
-        # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
-        sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
+        stride = 1 if compiling else self.stride(moving)
+        if stride > 1:
+            sums = _reduced(target, stride, facts)
+        else:
+            # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
+            sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
         elapsed = time.perf_counter() - start
         if compiling:
             self.compile_seconds[(facts.key[1:], mode)] = elapsed
         self.rendered.append(request.version)
         histograms = self.histograms.cached(scene)
         target_spp = scene.image.samples
-        self._show(request, sums, 1, target_spp, elapsed, histograms)
+        encode_s = self._show(request, sums, 1, target_spp, elapsed, histograms, stride)
+        if stride == 1 and not compiling:
+            self.last_frame_s = elapsed + encode_s
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
             # not after the NumPy below (up to Python's switch interval, 5 ms, later).
@@ -176,8 +215,16 @@ class RenderThread(threading.Thread):
             histograms = self.histograms.of(scene)
             self.publish("histograms", {"version": request.version,
                                         "histograms": list(histograms)})
-        if target_spp <= 1 or not self._wait_idle():
+        if (target_spp <= 1 and stride == 1) or not self._wait_idle():
             return
+        if stride > 1:                  # the control stopped: the whole frame now
+            start = time.perf_counter()
+            sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
+            elapsed = time.perf_counter() - start
+            self.last_frame_s = elapsed + self._show(request, sums, 1, target_spp, elapsed,
+                                                     histograms)
+            if target_spp <= 1:
+                return
         # Refinement: runs of samples, accumulated; the first of FIRST_RUN samples, then
         # each as many as all before it (the frames' spp double), up to RUN_LANES lanes.
         total = np.zeros_like(sums)
@@ -194,16 +241,40 @@ class RenderThread(threading.Thread):
             run = max(1, min(done, RUN_LANES // pixels))
 
     def _show(self, request: Request, sums: np.ndarray, spp: int, target_spp: int,
-              seconds: float, histograms: tuple | None) -> None:
-        """Publish the frame of ``sums`` (pixels, 3) over ``spp`` samples: JPEG while it
-        is not final (``frame_format`` ``auto``), else the format asked for."""
+              seconds: float, histograms: tuple | None, stride: int = 1) -> float:
+        """Publish the frame of ``sums`` (pixels, 3) over ``spp`` samples (the pixels of
+        every ``stride``-th row and column when ``stride`` > 1): JPEG while it is not
+        final (``frame_format`` ``auto``), else the format asked for. Returns the
+        seconds spent encoding it."""
         scene = request.scene
-        pixels = (sums / spp).astype(np.float32).reshape(scene.image.height,
-                                                          scene.image.width, 3)
+        height, width = _reduced_size(scene.image.height, scene.image.width, stride)
+        pixels = (sums / spp).astype(np.float32).reshape(height, width, 3)
         fmt = self.frame_format
         if fmt == "auto":
-            fmt = "png" if spp >= target_spp else "jpeg"
+            fmt = "png" if spp >= target_spp and stride == 1 else "jpeg"
         image, mime, encode_ms = encode(pixels, fmt)
-        self.publish("frame", Frame(request.version, image, mime, scene.image.width,
-                                    scene.image.height, spp, target_spp, request.mode,
-                                    seconds * 1e3, encode_ms, histograms, pixels))
+        self.publish("frame", Frame(request.version, image, mime, width, height, spp,
+                                    target_spp, request.mode, seconds * 1e3, encode_ms,
+                                    histograms, pixels, stride))
+        return encode_ms * 1e-3
+
+
+def _reduced_size(height: int, width: int, stride: int) -> tuple[int, int]:
+    """Rows and columns of a frame of every ``stride``-th row and column (from 0)."""
+    return -(-height // stride), -(-width // stride)
+
+
+def _reduced(target: Target, stride: int, facts) -> np.ndarray:
+    """The 1 spp radiance of the pixels of every ``stride``-th row and column of
+    ``target``'s image, float64 (pixels, 3), row by row: the same samples the whole
+    frame takes there (the pixel centre in whitted mode), traced as a pixel list of the
+    loaded scene (``trace_sums``), so no scene is loaded and no structure is new."""
+    height, width = _reduced_size(target.height, target.width, stride)
+    rows = np.arange(0, target.height, stride, dtype=np.uint32)[:, None]
+    columns = np.arange(0, target.width, stride, dtype=np.uint32)[None, :]
+    pixels = (rows * np.uint32(target.width) + columns).ravel()
+    sums = np.empty((height * width, 3), dtype=np.float64)
+    for part in trace_sums(target, 1, mi.UInt32(pixels), len(pixels), with_estimates=False,
+                           key=facts):
+        sums[part.start:part.start + part.count] = part.sums.numpy().T[:part.count]
+    return sums
