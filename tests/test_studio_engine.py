@@ -555,3 +555,20 @@ def test_a_moving_control_over_budget_gets_reduced_frames_then_the_whole_one():
         assert s.wait_frame(lone).stride == 1
     finally:
         s.close()
+
+
+def test_the_stride_of_a_moving_controls_frames_follows_the_frames_times():
+    from mimarble.studio.worker import RenderThread
+    worker = RenderThread(lambda *a: None, lambda *a: None)     # not started: its policy
+    worker.frame_budget_s = 0.04
+    assert worker.stride(True) == 1                   # no whole frame timed yet
+    worker.last_frame_s = 0.03
+    assert (worker.stride(True), worker.stride(False)) == (1, 1)     # within the budget
+    worker.last_frame_s = 0.09
+    assert (worker.stride(True), worker.stride(False)) == (2, 1)
+    worker.last_reduced_s = 0.05                      # stride 2 over the budget too
+    assert worker.stride(True) == 4
+    worker.last_reduced_s, worker.last_frame_s = 0.02, 0.2        # four budgets over
+    assert worker.stride(True) == 4
+    worker.frame_budget_s = None                      # reduced frames off
+    assert worker.stride(True) == 1

@@ -22,7 +22,8 @@ request never waits for a render or a compile. Its contract:
   :data:`MOTION_GAP_S` after the one before (a drag, a slider held: a stream of edits)
   and the last whole 1 spp frame took longer than :data:`FRAME_BUDGET_S` (render and
   encode: a loaded machine), the state's first frame is the whole image's pixels of
-  every second row and column (every fourth when the last frame took over four budgets)
+  every second row and column (every fourth when the last whole frame took over four
+  budgets, or the last frame at stride 2 over one)
   — a quarter (a sixteenth) of the lanes, traced by a pass over that pixel list of the
   same loaded scene (``trace_sums``: no new structure, one small recording per size),
   the page scaling it up. Once the edits stop (``idle_s``) the whole 1 spp frame
@@ -101,6 +102,8 @@ class RenderThread(threading.Thread):
         self.frame_budget_s = FRAME_BUDGET_S
         #: Seconds the last whole 1 spp frame took (render and encode; None: none yet).
         self.last_frame_s: float | None = None
+        #: Seconds the last frame at stride 2 took (render and encode).
+        self.last_reduced_s: float | None = None
         self._stopping = False
         #: Versions rendered (their first frame), in order: what a test of dropping reads.
         self.rendered: list[int] = []
@@ -162,12 +165,13 @@ class RenderThread(threading.Thread):
 
     def stride(self, moving: bool) -> int:
         """1 (the whole image), or the stride of a reduced frame: 2, or 4 when the last
-        whole frame took over four frame budgets (module docstring)."""
-        last = self.last_frame_s
-        if not moving or last is None or self.frame_budget_s is None \
-                or last <= self.frame_budget_s:
+        whole frame took over four frame budgets or the last frame at stride 2 took
+        over one (module docstring)."""
+        last, budget = self.last_frame_s, self.frame_budget_s
+        if not moving or last is None or budget is None or last <= budget:
             return 1
-        return 2 if last <= 4.0 * self.frame_budget_s else 4
+        halved = self.last_reduced_s
+        return 4 if last > 4.0 * budget or (halved is not None and halved > budget) else 2
 
     def _render(self, request: Request, moving: bool = False) -> None:
         scene, mode = request.scene, request.mode
@@ -206,6 +210,8 @@ class RenderThread(threading.Thread):
         encode_s = self._show(request, sums, 1, target_spp, elapsed, histograms, stride)
         if stride == 1 and not compiling:
             self.last_frame_s = elapsed + encode_s
+        elif stride == 2:
+            self.last_reduced_s = elapsed + encode_s
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
             # not after the NumPy below (up to Python's switch interval, 5 ms, later).
