@@ -104,6 +104,7 @@ class RenderThread(threading.Thread):
         self.last_frame_s: float | None = None
         #: Seconds the last frame at stride 2 took (render and encode).
         self.last_reduced_s: float | None = None
+        self._reduced_seen: set = set()   # (scene key, stride, pixels) traced reduced
         self._stopping = False
         #: Versions rendered (their first frame), in order: what a test of dropping reads.
         self.rendered: list[int] = []
@@ -196,7 +197,10 @@ class RenderThread(threading.Thread):
         if compiling and not new_structure:
             self.publish("status", {"compiling": True, "rendering": True})
         stride = 1 if compiling else self.stride(moving)
-        if stride > 1:
+        first_reduced = False
+        if stride > 1:        # its pass's first time for this structure records it: untimed
+            first_reduced = (facts.key, stride, pixels) not in self._reduced_seen
+            self._reduced_seen.add((facts.key, stride, pixels))
             sums = _reduced(target, stride, facts)
         else:
             # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
@@ -209,8 +213,8 @@ class RenderThread(threading.Thread):
         target_spp = scene.image.samples
         encode_s = self._show(request, sums, 1, target_spp, elapsed, histograms, stride)
         if stride == 1 and not compiling:
-            self.last_frame_s = elapsed + encode_s
-        elif stride == 2:
+            self.last_frame_s, self.last_reduced_s = elapsed + encode_s, None
+        elif stride == 2 and not first_reduced:
             self.last_reduced_s = elapsed + encode_s
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
@@ -229,6 +233,7 @@ class RenderThread(threading.Thread):
             elapsed = time.perf_counter() - start
             self.last_frame_s = elapsed + self._show(request, sums, 1, target_spp, elapsed,
                                                      histograms)
+            self.last_reduced_s = None   # the next drag tries stride 2 again
             if target_spp <= 1:
                 return
         # Refinement: runs of samples, accumulated; the first of FIRST_RUN samples, then
