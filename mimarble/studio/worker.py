@@ -200,6 +200,8 @@ class RenderThread(threading.Thread):
         first_reduced = False
         if stride > 1:        # its pass's first time for this structure records it: untimed
             first_reduced = (facts.key, stride, pixels) not in self._reduced_seen
+            if len(self._reduced_seen) >= 64:        # bounded: a long session's structures
+                self._reduced_seen.clear()
             self._reduced_seen.add((facts.key, stride, pixels))
             sums = _reduced(target, stride, facts)
         else:
