@@ -362,6 +362,42 @@ def test_save_changes_only_the_edited_values(tmp_path):
         s.close()
 
 
+def test_an_edit_made_while_saving_neither_waits_for_the_save_nor_is_lost(tmp_path, monkeypatch):
+    """The text is rewritten and parsed outside the session's lock: an edit made while a
+    save rewrites the text returns at once, and stays an unsaved edit (the file holds the
+    value of when the save began)."""
+    from mimarble.studio import session as session_module
+    path = _copy(tmp_path)
+    s = _session(str(path))
+    inside, edited = threading.Event(), threading.Event()
+    original = session_module.rewrite
+
+    def slow_rewrite(*args, **kwargs):
+        inside.set()
+        edited.wait(30)               # without the fix the edit waits for this save: 30 s
+        return original(*args, **kwargs)
+
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+        saving = threading.Thread(target=s.save)
+        saving.start()
+        assert inside.wait(30)
+        s.edit("material.marble.diffuse.period", 2.5)          # while the save rewrites
+        edit_returned_during_save = saving.is_alive()
+        edited.set()
+        saving.join(60)
+        assert edit_returned_during_save
+        assert "      period 2.25" in path.read_text().splitlines()
+        assert s.state()["dirty"] and s.edits_made == {"material.marble.diffuse.period": 2.5}
+        monkeypatch.setattr(session_module, "rewrite", original)
+        s.save()
+        assert "      period 2.5" in path.read_text().splitlines() and not s.state()["dirty"]
+    finally:
+        edited.set()
+        s.close()
+
+
 def test_save_refuses_a_file_changed_on_disk_and_a_packaged_scene(tmp_path):
     from mimarble.studio import StudioError
     path = _copy(tmp_path)

@@ -332,6 +332,57 @@ def test_a_slow_tab_gets_only_the_newest_frame():
     assert any(isinstance(s, str) and '"edited"' in s for s in sent)
 
 
+def test_a_tab_that_sends_without_reading_is_held_to_a_bounded_queue(studio):
+    """A tab that sends pings as fast as it can and reads nothing (its socket's sends
+    block): the server stops reading its messages once MAX_ANSWERS answers wait, instead
+    of holding an answer for every message; when the tab reads, every ping is answered."""
+    import asyncio
+    from mimarble.studio.server import MAX_ANSWERS
+
+    class Flooding:
+        """The server's side of a websocket whose peer floods and does not read."""
+        def __init__(self):
+            self.received, self.sent = 0, []
+            self.reading = asyncio.Event()          # set: the peer reads again
+            self.done = False
+
+        async def accept(self):
+            pass
+
+        async def receive(self):
+            if self.done:
+                return {"type": "websocket.disconnect"}
+            self.received += 1
+            await asyncio.sleep(0)
+            return {"type": "websocket.receive",
+                    "text": json.dumps({"type": "ping", "seq": self.received})}
+
+        async def send_text(self, text):
+            await self.reading.wait()
+            self.sent.append(json.loads(text))
+
+        async def send_bytes(self, data):
+            await self.reading.wait()
+
+    async def run():
+        socket = Flooding()
+        serving = asyncio.ensure_future(studio._websocket(socket))
+        await asyncio.sleep(0.5)
+        received_while_blocked = socket.received
+        socket.reading.set()
+        for _ in range(200):
+            await asyncio.sleep(0.005)
+        socket.done = True
+        await asyncio.wait_for(serving, 10)
+        return socket, received_while_blocked
+
+    socket, received_while_blocked = asyncio.run(run())
+    assert received_while_blocked <= MAX_ANSWERS + 1
+    pongs = [m["seq"] for m in socket.sent if m["type"] == "pong"]
+    assert socket.received > 2 * MAX_ANSWERS          # read again once the tab read
+    assert pongs == list(range(1, len(pongs) + 1)) and len(pongs) >= socket.received - 1
+
+
 # ---- stopping ------------------------------------------------------------------------------
 
 

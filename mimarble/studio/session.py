@@ -100,6 +100,9 @@ class StudioSession:
         self.packaged = path != argument
         self.path = Path(path)
         self._lock = threading.RLock()
+        #: Saves one at a time; the session lock is held only to read and to adopt the
+        #: state, not while the text is rewritten and parsed (an edit never waits for that).
+        self._save_lock = threading.Lock()
         self._listeners: list = []
         self._closed = False
         self._text, self._stat = self._read()
@@ -427,25 +430,37 @@ class StudioSession:
         (``scene.rewrite``: comments, layout, order, every other byte kept), whole or not
         at all; returns the text written. StudioError (one sentence, nothing written) for
         a packaged scene (Save as writes a copy), a file that changed on disk since it was
-        loaded (:meth:`reload` first), or an edit the text cannot say."""
-        with self._lock:
-            if self.packaged:
-                raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
-                                  f"to overwrite; use Save as to write a copy")
-            if self._disk_changed:
-                raise StudioError(f"save: {self.path} changed on disk since it was loaded; "
-                                  f"reload it (nothing was written)")
-            text = self._rewritten()
-            try:
-                save_atomic(self.path, text, self._text)
-            except SaveRefused as e:
-                self._disk_changed = True
-                raise StudioError(f"save: {e}") from None
-            except OSError as e:
-                raise StudioError(f"save: {self.path}: {e.strerror or e}") from None
-            self._saved(text)
+        loaded (:meth:`reload` first), or an edit the text cannot say. Edits made while it
+        saves are kept as unsaved edits."""
+        with self._save_lock:
+            with self._lock:
+                self._check_saveable()
+                path, before, edits = self.path, self._text, dict(self._edits)
+            text = _rewritten(before, edits, path)
+            base = scene_language.parse(text, filename=str(path), source=str(path))
+            with self._lock:
+                self._check_saveable()
+                if self._text is not before:
+                    raise StudioError("save: the file was reloaded while it was being "
+                                      "saved (nothing was written)")
+                try:
+                    save_atomic(path, text, before)
+                except SaveRefused as e:
+                    self._disk_changed = True
+                    raise StudioError(f"save: {e}") from None
+                except OSError as e:
+                    raise StudioError(f"save: {path}: {e.strerror or e}") from None
+                self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
+
+    def _check_saveable(self) -> None:
+        if self.packaged:
+            raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
+                              f"to overwrite; use Save as to write a copy")
+        if self._disk_changed:
+            raise StudioError(f"save: {self.path} changed on disk since it was loaded; "
+                              f"reload it (nothing was written)")
 
     def save_as(self, path) -> str:
         """Write the scene as edited now to ``path`` (the file's text with the edits
@@ -457,36 +472,36 @@ class StudioSession:
         problem = output_name_problem(path)
         if problem:
             raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
-        with self._lock:
-            text = self._rewritten()
+        with self._save_lock:
+            with self._lock:
+                before, edits = self._text, dict(self._edits)
+            text = _rewritten(before, edits, self.path)
             try:      # read as it would be there: its meshes and image maps beside it
-                scene_language.parse(text, filename=str(path), source=str(path))
+                base = scene_language.parse(text, filename=str(path), source=str(path))
             except scene_language.SceneError as e:
                 first = str(e).splitlines()[0]
                 raise StudioError(f"save as: the scene would not read at {path} ({first}); "
                                   f"save it beside the files it names (nothing was "
                                   f"written)") from None
-            try:
-                save_atomic(path, text, None)
-            except OSError as e:
-                raise StudioError(f"save as: {path}: {e.strerror or e}") from None
-            self.path, self.packaged = Path(path), False
-            self._saved(text)
+            with self._lock:
+                if self._text is not before:
+                    raise StudioError("save as: the file was reloaded while it was being "
+                                      "saved (nothing was written)")
+                try:
+                    save_atomic(path, text, None)
+                except OSError as e:
+                    raise StudioError(f"save as: {path}: {e.strerror or e}") from None
+                self.path, self.packaged = Path(path), False
+                self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
 
-    def _rewritten(self) -> str:
-        """The file's text with the edits written in (StudioError: an edit it cannot say)."""
-        try:
-            return rewrite(self._text, self._edits, filename=str(self.path),
-                           source=str(self.path))
-        except (KeyPathError, scene_language.SceneError) as e:
-            raise StudioError(f"save: {e}") from None
-
-    def _saved(self, text: str) -> None:
-        """The file now holds ``text``: it is what the session was loaded from."""
-        self._text, self._stat, self._edits = text, _facts(self.path), {}
-        self._base = scene_language.parse(text, filename=str(self.path), source=str(self.path))
+    def _saved(self, text: str, base, saved: dict) -> None:
+        """The file now holds ``text`` (parsed: ``base``), with the edits ``saved``: it
+        is what the session was loaded from; edits made since stay unsaved."""
+        self._text, self._stat, self._base = text, _facts(self.path), base
+        self._edits = {key: value for key, value in self._edits.items()
+                       if key not in saved or saved[key] is not value}
         self._disk_changed = False
 
     def _watch(self) -> None:
@@ -563,6 +578,14 @@ class StudioSession:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _rewritten(text: str, edits: dict, path: Path) -> str:
+    """``text`` with ``edits`` written in (StudioError: an edit it cannot say)."""
+    try:
+        return rewrite(text, edits, filename=str(path), source=str(path))
+    except (KeyPathError, scene_language.SceneError) as e:
+        raise StudioError(f"save: {e}") from None
 
 
 def _facts(path: Path) -> tuple | None:
