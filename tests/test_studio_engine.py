@@ -173,7 +173,7 @@ def test_structural_edit_compiles_once(session, monkeypatch):
     # no recording (a replay launches the kernels it holds: nothing compiled), never
     # "compiling".
     worker = session._worker
-    assert _eventually(lambda: len(worker.recorded_again) == 1)
+    assert _eventually(worker.resting.is_set) and worker.recorded_again
     recordings = passes._traced_pass.recordings
     for octaves in (12, 9, 12, 9):
         session.wait_frame(session.edit("marble.octaves", octaves))

@@ -440,19 +440,25 @@ class StudioSession:
             base = scene_language.parse(text, filename=str(path), source=str(path))
             with self._lock:
                 self._check_saveable()
-                if self._text is not before:
-                    raise StudioError("save: the file was reloaded while it was being "
-                                      "saved (nothing was written)")
-                try:
-                    save_atomic(path, text, before)
-                except SaveRefused as e:
-                    self._disk_changed = True
-                    raise StudioError(f"save: {e}") from None
-                except OSError as e:
-                    raise StudioError(f"save: {path}: {e.strerror or e}") from None
+                self._write("save", path, text, before, expected=before)
                 self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
+
+    def _write(self, action: str, path, text: str, before: str, expected) -> None:
+        """Write ``text`` to ``path`` atomically (``expected``: the text the file must
+        still hold, None for any), under the lock, unless the file was reloaded since
+        ``before`` was read; StudioError (nothing written) otherwise."""
+        if self._text is not before:
+            raise StudioError(f"{action}: the file was reloaded while it was being saved "
+                              f"(nothing was written)")
+        try:
+            save_atomic(path, text, expected)
+        except SaveRefused as e:
+            self._disk_changed = True
+            raise StudioError(f"{action}: {e}") from None
+        except OSError as e:
+            raise StudioError(f"{action}: {path}: {e.strerror or e}") from None
 
     def _check_saveable(self) -> None:
         if self.packaged:
@@ -484,13 +490,7 @@ class StudioSession:
                                   f"save it beside the files it names (nothing was "
                                   f"written)") from None
             with self._lock:
-                if self._text is not before:
-                    raise StudioError("save as: the file was reloaded while it was being "
-                                      "saved (nothing was written)")
-                try:
-                    save_atomic(path, text, None)
-                except OSError as e:
-                    raise StudioError(f"save as: {path}: {e.strerror or e}") from None
+                self._write("save as", path, text, before, expected=None)
                 self.path, self.packaged = Path(path), False
                 self._saved(text, base, edits)
         self._emit("state", self.state())

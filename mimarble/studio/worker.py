@@ -100,6 +100,9 @@ class RenderThread(threading.Thread):
         self._kept_passes: dict = {}
         #: 1 spp passes recorded again after a load, in order (a test's check).
         self.recorded_again: list = []
+        #: Set while the thread waits for a state or for edits to pause: nothing of its
+        #: own is in progress (a test's check).
+        self.resting = threading.Event()
 
     # -- Called from other threads ---------------------------------------------------
 
@@ -123,8 +126,10 @@ class RenderThread(threading.Thread):
     def run(self) -> None:
         while True:
             with self._condition:
+                self.resting.set()
                 while self._pending is None and not self._stopping:
                     self._condition.wait()
+                self.resting.clear()
                 if self._stopping:
                     return
                 request, self._pending = self._pending, None
@@ -142,12 +147,16 @@ class RenderThread(threading.Thread):
         """Wait until no edit has come for ``idle_s``; False if a new state (or stop)
         came first."""
         with self._condition:
-            while self._pending is None and not self._stopping:
-                left = self._last_submit + self.idle_s - time.monotonic()
-                if left <= 0:
-                    return True
-                self._condition.wait(left)
-            return False
+            self.resting.set()
+            try:
+                while self._pending is None and not self._stopping:
+                    left = self._last_submit + self.idle_s - time.monotonic()
+                    if left <= 0:
+                        return True
+                    self._condition.wait(left)
+                return False
+            finally:
+                self.resting.clear()
 
     def _render(self, request: Request) -> None:
         scene, mode = request.scene, request.mode
