@@ -99,6 +99,12 @@ BAR_POWER = 3.0
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
 SPREAD_SAMPLES = 3
+#: Whether the first pass traces the marbles' doubts (a kernel of its own, dearer than
+#: the plain one: docs/benchmarks.md) or is the plain 1-spp kernel, its pixels' doubt
+#: then read from the image: the second difference of the first pass's means
+#: (:func:`second_difference`, weighed by ``CURVATURE_WEIGHT``).
+DOUBT_KERNEL = False
+CURVATURE_WEIGHT = 0.125
 
 
 class AdaptiveRender(NamedTuple):
@@ -237,6 +243,25 @@ class PixelState:
             self.first, self.last, self.low, self.high = \
                 traced.first, traced.last, traced.low, traced.high
 
+    def doubt_from_image(self, means, width: int, height: int) -> None:
+        """Every pixel's doubt from the first pass's ``means`` (a width × height window),
+        when that pass traced none (:data:`DOUBT_KERNEL`): the second difference of the
+        image at the pixel, |Σ₃ₓ₃ mean − 9·mean| / 8 (the pixel against its 8 neighbours'
+        mean, the largest colour), scaled so that the estimate weighs it by
+        :data:`CURVATURE_WEIGHT`. For a smooth image it is ≈ (3/8)·h²·|f_xx + f_yy|, of the
+        order of a 1-spp pixel's error (the midpoint rule's, h²·|f_xx + f_yy|/24, a
+        multiple); where veins finer than a pixel alias, neighbours disagree at random and
+        it is large. Held as a doubt of one sample, so that it falls as 1/n² as the
+        kernel's doubt does."""
+        pixels = dr.arange(mi.UInt32, self.count)
+        total = None
+        for around in _neighbours(pixels, width, height):
+            mean = dr.gather(mi.Color3f, means, around)
+            total = mean if total is None else total + mean
+        second = largest_component(dr.abs(total - 9.0 * means)) * 0.125
+        self.doubt_sums = mi.Float64(second) * (CURVATURE_WEIGHT / DOUBT_WEIGHT)
+        self.doubted = dr.full(mi.UInt32, 1, self.count)
+
     def means(self):
         """Each pixel's mean (Color3f): its sum divided by its samples in float64 (a true
         division, as a plain render's), rounded once."""
@@ -304,7 +329,8 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
                          f"needs mimarble's 'whitted' (its stratum centres and doubts)")
     target = Target.of(mitsuba_scene, "whitted", LOADED.parameters_of(mitsuba_scene))
-    Whitted.prepare_doubts(mitsuba_scene)
+    if DOUBT_KERNEL:
+        Whitted.prepare_doubts(mitsuba_scene)
     facts = scene_facts(target.scene, target.params)
     window = Window.of(target, crop, ring=1)
     width, height = window.width, window.height
@@ -324,7 +350,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
             state.clear(pixels)
         whole = number == 0 and window.whole
         for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
-                               listed, with_estimates=not last, doubts=number == 0,
+                               listed, with_estimates=not last, doubts=DOUBT_KERNEL and number == 0,
                                parent_axis=level.parent, per_cell=level.per_cell,
                                cell_offset=level.offset, pass_samples=pass_samples, key=facts):
             lanes = dr.width(part.sums)
@@ -346,6 +372,8 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         # The first round's candidates: every pixel (local indices) in Morton order, made
         # only when a round follows.
         candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
+        if number == 0 and not DOUBT_KERNEL:
+            state.doubt_from_image(means, width, height)
         pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
                         height)
         dr.eval(pixels)
