@@ -86,6 +86,9 @@ from .loaded_scenes import LOADED
 from .passes import Target, trace_sums
 from .replay import scene_facts
 from mimarble.mitsuba.plugins.whitted import Whitted
+from mimarble.mitsuba.plugins.material import CHANNELS
+from mimarble.mitsuba.plugins.shared_evaluations import textures_within
+from mimarble.texture.filters import Prefilter
 from .window import Window
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -99,10 +102,11 @@ BAR_POWER = 3.0
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
 SPREAD_SAMPLES = 3
-#: Whether the first pass traces the marbles' doubts (a kernel of its own, dearer than
-#: the plain one: docs/benchmarks.md) or is the plain 1-spp kernel, its pixels' doubt
-#: then read from the image: the second difference of the first pass's means
-#: (:func:`second_difference`, weighed by ``CURVATURE_WEIGHT``).
+#: Whether the first pass traces the marbles' doubts in every scene (a kernel of its own:
+#: for a point-sampled marble about the plain one's cost again, docs/benchmarks.md), or
+#: only in scenes with a prefiltered marble (:func:`traces_doubts`); else it is the plain
+#: kernel and a pixel's doubt is read from the first image
+#: (:meth:`PixelState.doubt_from_image`, weighed by ``CURVATURE_WEIGHT``).
 DOUBT_KERNEL = False
 CURVATURE_WEIGHT = 0.125
 
@@ -329,7 +333,8 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
                          f"needs mimarble's 'whitted' (its stratum centres and doubts)")
     target = Target.of(mitsuba_scene, "whitted", LOADED.parameters_of(mitsuba_scene))
-    if DOUBT_KERNEL:
+    doubts = traces_doubts(mitsuba_scene)
+    if doubts:
         Whitted.prepare_doubts(mitsuba_scene)
     facts = scene_facts(target.scene, target.params)
     window = Window.of(target, crop, ring=1)
@@ -350,7 +355,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
             state.clear(pixels)
         whole = number == 0 and window.whole
         for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
-                               listed, with_estimates=not last, doubts=DOUBT_KERNEL and number == 0,
+                               listed, with_estimates=not last, doubts=doubts and number == 0,
                                parent_axis=level.parent, per_cell=level.per_cell,
                                cell_offset=level.offset, pass_samples=pass_samples, key=facts):
             lanes = dr.width(part.sums)
@@ -372,7 +377,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         # The first round's candidates: every pixel (local indices) in Morton order, made
         # only when a round follows.
         candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
-        if number == 0 and not DOUBT_KERNEL:
+        if number == 0 and not doubts:
             state.doubt_from_image(means, width, height)
         pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
                         height)
@@ -387,6 +392,22 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     samples = state.samples.numpy().astype(np.int64).reshape(height, width)
     return AdaptiveRender(window.window_of(image), window.window_of(samples[..., None])[..., 0],
                           traced, taken)
+
+
+def traces_doubts(mitsuba_scene) -> bool:
+    """Whether the first pass over ``mitsuba_scene`` traces whitted's doubts: with
+    :data:`DOUBT_KERNEL`, or when a marble of the scene is prefiltered. A prefiltered
+    marble's second estimate (the colour at the point) costs little beside the prefilter,
+    which computes the noise over the footprint anyway, and its doubt knows where the
+    prefilter is exact (linear phase: no doubt) — the image cannot tell a resolved stripe
+    from one that needs samples. A point-sampled marble's second estimate is a prefilter
+    of its own: there the image's second difference does its work."""
+    if DOUBT_KERNEL:
+        return True
+    return any(isinstance(getattr(texture, "pixel_filter", None), Prefilter)
+               for material in Whitted._materials(mitsuba_scene)
+               for name in CHANNELS
+               for texture in textures_within(getattr(material, name)))
 
 
 def _global(window: Window, pixels):
