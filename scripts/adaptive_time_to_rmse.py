@@ -21,6 +21,10 @@ dr, mi = mimarble.dr, mimarble.mi
 maxspp = int(os.environ.get("MAXSPP", "81"))
 if "DK" in os.environ:      # DK=1: the first pass traces the doubt kernel (issue 43's first code)
     adaptive.DOUBT_KERNEL = os.environ["DK"] == "1"
+if "BAR" in os.environ:
+    adaptive.BAR_POWER = float(os.environ["BAR"])
+if "THIRDS" in os.environ:
+    adaptive.THIRDS = os.environ["THIRDS"] == "1"
 for path in sys.argv[1:]:
     scene = resized(mimarble.scene.load(path), 256)
     truth = converged(scene, 256, Path(files.cache_folder()))

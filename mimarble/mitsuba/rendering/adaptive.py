@@ -2,15 +2,18 @@
 
 A first pass renders every pixel with ``spp`` = m² stratum centres, as a plain render
 does. Then rounds: every pixel of the last round whose estimated error E exceeds
-``threshold`` · n^BAR_POWER (n² its samples) goes one level up a ladder that triples its
-samples and keeps them (:func:`ladder`): the centre of stratum (i, j) of an m×m grid is the
-centre of stratum (3i + 1, 3j + 1) of the 3m×3m one — an odd refinement holds every old
-centre — so a round traces only new strata of the 3m grid, first 2 per cell of the m grid
-(3m² samples: the cell's centre and a pair symmetric about it, the diagonals alternating
-from cell to cell), then the other 6 (9m²: the whole 3m grid), and adds them to the
-pixel's sum. A ``max_spp`` off the ladder is a last level of its own grid, which replaces
-the pixel's samples. Only the pixels a round refined are candidates in the next.
-Deterministic, like the rest of whitted mode.
+``threshold`` · n^BAR_POWER (n² its samples) goes one level up a ladder that keeps its
+samples (:func:`ladder`): the centre of stratum (i, j) of an m×m grid is the centre of
+stratum (3i + 1, 3j + 1) of the 3m×3m one — an odd refinement holds every old centre — so
+a round traces only the 8 new strata of each cell of the m grid (9m² samples: the whole 3m
+grid, the plain render's strata) and adds them to the pixel's sum. With :data:`THIRDS` a
+round goes a third of the way first (2 per cell: the cell's centre and a pair symmetric
+about it, the diagonals alternating from cell to cell, 3m² samples), then the other 6 —
+more rounds, each dearer per sample than the plain render's (docs/design-decisions.md,
+"Adaptive samples at the price of plain ones": the 1, 9, 81 ladder reached plain 16's RMSE
+sooner on every scene measured). A ``max_spp`` off the ladder is a last level of its own
+grid, which replaces the pixel's samples. Only the pixels a round refined are candidates
+in the next. Deterministic, like the rest of whitted mode.
 
 **What a pixel is at the end.** At 9^k·m² samples a pixel holds the stratum centres of
 the plain render's grid, one per stratum, summed as a plain render sums them (in float32
@@ -28,8 +31,10 @@ Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
 (``dr.compress``); only its length comes back to size the passes. The lists are in Morton
 order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
-Only the first pass traces the marbles' doubts (its kernel costs more than the plain
-one: docs/benchmarks.md); the rounds trace the plain kernel, and read the first pass's doubt.
+The first pass is the plain kernel, and a pixel's doubt is read from its image (the
+second difference, :meth:`PixelState.doubt_from_image`), except in scenes with a
+prefiltered marble, where the first pass traces the marbles' doubts
+(:func:`traces_doubts`); the rounds trace the plain kernel, and read the first pass's doubt.
 
 Why a bar that grows with n: a round costs a pixel more than its samples, so the error
 it removes per sample falls as n grows; ``threshold`` · n³ leaves deeper rounds to fewer
@@ -44,8 +49,11 @@ three colours):
     E = max(E, SPREAD_WEIGHT · spread / n²)                         n² ≥ SPREAD_SAMPLES
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
-``doubt`` is the mean over the pixel's first-pass samples of whitted's doubt
-(``Whitted.shade``; the rounds do not trace it):
+``doubt`` is either the first image's second difference at the pixel (the pixel
+against its 3×3 neighbourhood's mean: large where the image is curved or a vein finer
+than the pixel aliases) or, in scenes with a prefiltered marble, the mean over the
+pixel's first-pass samples of whitted's doubt (``Whitted.shade``; the rounds do not
+trace it):
 the marbles' own estimate of how wrong one sample of them can be there — |the filter's
 colour − its other view of the footprint| (mimarble/texture/filters.py), large where the
 colour changes across the footprint, 0 where it is smooth. It says where a sample can be
@@ -109,6 +117,10 @@ SPREAD_SAMPLES = 3
 #: (:meth:`PixelState.doubt_from_image`, weighed by ``CURVATURE_WEIGHT``).
 DOUBT_KERNEL = False
 CURVATURE_WEIGHT = 0.125
+#: Whether the ladder goes a third of the way (3m² samples) before each 9m² (issue 43's
+#: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
+#: cheaper per sample (module docstring).
+THIRDS = False
 
 
 class AdaptiveRender(NamedTuple):
@@ -144,14 +156,18 @@ class Level(NamedTuple):
 
 def ladder(spp: int, max_spp: int) -> list[Level]:
     """The levels of a render from ``spp`` = m² to ``max_spp`` (perfect squares, ``spp`` ≤
-    ``max_spp``): m², then per cell of the m grid 2 more strata of the 3m grid (3m²), then
-    its other 6 (9m², the whole 3m grid: the plain render's strata), then 3·9m², 81m², …
-    while they fit; then ``max_spp``'s own grid, replacing, if it is not on that ladder
-    (after one more third-way level if that is at most half of ``max_spp``)."""
+    ``max_spp``): m², then per cell of the m grid its 8 other strata of the 3m grid (9m²,
+    the whole 3m grid: the plain render's strata), then 81m², … while they fit — with
+    :data:`THIRDS`, 2 of the 8 first (3m²), then the other 6 —; then ``max_spp``'s own
+    grid, replacing, if it is not on that ladder (after one third-way level if that is at
+    most half of ``max_spp``)."""
     m, most = samples_per_axis(spp), samples_per_axis(max_spp)
     levels = [Level(spp, m)]
     while 3 * m <= most:
-        levels += [Level(3 * m * m, 3 * m, m, 2, 0), Level(9 * m * m, 3 * m, m, 6, 2)]
+        if THIRDS:
+            levels += [Level(3 * m * m, 3 * m, m, 2, 0), Level(9 * m * m, 3 * m, m, 6, 2)]
+        else:
+            levels += [Level(9 * m * m, 3 * m, m, 8, 0)]
         m *= 3
     if m < most:
         if 3 * m * m <= max_spp // 2:      # a third of the way, if the last step doubles
