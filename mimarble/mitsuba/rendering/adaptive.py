@@ -32,7 +32,7 @@ first-hit shapes, doubts and sample ranges, the estimate, and the next round's p
 (``dr.compress``); only its length comes back to size the passes. The lists are in Morton
 order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
 The first pass is the plain kernel, and a pixel's doubt is read from its image (the
-second difference, :meth:`PixelState.doubt_from_image`), except in scenes with a
+second difference, :func:`refine`), except in scenes with a
 prefiltered marble, where the first pass traces the marbles' doubts
 (:func:`traces_doubts`); the rounds trace the plain kernel, and read the first pass's doubt.
 
@@ -114,7 +114,7 @@ SPREAD_SAMPLES = 3
 #: for a point-sampled marble about the plain one's cost again, docs/benchmarks.md), or
 #: only in scenes with a prefiltered marble (:func:`traces_doubts`); else it is the plain
 #: kernel and a pixel's doubt is read from the first image
-#: (:meth:`PixelState.doubt_from_image`, weighed by ``CURVATURE_WEIGHT``).
+#: (:func:`refine`, weighed by ``CURVATURE_WEIGHT``).
 DOUBT_KERNEL = False
 CURVATURE_WEIGHT = 0.125
 #: Whether the ladder goes a third of the way (3m² samples) before each 9m² (issue 43's
@@ -263,25 +263,6 @@ class PixelState:
             self.first, self.last, self.low, self.high = \
                 traced.first, traced.last, traced.low, traced.high
 
-    def doubt_from_image(self, means, width: int, height: int) -> None:
-        """Every pixel's doubt from the first pass's ``means`` (a width × height window),
-        when that pass traced none (:data:`DOUBT_KERNEL`): the second difference of the
-        image at the pixel, |Σ₃ₓ₃ mean − 9·mean| / 8 (the pixel against its 8 neighbours'
-        mean, the largest colour), scaled so that the estimate weighs it by
-        :data:`CURVATURE_WEIGHT`. For a smooth image it is ≈ (3/8)·h²·|f_xx + f_yy|, of the
-        order of a 1-spp pixel's error (the midpoint rule's, h²·|f_xx + f_yy|/24, a
-        multiple); where veins finer than a pixel alias, neighbours disagree at random and
-        it is large. Held as a doubt of one sample, so that it falls as 1/n² as the
-        kernel's doubt does."""
-        pixels = dr.arange(mi.UInt32, self.count)
-        total = None
-        for around in _neighbours(pixels, width, height):
-            mean = dr.gather(mi.Color3f, means, around)
-            total = mean if total is None else total + mean
-        second = largest_component(dr.abs(total - 9.0 * means)) * 0.125
-        self.doubt_sums = mi.Float64(second) * (CURVATURE_WEIGHT / DOUBT_WEIGHT)
-        self.doubted = dr.full(mi.UInt32, 1, self.count)
-
     def means(self):
         """Each pixel's mean (Color3f): its sum divided by its samples in float64 (a true
         division, as a plain render's), rounded once."""
@@ -301,28 +282,47 @@ def _neighbours(pixels, width: int, height: int):
 
 
 def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
-           height: int):
+           height: int, doubt_from_image: bool = False):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
     estimated error is above ``threshold`` · axis^:data:`BAR_POWER` (module docstring), in
     their order:
-    computed on the device, the list made there (``dr.compress``)."""
+    computed on the device, the list made there (``dr.compress``).
+
+    ``doubt_from_image`` (after a first pass without the doubt kernel, ``pixels`` every
+    pixel): each pixel's doubt is first set from the image, in the same kernel — the
+    second difference |Σ₃ₓ₃ mean − 9·mean| / 8 (the pixel against its 8 neighbours' mean,
+    the largest colour), scaled so that the estimate weighs it by
+    :data:`CURVATURE_WEIGHT`. For a smooth image it is (3/8)·h²·|f_xx + f_yy| to leading
+    order, 9× the midpoint rule's error of a 1-spp pixel, h²·|f_xx + f_yy|/24; where veins
+    finer than a pixel alias, neighbours disagree at random and it is large. Held as the
+    doubt of one sample, it falls as 1/n² as the kernel's doubt does."""
     least = most = None
-    low_mean = high_mean = None
+    low_mean = high_mean = total = None
     for around in _neighbours(pixels, width, height):
         first = dr.gather(mi.UInt32, state.first, around)
         last = dr.gather(mi.UInt32, state.last, around)
         mean = dr.gather(mi.Color3f, means, around)
         if least is None:
-            least, most, low_mean, high_mean = first, last, mean, mean
+            least, most, low_mean, high_mean, total = first, last, mean, mean, mean
         else:
             least, most = dr.minimum(least, first), dr.maximum(most, last)
             low_mean, high_mean = dr.minimum(low_mean, mean), dr.maximum(high_mean, mean)
+            total = total + mean
+    if doubt_from_image:
+        second = largest_component(dr.abs(total - 9.0 * dr.gather(mi.Color3f, means, pixels)))
+        image_doubt = mi.Float64(second) * (0.125 * CURVATURE_WEIGHT / DOUBT_WEIGHT)
+        state.doubt_sums = dr.zeros(mi.Float64, state.count)
+        dr.scatter(state.doubt_sums, image_doubt, pixels)        # kept for the rounds
+        state.doubted = dr.full(mi.UInt32, 1, state.count)
     on_silhouette = least != most
     spread = largest_component(dr.gather(mi.Color3f, state.high, pixels)
                                - dr.gather(mi.Color3f, state.low, pixels))
     contrast = dr.maximum(spread, largest_component(high_mean - low_mean))
-    doubted = dr.gather(mi.UInt32, state.doubted, pixels)
-    doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
+    if doubt_from_image:
+        doubt = image_doubt
+    else:
+        doubted = dr.gather(mi.UInt32, state.doubted, pixels)
+        doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
     errors = estimated_errors(axis, doubt, mi.Float64(spread), mi.Float64(contrast),
                               on_silhouette)
     keep = errors > dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
@@ -393,10 +393,8 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         # The first round's candidates: every pixel (local indices) in Morton order, made
         # only when a round follows.
         candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
-        if number == 0 and not doubts:
-            state.doubt_from_image(means, width, height)
         pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
-                        height)
+                        height, doubt_from_image=number == 0 and not doubts)
         dr.eval(pixels)
         listed = dr.width(pixels)
         if listed == 0:
