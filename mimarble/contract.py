@@ -102,8 +102,8 @@ SPHERICAL_ALBEDO_FIT_B = 0.139
 SPHERICAL_ALBEDO_FIT_C = 1.17
 
 #: Adaptive sampling's most samples per pixel when ``max_spp`` is not given (at least the
-#: first pass's spp): 1 spp tripled four times (mimarble/mitsuba/rendering/adaptive.py's
-#: ladder, 1, 3, 9, 27, 81, whose every level keeps the samples before it).
+#: first pass's spp): 1 spp taken to 9 twice (mimarble/mitsuba/rendering/adaptive.py's
+#: ladder, 1, 9, 81, whose every level keeps the samples before it).
 DEFAULT_MAX_SPP = 81
 
 # ---------------------------------------------------------------------------

@@ -23,6 +23,7 @@ import time
 
 import mimarble
 from mimarble.mitsuba import to_mitsuba
+from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.adaptive import render_adaptive
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.runtime.machine import machine_facts
@@ -88,7 +89,10 @@ def main() -> None:
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--rounds", type=int, default=7)
     parser.add_argument("--json")
+    parser.add_argument("--doubt-kernel", action="store_true",
+                        help="the first pass traces the marbles' doubts (issue 43's first code)")
     args = parser.parse_args()
+    adaptive.DOUBT_KERNEL = args.doubt_kernel
     facts = machine_facts()
     cpu = f"{facts.get('processor', '?')} ({facts.get('llvm_target', {}).get('cpu', '?')})"
     print(f"{cpu}; load {os.getloadavg()}; {args.size}², medians of {args.rounds} "

@@ -1,6 +1,6 @@
 """Time to plain 16 and 64 spp's RMSE, adaptive against plain, interleaved, in one process.
 
-    ./go python scripts/adaptive_time_to_rmse.py SCENE …    # MAXSPP=64 for issue 24's code
+    ./go python scripts/adaptive_time_to_rmse.py SCENE …    # MAXSPP=64 for issue 24's code; DK=1 doubt kernel
 
 For each target: the thresholds 0.005·2^−k until a render reaches plain N spp's RMSE, then
 plain N spp and the two bracketing thresholds timed in turn (medians of 7, each after a
@@ -19,6 +19,12 @@ from mimarble.bench.curves import time_to_rmse
 from mimarble.runtime import files
 dr, mi = mimarble.dr, mimarble.mi
 maxspp = int(os.environ.get("MAXSPP", "81"))
+if "DK" in os.environ:      # DK=1: the first pass traces the doubt kernel (issue 43's first code)
+    adaptive.DOUBT_KERNEL = os.environ["DK"] == "1"
+if "BAR" in os.environ:
+    adaptive.BAR_POWER = float(os.environ["BAR"])
+if "THIRDS" in os.environ:
+    adaptive.THIRDS = os.environ["THIRDS"] == "1"
 for path in sys.argv[1:]:
     scene = resized(mimarble.scene.load(path), 256)
     truth = converged(scene, 256, Path(files.cache_folder()))

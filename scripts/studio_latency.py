@@ -1,6 +1,7 @@
 """The studio engine's latency (issue 41's targets, the engine's side; no browser).
 
-    ./go python scripts/studio_latency.py [--size 512] [--edits 60] [--json OUT]
+    ./go python scripts/studio_latency.py [--size 512] [--edits 60] [--pause 1.0]
+        [--structure-only] [--json OUT]
 
 On fig11a at ``--size``² (a StudioSession, as the page uses it):
 
@@ -17,9 +18,10 @@ On fig11a at ``--size``² (a StudioSession, as the page uses it):
 3. **structure**: ``marble.octaves`` 8 → 9 → 8 → 9 (tolerance 0, so that 9 is a new
    kernel; 8 → 9 a new structure, loaded and compiled with an empty kernel cache:
    ``DRJIT_CACHE_DIR`` is set to a new folder before Dr.Jit loads; back to 8, loaded
-   before and compiled, recorded once more since another scene was loaded; then 9
-   again: nothing new) — each edit's time for ``edit`` to return, to its frame, and
-   whether ``compiling`` was said.
+   before, its pass recorded again behind 9's frame; then 9 again: nothing new), each
+   edit ``--pause`` seconds after the last one's frame (as a user looks at it) — each
+   edit's time for ``edit`` to return, to its frame, whether ``compiling`` was said and
+   how many recordings were made from the edit to its frame.
 
 Prints the machine and ``uptime``'s load with the figures (the machine is shared: quote
 them with it).
@@ -129,7 +131,8 @@ def refinement(size: int, spp: int) -> dict:
             "ratio_to_render_and_png": refinement_s / written_s}
 
 
-def structure(size: int) -> dict:
+def structure(size: int, pause: float) -> dict:
+    from mimarble.mitsuba.rendering import passes
     session = StudioSession("fig11a", watch=False, idle_s=3600.0)
     clock = Clock(session)
     # Tolerance 0: every octave evaluated (at the default error budget octaves 8 and 9 of
@@ -139,13 +142,16 @@ def structure(size: int) -> dict:
     session.wait_frame(version, timeout=600)
     out = {}
     for octaves in (9, 8, 9):
+        time.sleep(pause)
+        recordings = passes._traced_pass.recordings
         start = time.perf_counter()
         version = session.edit("marble.octaves", octaves)
         returned = time.perf_counter() - start
         seen = clock.wait(version)
         out[f"{len(out) + 1}: octaves to {octaves}"] = {"edit_returned_ms": returned * 1e3,
                                 "frame_s": seen - start,
-                                "compiling_said": version in clock.compiling}
+                                "compiling_said": version in clock.compiling,
+                                "recordings": passes._traced_pass.recordings - recordings}
     session.close()
     return out
 
@@ -154,11 +160,17 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=512)
     parser.add_argument("--edits", type=int, default=60)
+    parser.add_argument("--pause", type=float, default=1.0,
+                        help="seconds between a structural edit's frame and the next edit")
+    parser.add_argument("--structure-only", action="store_true")
     parser.add_argument("--json")
     args = parser.parse_args()
     results = {"machine": machine_line(machine_facts()),
                "load": subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()}
-    results["structure"] = structure(args.size)        # first: the kernel cache is empty
+    results["structure"] = structure(args.size, args.pause)   # first: the cache is empty
+    if args.structure_only:
+        print(json.dumps(results, indent=2))
+        return
     results["edit_to_frame"] = [edit_latency(args.size, args.edits, fmt)
                                 for fmt in ("jpeg", "png")]
     results["refinement"] = [refinement(args.size, spp) for spp in (4, 16)]

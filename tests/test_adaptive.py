@@ -34,7 +34,21 @@ def rmse(a, b):
     return float(np.sqrt(np.mean(np.square(np.asarray(a, np.float64) - b))))
 
 
-def test_levels_triple_the_samples_and_keep_them_up_to_max_spp():
+def test_levels_take_the_samples_to_nine_times_and_keep_them_up_to_max_spp():
+    assert adaptive.sample_levels(1, 81) == [1, 9, 81]
+    assert adaptive.sample_levels(1, 64) == [1, 9, 27, 64]     # a third of the way, then 64
+    assert adaptive.sample_levels(4, 64) == [4, 36, 64]
+    assert adaptive.sample_levels(1, 16) == [1, 9, 16]
+    assert adaptive.sample_levels(1, 4) == [1, 4]
+    levels = adaptive.ladder(1, 64)
+    # A round into a level traces what it adds; the last one (its own grid) replaces.
+    assert [level.traced for level in levels] == [1, 8, 18, 64]
+    assert [level.parent for level in levels] == [0, 1, 3, 0]
+    assert [level.grid for level in levels] == [1, 3, 9, 8]
+
+
+def test_levels_in_thirds_triple_the_samples(monkeypatch):
+    monkeypatch.setattr(adaptive, "THIRDS", True)
     assert adaptive.sample_levels(1, 81) == [1, 3, 9, 27, 81]
     assert adaptive.sample_levels(1, 64) == [1, 3, 9, 27, 64]     # 64 off the ladder: last
     assert adaptive.sample_levels(4, 64) == [4, 12, 36, 64]
@@ -64,6 +78,9 @@ def test_a_nested_grid_adds_the_strata_its_coarser_grid_lacks(llvm):
             kept = (3 * rows + 1) * 3 * m + 3 * columns + 1
             every = np.concatenate([kept, pairs, rest])
             assert sorted(every.tolist()) == list(range(9 * m * m))
+            # The round to 9m² in one (8 a cell): the same strata.
+            at_once = np.concatenate([kept, strata(8, 0).astype(np.int64)])
+            assert sorted(at_once.tolist()) == list(range(9 * m * m))
             # Their centres coincide: (i + ½)/m = (3i + 1 + ½)/3m.
             assert np.allclose((columns + 0.5) / m, (kept % (3 * m) + 0.5) / (3 * m))
             # Each cell's pair: symmetric about its centre, on a diagonal.
@@ -95,7 +112,7 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
     mean of point-sampled marble is the plain render's at that spp, bit for bit."""
     scene = small()
     m = loaded(scene)
-    result = adaptive.render_adaptive(m, 1, 1e-6, 81)
+    result = adaptive.render_adaptive(m, 1, 3e-5, 81)
     counts = {int(k): int(n) for k, n in zip(*np.unique(result.samples, return_counts=True))}
     assert {1, 9, 81} <= set(counts) and min(counts.values()) > 0
     for spp in (1, 9, 81):
@@ -105,7 +122,7 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
     # The cost counts every sample traced for a pixel once: kept ones are not traced again.
     assert result.traced == int(result.samples.sum())
     # Deterministic, and the same in passes of any size (pixels split across passes too).
-    again = adaptive.render_adaptive(m, 1, 1e-6, 81, pass_samples=8)
+    again = adaptive.render_adaptive(m, 1, 3e-5, 81, pass_samples=8)
     np.testing.assert_array_equal(again.image, result.image)
     np.testing.assert_array_equal(again.samples, result.samples)
     # A level off the ladder (16 after 9) replaces: the plain render's again, at a cost.
@@ -116,11 +133,12 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
     assert off.traced == int(np.sum(np.where(off.samples == 16, 9 + 16, off.samples)))
 
 
-def test_a_pixel_of_three_samples_is_its_centre_and_a_symmetric_pair(llvm):
+def test_a_pixel_of_three_samples_is_its_centre_and_a_symmetric_pair(llvm, monkeypatch):
     """At 3 samples a pixel holds its centre and two points of the 3×3 grid symmetric
     about it: the pair's mean, from a plain 9-spp render's strata traced one by one
     (1-spp renders of a 3× larger image, whose pixel centres are those strata), is
     (3·adaptive − plain 1)/2."""
+    monkeypatch.setattr(adaptive, "THIRDS", True)
     scene = small(size=24)
     m = loaded(scene)
     result = adaptive.render_adaptive(m, 1, -1.0, 9, rounds=1)     # every pixel: a bar < 0

@@ -216,7 +216,7 @@ def test_a_small_bench_with_the_adaptive_mode(llvm, tmp_path):
                               thresholds=(0.01, 0.001), max_spp=16)
     adaptive = [r for r in results["runs"] if r["mode"] == "adaptive"]
     assert [r["threshold"] for r in adaptive] == [0.01, 0.001]
-    for r in adaptive:        # levels 1, 3, 9 kept, then 16 replacing them: 9 + 16 at most
+    for r in adaptive:        # levels 1, 9 kept, then 16 replacing them: 9 + 16 at most
         assert 1 <= r["final_spp"] <= r["max_spp"] == 16
         assert r["final_spp"] <= r["mean_spp"] <= 9 + 16
         assert r["rmse"] >= 0 and r["rounds"] >= 0
@@ -251,7 +251,7 @@ def test_the_oracle_needs_no_more_samples_than_adaptive_renders(llvm):
     truth = reference.render(scene, spp=64)
     loaded = mimarble.mi.load_dict(to_mitsuba(scene, spp=1))
     images, costs = level_images(loaded, 1, 16)
-    assert costs == [1, 3, 9, 9 + 16]          # kept samples not traced again; 16 replaces
+    assert costs == [1, 9, 9 + 16]          # kept samples not traced again; 16 replaces
     for threshold in (0.01, 0.001):
         run = render_adaptive(loaded, 1, threshold, 16)
         rmse = float(np.sqrt(np.mean(np.square(run.image.astype(np.float64) - truth))))

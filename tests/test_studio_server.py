@@ -332,42 +332,55 @@ def test_a_slow_tab_gets_only_the_newest_frame():
     assert any(isinstance(s, str) and '"edited"' in s for s in sent)
 
 
-def test_a_tab_that_does_not_read_holds_a_bounded_mailbox_newest_answers_last():
+def test_a_tab_that_sends_without_reading_is_held_to_a_bounded_queue(studio):
+    """A tab that sends pings as fast as it can and reads nothing (its socket's sends
+    block): the server stops reading its messages once MAX_ANSWERS answers wait, instead
+    of holding an answer for every message; when the tab reads, every ping is answered."""
     import asyncio
+    from mimarble.studio.server import MAX_ANSWERS
 
-    class StalledSocket:                  # a tab that sends and never reads: send blocks
+    class Flooding:
+        """The server's side of a websocket whose peer floods and does not read."""
         def __init__(self):
-            self.sent, self.go = [], None
+            self.received, self.sent = 0, []
+            self.reading = asyncio.Event()          # set: the peer reads again
+            self.done = False
+
+        async def accept(self):
+            pass
+
+        async def receive(self):
+            if self.done:
+                return {"type": "websocket.disconnect"}
+            self.received += 1
+            await asyncio.sleep(0)
+            return {"type": "websocket.receive",
+                    "text": json.dumps({"type": "ping", "seq": self.received})}
 
         async def send_text(self, text):
-            await self.go.wait()
+            await self.reading.wait()
             self.sent.append(json.loads(text))
 
         async def send_bytes(self, data):
-            await self.go.wait()
-            self.sent.append(data)
+            await self.reading.wait()
 
     async def run():
-        socket = StalledSocket()
-        socket.go = asyncio.Event()
-        box = _Mailbox(socket, limit=8)
-        pump = asyncio.ensure_future(box.pump())
-        await asyncio.sleep(0)
-        for seq in range(1000):                       # 1000 answers, 1000 frames unread
-            box.answer({"type": "edited", "seq": seq})
-            box.put("frame", b"frame %d" % seq)
-        held = len(box.answers), len(box.latest), box.dropped
-        socket.go.set()
-        await asyncio.sleep(0.05)
-        pump.cancel()
-        return held, socket.sent
+        socket = Flooding()
+        serving = asyncio.ensure_future(studio._websocket(socket))
+        await asyncio.sleep(0.5)
+        received_while_blocked = socket.received
+        socket.reading.set()
+        for _ in range(200):
+            await asyncio.sleep(0.005)
+        socket.done = True
+        await asyncio.wait_for(serving, 10)
+        return socket, received_while_blocked
 
-    (answers, latest, dropped), sent = asyncio.run(run())
-    assert answers == 8 and latest == 1
-    assert dropped == 1000 - 8
-    seqs = [m["seq"] for m in sent if isinstance(m, dict)]
-    assert seqs == list(range(992, 1000))            # the oldest dropped, order kept
-    assert [m for m in sent if isinstance(m, bytes)] == [b"frame 999"]
+    socket, received_while_blocked = asyncio.run(run())
+    assert received_while_blocked <= MAX_ANSWERS + 1
+    pongs = [m["seq"] for m in socket.sent if m["type"] == "pong"]
+    assert socket.received > 2 * MAX_ANSWERS          # read again once the tab read
+    assert pongs == list(range(1, len(pongs) + 1)) and len(pongs) >= socket.received - 1
 
 
 # ---- stopping ------------------------------------------------------------------------------

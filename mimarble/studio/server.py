@@ -14,7 +14,9 @@ Data flow:
 * server → page: the session's events (from its render thread, handed over to the loop):
   frames as binary messages (:func:`~mimarble.studio.messages.frame_message`), state,
   controls, compare results. Each tab has a mailbox that keeps only the **latest** of each
-  kind: a tab that reads slowly gets the newest frame, never a queue of stale ones;
+  kind: a tab that reads slowly gets the newest frame, never a queue of stale ones; its
+  answers are bounded (:data:`MAX_ANSWERS`): while that many wait, the server reads no
+  more of that tab's messages, so a tab that sends without reading holds a bounded queue;
 * an edit from one tab is shown by every other (``value`` messages; ``controls`` after an
   edit that changes their structure): the last edit wins everywhere.
 
@@ -54,11 +56,10 @@ STATIC_TYPES = {"studio.js": "text/javascript; charset=utf-8",
 _VALUE_KINDS = ("number", "integer", "choice", "boolean", "colour", "vector")
 #: How soon after an edit every tab gets every control's value again (seconds).
 CONTROLS_DELAY = 0.25
-#: The most answers one tab's mailbox holds unsent. A tab that sends but does not read
-#: (a stalled or modified page) would otherwise grow it without end, one answer per
-#: message; past this the oldest unsent answers are dropped (the page's own list of
-#: edits in flight already forgets those it hears nothing of).
-ANSWER_LIMIT = 256
+#: Answers waiting to be sent to one tab before the server stops reading its messages
+#: (each message gets one answer): what a tab that sends without reading can make the
+#: server hold.
+MAX_ANSWERS = 64
 #: The page's Content-Security-Policy: its own scripts and styles only, images from the
 #: frames' blobs, the websocket back to this server; nothing from elsewhere.
 CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' blob: data:; "
@@ -68,21 +69,21 @@ CSP = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' 
 class _Mailbox:
     """What the server has to send one tab: answers in order, and the latest message of
     each coalesced kind (frame, state, controls, compare) — a newer one replaces an unsent
-    older one, so a slow tab is never behind by more than one frame. Both are bounded:
-    the latest messages by the kinds there are (one each), the answers by
-    :data:`ANSWER_LIMIT` (the oldest unsent ones dropped, counted in :attr:`dropped`)."""
+    older one, so a slow tab is never behind by more than one frame. ``room`` is clear
+    while :data:`MAX_ANSWERS` answers wait: the reader of the tab's messages waits on it."""
 
-    def __init__(self, websocket: WebSocket, limit: int = ANSWER_LIMIT):
+    def __init__(self, websocket: WebSocket):
         self.websocket = websocket
-        self.answers = collections.deque(maxlen=limit)
-        self.dropped = 0
+        self.answers = collections.deque()
         self.latest: dict = {}
         self.wake = asyncio.Event()
+        self.room = asyncio.Event()
+        self.room.set()
 
     def answer(self, message) -> None:
-        if len(self.answers) == self.answers.maxlen:
-            self.dropped += 1                  # append drops the oldest of a full deque
         self.answers.append(message)
+        if len(self.answers) >= MAX_ANSWERS:
+            self.room.clear()
         self.wake.set()
 
     def put(self, kind: str, message) -> None:
@@ -97,6 +98,8 @@ class _Mailbox:
             while self.answers or self.latest:
                 if self.answers:
                     message = self.answers.popleft()
+                    if len(self.answers) < MAX_ANSWERS:
+                        self.room.set()
                 else:
                     message = self.latest.pop(next(iter(self.latest)))
                 if isinstance(message, bytes):
@@ -287,6 +290,7 @@ class StudioServer:
             if latest is not None:
                 client.put("histograms", {"type": "histograms", "histograms": latest})
             while True:
+                await client.room.wait()          # a tab that does not read is not read
                 received = await websocket.receive()
                 if received["type"] == "websocket.disconnect":
                     break

@@ -100,6 +100,9 @@ class StudioSession:
         self.packaged = path != argument
         self.path = Path(path)
         self._lock = threading.RLock()
+        #: Saves one at a time; the session lock is held only to read and to adopt the
+        #: state, not while the text is rewritten and parsed (an edit never waits for that).
+        self._save_lock = threading.Lock()
         self._listeners: list = []
         self._closed = False
         self._text, self._stat = self._read()
@@ -427,36 +430,37 @@ class StudioSession:
         (``scene.rewrite``: comments, layout, order, every other byte kept), whole or not
         at all; returns the text written. StudioError (one sentence, nothing written) for
         a packaged scene (Save as writes a copy), a file that changed on disk since it was
-        loaded (:meth:`reload` first), or an edit the text cannot say.
-
-        The rewrite and the parse of its result (tens of ms for a large scene, more on a
-        loaded machine) run outside the session's lock, on the edits as they were when
-        save began: an edit meanwhile is not held up, and stays unsaved (dirty) after.
-        The write itself is under the lock, so the watcher never mistakes it for an
-        editor's change."""
-        with self._lock:
-            self._check_savable()
-            text0, edits, path = self._text, dict(self._edits), self.path
-        text = self._rewritten(text0, edits, path)
-        base = scene_language.parse(text, filename=str(path), source=str(path))
-        with self._lock:
-            if self._text is not text0 or self.path != path:
-                raise StudioError(f"save: {path} was reloaded or saved while saving; "
-                                  f"save again (nothing was written)")
-            self._check_savable()
-            try:
-                save_atomic(path, text, text0)
-            except SaveRefused as e:
-                self._disk_changed = True
-                raise StudioError(f"save: {e}") from None
-            except OSError as e:
-                raise StudioError(f"save: {path}: {e.strerror or e}") from None
-            self._saved(text, base, edits)
+        loaded (:meth:`reload` first), or an edit the text cannot say. Edits made while it
+        saves are kept as unsaved edits."""
+        with self._save_lock:
+            with self._lock:
+                self._check_saveable()
+                path, before, edits = self.path, self._text, dict(self._edits)
+            text = _rewritten(before, edits, path)
+            base = scene_language.parse(text, filename=str(path), source=str(path))
+            with self._lock:
+                self._check_saveable()
+                self._write("save", path, text, before, expected=before)
+                self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
 
-    def _check_savable(self) -> None:
-        """StudioError unless save may write the session's own file (under the lock)."""
+    def _write(self, action: str, path, text: str, before: str, expected) -> None:
+        """Write ``text`` to ``path`` atomically (``expected``: the text the file must
+        still hold, None for any), under the lock, unless the file was reloaded since
+        ``before`` was read; StudioError (nothing written) otherwise."""
+        if self._text is not before:
+            raise StudioError(f"{action}: the file was reloaded while it was being saved "
+                              f"(nothing was written)")
+        try:
+            save_atomic(path, text, expected)
+        except SaveRefused as e:
+            self._disk_changed = True
+            raise StudioError(f"{action}: {e}") from None
+        except OSError as e:
+            raise StudioError(f"{action}: {path}: {e.strerror or e}") from None
+
+    def _check_saveable(self) -> None:
         if self.packaged:
             raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
                               f"to overwrite; use Save as to write a copy")
@@ -469,50 +473,35 @@ class StudioSession:
         written in, whole or not at all); the session then edits that file. Returns the
         text written; StudioError for a name or folder that cannot be written, or a
         folder where the scene's relative files (meshes, image maps) are not: nothing is
-        written then, and the session keeps its file. As in :meth:`save`, the rewrite
-        and the parse run outside the lock."""
+        written then, and the session keeps its file."""
         from mimarble.runtime.files import output_name_problem
         problem = output_name_problem(path)
         if problem:
             raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
-        with self._lock:
-            text0, edits, source = self._text, dict(self._edits), self.path
-        text = self._rewritten(text0, edits, source)
-        try:          # read as it would be there: its meshes and image maps beside it
-            base = scene_language.parse(text, filename=str(path), source=str(path))
-        except scene_language.SceneError as e:
-            first = str(e).splitlines()[0]
-            raise StudioError(f"save as: the scene would not read at {path} ({first}); "
-                              f"save it beside the files it names (nothing was "
-                              f"written)") from None
-        with self._lock:
-            if self._text is not text0 or self.path != source:
-                raise StudioError(f"save as: {source} was reloaded or saved meanwhile; "
-                                  f"save again (nothing was written)")
-            try:
-                save_atomic(path, text, None)
-            except OSError as e:
-                raise StudioError(f"save as: {path}: {e.strerror or e}") from None
-            self.path, self.packaged = Path(path), False
-            self._saved(text, base, edits)
+        with self._save_lock:
+            with self._lock:
+                before, edits = self._text, dict(self._edits)
+            text = _rewritten(before, edits, self.path)
+            try:      # read as it would be there: its meshes and image maps beside it
+                base = scene_language.parse(text, filename=str(path), source=str(path))
+            except scene_language.SceneError as e:
+                first = str(e).splitlines()[0]
+                raise StudioError(f"save as: the scene would not read at {path} ({first}); "
+                                  f"save it beside the files it names (nothing was "
+                                  f"written)") from None
+            with self._lock:
+                self._write("save as", path, text, before, expected=None)
+                self.path, self.packaged = Path(path), False
+                self._saved(text, base, edits)
         self._emit("state", self.state())
         return text
 
-    @staticmethod
-    def _rewritten(text: str, edits: dict, path: Path) -> str:
-        """``text`` with ``edits`` written in (StudioError: an edit it cannot say)."""
-        try:
-            return rewrite(text, edits, filename=str(path), source=str(path))
-        except (KeyPathError, scene_language.SceneError) as e:
-            raise StudioError(f"save: {e}") from None
-
-    def _saved(self, text: str, base, edits: dict) -> None:
-        """The file now holds ``text`` (parsed: ``base``), the session's text with
-        ``edits`` written in: it is what the session was loaded from. Edits made since
-        (a key absent from ``edits`` or set to another value) stay unsaved."""
+    def _saved(self, text: str, base, saved: dict) -> None:
+        """The file now holds ``text`` (parsed: ``base``), with the edits ``saved``: it
+        is what the session was loaded from; edits made since stay unsaved."""
         self._text, self._stat, self._base = text, _facts(self.path), base
         self._edits = {key: value for key, value in self._edits.items()
-                       if key not in edits or edits[key] != value}
+                       if key not in saved or saved[key] is not value}
         self._disk_changed = False
 
     def _watch(self) -> None:
@@ -589,6 +578,14 @@ class StudioSession:
 
     def __exit__(self, *exc):
         self.close()
+
+
+def _rewritten(text: str, edits: dict, path: Path) -> str:
+    """``text`` with ``edits`` written in (StudioError: an edit it cannot say)."""
+    try:
+        return rewrite(text, edits, filename=str(path), source=str(path))
+    except (KeyPathError, scene_language.SceneError) as e:
+        raise StudioError(f"save: {e}") from None
 
 
 def _facts(path: Path) -> tuple | None:

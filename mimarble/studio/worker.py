@@ -30,7 +30,15 @@ request never waits for a render or a compile. Its contract:
   follows, then refinement.
 * **Compiling.** Before a state whose structure no loaded scene holds, or whose passes
   have no recording, is rendered, ``compiling`` is published as True, then False with
-  its frame: a structure rendered before (octaves 9 → 8) is loaded and recorded already.
+  its frame.
+* **Going back compiles nothing.** A recording replays only while Dr.Jit's registry of
+  instances holds what it held when it was recorded (``dr.freeze`` flattens every live
+  instance of the domains it saw into the recording's key), so loading a new structure
+  (octaves 8 → 9) makes every kept structure's recording stale. Right after the new
+  structure's first frame, the thread records the 1 spp pass of the other kept
+  structures again, the most recently shown first (:meth:`RenderThread._record_kept`;
+  a new edit stops it between two), so that going back to one (9 → 8) replays:
+  no load, no recording, no kernel compiled, and the page never says "compiling".
 
 Failures of a render (a mode that cannot render the scene, Mitsuba's own errors) are
 published as the state's ``error``; the last good frame stays, and the session goes back
@@ -112,6 +120,14 @@ class RenderThread(threading.Thread):
         self.compile_seconds: dict = {}
         self._loads = 0              # scenes loaded so far
         self._recorded: dict = {}    # a 1 spp pass's key → self._loads when it last ran
+        #: A kept structure's 1 spp pass: its key → (Target, facts), the most recently
+        #: shown last; only structures whose scene :attr:`loaded` keeps.
+        self._kept_passes: dict = {}
+        #: 1 spp passes recorded again after a load, in order (a test's check).
+        self.recorded_again: list = []
+        #: Set while the thread waits for a state or for edits to pause: nothing of its
+        #: own is in progress (a test's check).
+        self.resting = threading.Event()
 
     # -- Called from other threads ---------------------------------------------------
 
@@ -137,8 +153,10 @@ class RenderThread(threading.Thread):
     def run(self) -> None:
         while True:
             with self._condition:
+                self.resting.set()
                 while self._pending is None and not self._stopping:
                     self._condition.wait()
+                self.resting.clear()
                 if self._stopping:
                     return
                 request, self._pending = self._pending, None
@@ -157,12 +175,16 @@ class RenderThread(threading.Thread):
         """Wait until no edit has come for ``idle_s``; False if a new state (or stop)
         came first."""
         with self._condition:
-            while self._pending is None and not self._stopping:
-                left = self._last_submit + self.idle_s - time.monotonic()
-                if left <= 0:
-                    return True
-                self._condition.wait(left)
-            return False
+            self.resting.set()
+            try:
+                while self._pending is None and not self._stopping:
+                    left = self._last_submit + self.idle_s - time.monotonic()
+                    if left <= 0:
+                        return True
+                    self._condition.wait(left)
+                return False
+            finally:
+                self.resting.clear()
 
     def stride(self, moving: bool) -> int:
         """1 (the whole image), or the stride of a reduced frame: 2, or 4 when the last
@@ -187,10 +209,11 @@ class RenderThread(threading.Thread):
         pixels = target.width * target.height
         first_key = samples_pass_key(facts.key, mode, pixels, 1)
         # A recording is made again when its key is new, or when the loaded scenes have
-        # changed since it was made (Dr.Jit checks the registry of instances it saw:
-        # going back to octaves 8 after 9 was loaded records 8's pass once more).
+        # changed since it was made and _record_kept has not made it since (Dr.Jit checks
+        # the registry of instances it saw).
         if new_structure:
             self._loads += 1
+            self._forget_dropped()
         compiling = new_structure or (replay_enabled() and (
             first_key not in _traced_pass.frozen or self._recorded.get(first_key) != self._loads))
         self._recorded[first_key] = self._loads
@@ -218,6 +241,8 @@ class RenderThread(threading.Thread):
             self.last_frame_s, self.last_reduced_s = elapsed + encode_s, None
         elif stride == 2 and not first_reduced:
             self.last_reduced_s = elapsed + encode_s
+        self._kept_passes.pop(first_key, None)
+        self._kept_passes[first_key] = (target, facts)
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
             # not after the NumPy below (up to Python's switch interval, 5 ms, later).
@@ -227,7 +252,12 @@ class RenderThread(threading.Thread):
             histograms = self.histograms.of(scene)
             self.publish("histograms", {"version": request.version,
                                         "histograms": list(histograms)})
-        if (target_spp <= 1 and stride == 1) or not self._wait_idle():
+        if new_structure:
+            self._record_kept(first_key)
+        if not self._wait_idle():
+            return
+        self._record_kept(first_key)    # any a newer edit cut short, now that edits pause
+        if target_spp <= 1 and stride == 1:
             return
         if stride > 1:                  # the control stopped: the whole frame now
             start = time.perf_counter()
@@ -252,6 +282,30 @@ class RenderThread(threading.Thread):
             self._show(request, total, done, target_spp, time.perf_counter() - start,
                        histograms)
             run = max(1, min(done, RUN_LANES // pixels))
+
+    def _forget_dropped(self) -> None:
+        """Let go of the passes of scenes :attr:`loaded` has dropped, before anything is
+        recorded: a scene held here would stay in Dr.Jit's registry, in every recording."""
+        live = {id(scene) for scene, _, _ in self.loaded.scenes.values()}
+        for key in list(self._kept_passes):
+            if id(self._kept_passes[key][0].scene) not in live:
+                del self._kept_passes[key]
+
+    def _record_kept(self, shown_key) -> None:
+        """Record again the 1 spp pass of every structure the loaded scenes keep, other than
+        ``shown_key``'s, whose recording predates the last load (module docstring): the
+        most recently shown first, until a new state comes. Their images are not shown."""
+        if not replay_enabled():
+            return
+        for key in reversed(list(self._kept_passes)):
+            if self._newer():
+                return
+            if key == shown_key or self._recorded.get(key) == self._loads:
+                continue
+            target, facts = self._kept_passes[key]
+            trace_samples(target, 1, 0, 1, seed=0, key=facts)
+            self._recorded[key] = self._loads
+            self.recorded_again.append(key)
 
     def _show(self, request: Request, sums: np.ndarray, spp: int, target_spp: int,
               seconds: float, histograms: tuple | None, stride: int = 1) -> float:

@@ -2,15 +2,18 @@
 
 A first pass renders every pixel with ``spp`` = m² stratum centres, as a plain render
 does. Then rounds: every pixel of the last round whose estimated error E exceeds
-``threshold`` · n^BAR_POWER (n² its samples) goes one level up a ladder that triples its
-samples and keeps them (:func:`ladder`): the centre of stratum (i, j) of an m×m grid is the
-centre of stratum (3i + 1, 3j + 1) of the 3m×3m one — an odd refinement holds every old
-centre — so a round traces only new strata of the 3m grid, first 2 per cell of the m grid
-(3m² samples: the cell's centre and a pair symmetric about it, the diagonals alternating
-from cell to cell), then the other 6 (9m²: the whole 3m grid), and adds them to the
-pixel's sum. A ``max_spp`` off the ladder is a last level of its own grid, which replaces
-the pixel's samples. Only the pixels a round refined are candidates in the next.
-Deterministic, like the rest of whitted mode.
+``threshold`` · n^BAR_POWER (n² its samples) goes one level up a ladder that keeps its
+samples (:func:`ladder`): the centre of stratum (i, j) of an m×m grid is the centre of
+stratum (3i + 1, 3j + 1) of the 3m×3m one — an odd refinement holds every old centre — so
+a round traces only the 8 new strata of each cell of the m grid (9m² samples: the whole 3m
+grid, the plain render's strata) and adds them to the pixel's sum. With :data:`THIRDS` a
+round goes a third of the way first (2 per cell: the cell's centre and a pair symmetric
+about it, the diagonals alternating from cell to cell, 3m² samples), then the other 6 —
+more rounds, each dearer per sample than the plain render's (docs/design-decisions.md,
+"Adaptive samples at the price of plain ones": the 1, 9, 81 ladder reached plain 16's RMSE
+sooner on every scene measured). A ``max_spp`` off the ladder is a last level of its own
+grid, which replaces the pixel's samples. Only the pixels a round refined are candidates
+in the next. Deterministic, like the rest of whitted mode.
 
 **What a pixel is at the end.** At 9^k·m² samples a pixel holds the stratum centres of
 the plain render's grid, one per stratum, summed as a plain render sums them (in float32
@@ -28,8 +31,10 @@ Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
 (``dr.compress``); only its length comes back to size the passes. The lists are in Morton
 order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
-Only the first pass traces the marbles' doubts (its kernel costs more than the plain
-one: docs/benchmarks.md); the rounds trace the plain kernel, and read the first pass's doubt.
+The first pass is the plain kernel, and a pixel's doubt is read from its image (the
+second difference, :func:`refine`), except in scenes with a
+prefiltered marble, where the first pass traces the marbles' doubts
+(:func:`traces_doubts`); the rounds trace the plain kernel, and read the first pass's doubt.
 
 Why a bar that grows with n: a round costs a pixel more than its samples, so the error
 it removes per sample falls as n grows; ``threshold`` · n³ leaves deeper rounds to fewer
@@ -44,8 +49,11 @@ three colours):
     E = max(E, SPREAD_WEIGHT · spread / n²)                         n² ≥ SPREAD_SAMPLES
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
-``doubt`` is the mean over the pixel's first-pass samples of whitted's doubt
-(``Whitted.shade``; the rounds do not trace it):
+``doubt`` is either the first image's second difference at the pixel (the pixel
+against its 3×3 neighbourhood's mean: large where the image is curved or a vein finer
+than the pixel aliases) or, in scenes with a prefiltered marble, the mean over the
+pixel's first-pass samples of whitted's doubt (``Whitted.shade``; the rounds do not
+trace it):
 the marbles' own estimate of how wrong one sample of them can be there — |the filter's
 colour − its other view of the footprint| (mimarble/texture/filters.py), large where the
 colour changes across the footprint, 0 where it is smooth. It says where a sample can be
@@ -86,6 +94,9 @@ from .loaded_scenes import LOADED
 from .passes import Target, trace_sums
 from .replay import scene_facts
 from mimarble.mitsuba.plugins.whitted import Whitted
+from mimarble.mitsuba.plugins.material import CHANNELS
+from mimarble.mitsuba.plugins.shared_evaluations import textures_within
+from mimarble.texture.filters import Prefilter
 from .window import Window
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -99,6 +110,17 @@ BAR_POWER = 3.0
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
 SPREAD_SAMPLES = 3
+#: Whether the first pass traces the marbles' doubts in every scene (a kernel of its own:
+#: for a point-sampled marble about the plain one's cost again, docs/benchmarks.md), or
+#: only in scenes with a prefiltered marble (:func:`traces_doubts`); else it is the plain
+#: kernel and a pixel's doubt is read from the first image
+#: (:func:`refine`, weighed by ``CURVATURE_WEIGHT``).
+DOUBT_KERNEL = False
+CURVATURE_WEIGHT = 0.125
+#: Whether the ladder goes a third of the way (3m² samples) before each 9m² (issue 43's
+#: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
+#: cheaper per sample (module docstring).
+THIRDS = False
 
 
 class AdaptiveRender(NamedTuple):
@@ -134,14 +156,18 @@ class Level(NamedTuple):
 
 def ladder(spp: int, max_spp: int) -> list[Level]:
     """The levels of a render from ``spp`` = m² to ``max_spp`` (perfect squares, ``spp`` ≤
-    ``max_spp``): m², then per cell of the m grid 2 more strata of the 3m grid (3m²), then
-    its other 6 (9m², the whole 3m grid: the plain render's strata), then 3·9m², 81m², …
-    while they fit; then ``max_spp``'s own grid, replacing, if it is not on that ladder
-    (after one more third-way level if that is at most half of ``max_spp``)."""
+    ``max_spp``): m², then per cell of the m grid its 8 other strata of the 3m grid (9m²,
+    the whole 3m grid: the plain render's strata), then 81m², … while they fit — with
+    :data:`THIRDS`, 2 of the 8 first (3m²), then the other 6 —; then ``max_spp``'s own
+    grid, replacing, if it is not on that ladder (after one third-way level if that is at
+    most half of ``max_spp``)."""
     m, most = samples_per_axis(spp), samples_per_axis(max_spp)
     levels = [Level(spp, m)]
     while 3 * m <= most:
-        levels += [Level(3 * m * m, 3 * m, m, 2, 0), Level(9 * m * m, 3 * m, m, 6, 2)]
+        if THIRDS:
+            levels += [Level(3 * m * m, 3 * m, m, 2, 0), Level(9 * m * m, 3 * m, m, 6, 2)]
+        else:
+            levels += [Level(9 * m * m, 3 * m, m, 8, 0)]
         m *= 3
     if m < most:
         if 3 * m * m <= max_spp // 2:      # a third of the way, if the last step doubles
@@ -256,28 +282,47 @@ def _neighbours(pixels, width: int, height: int):
 
 
 def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
-           height: int):
+           height: int, doubt_from_image: bool = False):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
     estimated error is above ``threshold`` · axis^:data:`BAR_POWER` (module docstring), in
     their order:
-    computed on the device, the list made there (``dr.compress``)."""
+    computed on the device, the list made there (``dr.compress``).
+
+    ``doubt_from_image`` (after a first pass without the doubt kernel, ``pixels`` every
+    pixel): each pixel's doubt is first set from the image, in the same kernel — the
+    second difference |Σ₃ₓ₃ mean − 9·mean| / 8 (the pixel against its 8 neighbours' mean,
+    the largest colour), scaled so that the estimate weighs it by
+    :data:`CURVATURE_WEIGHT`. For a smooth image it is (3/8)·h²·|f_xx + f_yy| to leading
+    order, 9× the midpoint rule's error of a 1-spp pixel, h²·|f_xx + f_yy|/24; where veins
+    finer than a pixel alias, neighbours disagree at random and it is large. Held as the
+    doubt of one sample, it falls as 1/n² as the kernel's doubt does."""
     least = most = None
-    low_mean = high_mean = None
+    low_mean = high_mean = total = None
     for around in _neighbours(pixels, width, height):
         first = dr.gather(mi.UInt32, state.first, around)
         last = dr.gather(mi.UInt32, state.last, around)
         mean = dr.gather(mi.Color3f, means, around)
         if least is None:
-            least, most, low_mean, high_mean = first, last, mean, mean
+            least, most, low_mean, high_mean, total = first, last, mean, mean, mean
         else:
             least, most = dr.minimum(least, first), dr.maximum(most, last)
             low_mean, high_mean = dr.minimum(low_mean, mean), dr.maximum(high_mean, mean)
+            total = total + mean
+    if doubt_from_image:
+        second = largest_component(dr.abs(total - 9.0 * dr.gather(mi.Color3f, means, pixels)))
+        image_doubt = mi.Float64(second) * (0.125 * CURVATURE_WEIGHT / DOUBT_WEIGHT)
+        state.doubt_sums = dr.zeros(mi.Float64, state.count)
+        dr.scatter(state.doubt_sums, image_doubt, pixels)        # kept for the rounds
+        state.doubted = dr.full(mi.UInt32, 1, state.count)
     on_silhouette = least != most
     spread = largest_component(dr.gather(mi.Color3f, state.high, pixels)
                                - dr.gather(mi.Color3f, state.low, pixels))
     contrast = dr.maximum(spread, largest_component(high_mean - low_mean))
-    doubted = dr.gather(mi.UInt32, state.doubted, pixels)
-    doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
+    if doubt_from_image:
+        doubt = image_doubt
+    else:
+        doubted = dr.gather(mi.UInt32, state.doubted, pixels)
+        doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
     errors = estimated_errors(axis, doubt, mi.Float64(spread), mi.Float64(contrast),
                               on_silhouette)
     keep = errors > dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
@@ -304,7 +349,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
                          f"needs mimarble's 'whitted' (its stratum centres and doubts)")
     target = Target.of(mitsuba_scene, "whitted", LOADED.parameters_of(mitsuba_scene))
-    Whitted.prepare_doubts(mitsuba_scene)
+    doubts = traces_doubts(mitsuba_scene)
+    if doubts:
+        Whitted.prepare_doubts(mitsuba_scene)
     facts = scene_facts(target.scene, target.params)
     window = Window.of(target, crop, ring=1)
     width, height = window.width, window.height
@@ -324,7 +371,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
             state.clear(pixels)
         whole = number == 0 and window.whole
         for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
-                               listed, with_estimates=not last, doubts=number == 0,
+                               listed, with_estimates=not last, doubts=doubts and number == 0,
                                parent_axis=level.parent, per_cell=level.per_cell,
                                cell_offset=level.offset, pass_samples=pass_samples, key=facts):
             lanes = dr.width(part.sums)
@@ -347,7 +394,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         # only when a round follows.
         candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
         pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
-                        height)
+                        height, doubt_from_image=number == 0 and not doubts)
         dr.eval(pixels)
         listed = dr.width(pixels)
         if listed == 0:
@@ -359,6 +406,22 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     samples = state.samples.numpy().astype(np.int64).reshape(height, width)
     return AdaptiveRender(window.window_of(image), window.window_of(samples[..., None])[..., 0],
                           traced, taken)
+
+
+def traces_doubts(mitsuba_scene) -> bool:
+    """Whether the first pass over ``mitsuba_scene`` traces whitted's doubts: with
+    :data:`DOUBT_KERNEL`, or when a marble of the scene is prefiltered. A prefiltered
+    marble's second estimate (the colour at the point) costs little beside the prefilter,
+    which computes the noise over the footprint anyway, and its doubt knows where the
+    prefilter is exact (linear phase: no doubt) — the image cannot tell a resolved stripe
+    from one that needs samples. A point-sampled marble's second estimate is a prefilter
+    of its own: there the image's second difference does its work."""
+    if DOUBT_KERNEL:
+        return True
+    return any(isinstance(getattr(texture, "pixel_filter", None), Prefilter)
+               for material in Whitted._materials(mitsuba_scene)
+               for name in CHANNELS
+               for texture in textures_within(getattr(material, name)))
 
 
 def _global(window: Window, pixels):
