@@ -563,6 +563,33 @@ def test_a_moving_control_over_budget_gets_reduced_frames_then_the_whole_one():
         s.close()
 
 
+def test_a_snapshot_during_a_drag_writes_the_whole_image(tmp_path, monkeypatch):
+    """The latest frame of a drag is reduced: a snapshot waits for the whole frame (it
+    comes when the edits stop), and says so, writing nothing, if it does not come."""
+    from PIL import Image
+    from mimarble.studio import StudioError, session as session_module
+    for idle_s, comes in ((3600.0, False), (0.3, True)):
+        s = _session(idle_s=idle_s)
+        try:
+            s.wait_frame()
+            s._worker.frame_budget_s = 0.0
+            s.wait_frame(s.edit("marble.period", 1.8))
+            s.edit("marble.period", 2.0)
+            moving = s.edit("marble.period", 2.5)
+            assert s.wait_frame(moving).stride > 1
+            monkeypatch.setattr(session_module, "SNAPSHOT_WAIT_S", 2.0)
+            target = tmp_path / f"snapshot-{comes}.png"
+            if comes:
+                assert s.snapshot(target).stride == 1
+                assert Image.open(target).size == (48, 48)
+            else:
+                with pytest.raises(StudioError, match="reduced while it moves"):
+                    s.snapshot(target)
+                assert not target.exists()
+        finally:
+            s.close()
+
+
 def test_the_stride_of_a_moving_controls_frames_follows_the_frames_times():
     from mimarble.studio.worker import RenderThread
     worker = RenderThread(lambda *a: None, lambda *a: None)     # not started: its policy
