@@ -17,7 +17,7 @@ from __future__ import annotations
 __all__ = ["T_MIN_REL", "EPS_REL", "FLT_MAX", "FLT_MIN_NORMAL", "FLOAT32_EPSILON", "FLOAT32_UNIT_ROUNDOFF",
            "FLOAT32_INTEGER_LIMIT",
            "NOISE_BOUND", "MAX_OCTAVES", "MAX_OCTAVES_EVALUATED", "SKIPPED_OCTAVES_BOUND",
-           "VOLPATH_MAX_DEPTH", "VOLPATH_RR_DEPTH", "ROULETTE_DEPTH", "ROULETTE_MAX",
+           "PATH_MAX_DEPTH", "VOLPATH_MAX_DEPTH", "VOLPATH_RR_DEPTH", "ROULETTE_DEPTH", "ROULETTE_MAX",
            "SPHERICAL_ALBEDO_FIT_B", "SPHERICAL_ALBEDO_FIT_C", "DEFAULT_MAX_SPP", "RENDER_MODES"]
 
 # ---------------------------------------------------------------------------
@@ -60,6 +60,10 @@ SKIPPED_OCTAVES_BOUND = NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)
 
 # ---------------------------------------------------------------------------
 # Path mode (translucent materials)
+
+#: ``path``'s max_depth in path and preview mode (Mitsuba's count: light reaches the camera
+#: over at most this many segments), and the reference preview's (reference/preview.py).
+PATH_MAX_DEPTH = 4
 
 #: volpath's max_depth for a scene with a translucent material, and the reference random
 #: walk's: the most scattering events of a path, each medium scattering and each non-null

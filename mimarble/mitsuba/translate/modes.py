@@ -17,7 +17,7 @@ walk (``subsurface_preview``: a surface, no medium), so ``path`` for every scene
 
 from __future__ import annotations
 
-from mimarble.contract import (RENDER_MODES, ROULETTE_DEPTH, ROULETTE_MAX, VOLPATH_MAX_DEPTH,
+from mimarble.contract import (PATH_MAX_DEPTH, RENDER_MODES, ROULETTE_DEPTH, ROULETTE_MAX, VOLPATH_MAX_DEPTH,
                                VOLPATH_RR_DEPTH)
 from mimarble.scene.errors import SceneError
 from mimarble.scene.rules import shortened
@@ -73,7 +73,7 @@ def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple,
         return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH,
                  "rr_depth": roulette_depth(translucent), "hide_emitters": hidden},
                 {"type": "independent", "sample_count": spp})
-    return ({"type": "path", "max_depth": 4, "hide_emitters": hidden},
+    return ({"type": "path", "max_depth": PATH_MAX_DEPTH, "hide_emitters": hidden},
             {"type": "independent", "sample_count": spp})
 
 
