@@ -9,6 +9,7 @@ hidden from camera rays)."""
 import numpy as np
 import pytest
 
+from mimarble.contract import PATH_MAX_DEPTH, PREVIEW_MAX_DEPTH
 from mimarble.reference import preview
 from mimarble.reference.subsurface_reflectance import diffuse_fresnel_reflectance
 from mimarble.scene import model
@@ -42,11 +43,15 @@ def preview_scene(reflectance=VEINS, ior=1.5, lights=(BACK_LIGHT, POINT_LIGHT),
                  model.Sphere("n", (1.45, -0.3, 0.6), 0.4)))
 
 
-def mitsuba_renders(scene, spp, seeds=SEEDS):
+def mitsuba_renders(scene, spp, seeds=SEEDS, max_depth=None):
+    """Preview mode's renders of ``scene`` (its integrator's max_depth replaced if given)."""
     import mimarble
     from mimarble.mitsuba.translate.scene_dict import to_mitsuba
     mi = mimarble.mi
-    loaded = mi.load_dict(to_mitsuba(scene, "preview", spp=spp))
+    translated = to_mitsuba(scene, "preview", spp=spp)
+    if max_depth is not None:
+        translated["integrator"]["max_depth"] = max_depth
+    loaded = mi.load_dict(translated)
     return np.stack([np.array(mi.render(loaded, seed=s), dtype=np.float64) for s in range(seeds)])
 
 
@@ -61,6 +66,15 @@ def renders(llvm_variant):  # noqa: F811 (the fixture)
 def test_the_preview_agrees_with_its_float64_reference(renders):
     image, variance = preview.render_preview(SCENE, REF_SPP, seed=3, variance=True)
     assert image.mean() > 0.05
+    ratio, z, m = agreement(SCENE, image, variance, REF_SPP, renders)
+    assert ratio < 1, (z, m)
+
+
+def test_interreflections_agree_at_path_modes_depth(llvm_variant):  # noqa: F811
+    """max_depth 4 (path mode's): the coat and the lobe see the other sphere, lit."""
+    renders = mitsuba_renders(SCENE, 64, max_depth=PATH_MAX_DEPTH)
+    image, variance = preview.render_preview(SCENE, REF_SPP, seed=5, max_depth=PATH_MAX_DEPTH,
+                                             variance=True)
     ratio, z, m = agreement(SCENE, image, variance, REF_SPP, renders)
     assert ratio < 1, (z, m)
 
@@ -110,3 +124,8 @@ def test_max_depth_one_renders_nothing_but_two_the_sky_once_reflected():
     scene = sphere_scene((0.5, 0.5, 0.5), 1.5)
     assert not preview.render_preview(scene, 4, seed=1, max_depth=1).any()
     assert preview.render_preview(scene, 4, seed=1, max_depth=2).any()
+
+
+def test_preview_mode_is_direct_light_only_where_a_material_is_translucent():
+    from mimarble.mitsuba.translate.scene_dict import to_mitsuba
+    assert to_mitsuba(SCENE, "preview", spp=4)["integrator"]["max_depth"] == PREVIEW_MAX_DEPTH

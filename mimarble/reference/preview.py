@@ -24,10 +24,10 @@ diffuse branch's f over its probability 1 − F(μᵢ)); an area light that the 
 diffuse vertex then meets counts nothing (it was estimated). Mitsuba's ``path`` instead
 combines light sampling and BSDF sampling by MIS: the same expectation.
 
-**Depth** as Mitsuba's ``path`` counts it (``max_depth`` :data:`PATH_MAX_DEPTH`, path and
-preview mode's): the k-th surface vertex estimates the lights and continues only if
-k < ``max_depth``, so light reaches the camera over at most ``max_depth`` segments. No
-Russian roulette (``path``'s starts at depth 5, past preview mode's 4).
+**Depth** as Mitsuba's ``path`` counts it (default ``contract.PREVIEW_MAX_DEPTH``, preview
+mode's: direct light only): the k-th surface vertex estimates the lights and continues
+only if k < ``max_depth``, so light reaches the camera over at most ``max_depth``
+segments. No Russian roulette (``path``'s starts at depth 5, past path mode's 4).
 
 Scenes: those :func:`.volume.render_translucent` renders (translucent spheres, pairwise
 disjoint, the eye outside), refused in the same sentences. Vectorised over the live paths
@@ -40,7 +40,7 @@ import math
 
 import numpy as np
 
-from mimarble.contract import PATH_MAX_DEPTH, T_MIN_REL
+from mimarble.contract import PREVIEW_MAX_DEPTH, T_MIN_REL
 
 from .channels import channel_color
 from .intersection import _roots as sphere_roots
@@ -50,10 +50,10 @@ from .volume import CHUNK_PATHS, _checked, _cosine_about, _exit_lobe, _sky, fres
 from .volume_lights import exit_lighting
 from .volume_scene import _Lights, _Spheres
 
-__all__ = ["render_preview", "PATH_MAX_DEPTH"]
+__all__ = ["render_preview", "PREVIEW_MAX_DEPTH"]
 
 
-def render_preview(scene, spp: int, seed: int = 0, *, max_depth: int = PATH_MAX_DEPTH,
+def render_preview(scene, spp: int, seed: int = 0, *, max_depth: int = PREVIEW_MAX_DEPTH,
                    chunk_paths: int = CHUNK_PATHS, variance: bool = False):
     """Preview mode's image of a scene of translucent spheres (module docstring) -> float64
     (H, W, 3), linear, each pixel the mean of ``spp`` paths at uniform random positions in
