@@ -44,9 +44,9 @@ from mimarble.contract import PREVIEW_MAX_DEPTH, T_MIN_REL
 
 from .channels import channel_color
 from .intersection import _roots as sphere_roots
-from .preparation import camera_rays
 from .subsurface_reflectance import diffuse_fresnel_reflectance, spherical_albedo, spherical_albedo_seen
-from .volume import CHUNK_PATHS, _checked, _cosine_about, _exit_lobe, _sky, fresnel_dielectric
+from .volume import (CHUNK_PATHS, _checked, _cosine_about, _exit_lobe, _sky, fresnel_dielectric,
+                     nearer_lights, pixel_means)
 from .volume_lights import exit_lighting
 from .volume_scene import _Lights, _Spheres
 
@@ -60,33 +60,12 @@ def render_preview(scene, spp: int, seed: int = 0, *, max_depth: int = PREVIEW_M
     it. ``max_depth`` ≥ 1 as Mitsuba's ``path``; with ``variance=True`` returns
     ``(image, sample_variance)``, each pixel's unbiased variance of one sample."""
     _checked(scene, spp, max_depth, None, chunk_paths)
-    spp = int(spp)
-    width, height = scene.image.width, scene.image.height
     spheres = _Spheres(scene)
     lights = _Lights(scene)
     sky = _sky(scene)
     rng = np.random.default_rng(seed)
-    pixels = width * height
-    total = np.zeros((pixels, 3))
-    square = np.zeros((pixels, 3))
-    per_chunk = max(1, int(chunk_paths) // spp)
-    for first in range(0, pixels, per_chunk):
-        pixel = np.repeat(np.arange(first, min(first + per_chunk, pixels)), spp)
-        x = ((pixel % width) + rng.random(len(pixel))) / width
-        y = ((pixel // width) + rng.random(len(pixel))) / height
-        eye, d = camera_rays(scene, x, y)
-        value = _paths(spheres, lights, sky, np.broadcast_to(eye, d.shape).copy(), d, rng,
-                       int(max_depth))
-        for c in range(3):
-            total[:, c] += np.bincount(pixel, value[:, c], minlength=pixels)
-            square[:, c] += np.bincount(pixel, value[:, c] ** 2, minlength=pixels)
-    mean = total / spp
-    image = mean.reshape(height, width, 3)
-    if not variance:
-        return image
-    spread = np.maximum(square - spp * mean * mean, 0.0) / (spp - 1) if spp > 1 \
-        else np.zeros_like(mean)
-    return image, spread.reshape(height, width, 3)
+    return pixel_means(scene, int(spp), rng, chunk_paths, variance,
+                       lambda o, d: _paths(spheres, lights, sky, o, d, rng, int(max_depth)))
 
 
 def _returned(spheres, s: int, p: np.ndarray) -> np.ndarray:
@@ -128,24 +107,7 @@ def _paths(spheres, lights, sky, o, d, rng, max_depth):
             closer = t < best
             best, which = np.where(closer, t, best), np.where(closer, s, which)
         camera = depth[live] == 0
-        emitted = np.zeros((live.size, 3))
-        for c, radius, radiance in lights.spheres:
-            tn, _ = sphere_roots(oo, dd, c, radius)
-            t = np.where((tn > scale) & ~camera, tn, np.inf)
-            closer = t < best
-            best, which = np.where(closer, t, best), np.where(closer, -2, which)
-            emitted = np.where(closer[:, None], radiance, emitted)
-        for c, to_local, normal, radiance in lights.rectangles:
-            facing = dd @ normal
-            with np.errstate(invalid="ignore", divide="ignore"):
-                t = ((c - oo) @ normal) / facing
-                local = (oo + t[:, None] * dd - c) @ to_local.T
-            on = (np.abs(local[:, 0]) <= 1.0) & (np.abs(local[:, 1]) <= 1.0)
-            t = np.where((t > scale) & on & ~camera, t, np.inf)
-            closer = t < best
-            best, which = np.where(closer, t, best), np.where(closer, -2, which)
-            emitted = np.where(closer[:, None], np.where((facing < 0)[:, None], radiance, 0.0),
-                               emitted)
+        best, which, emitted = nearer_lights(lights, oo, dd, scale, camera, best, which)
         escape = which == -1
         if callable(sky):
             value[live[escape]] += beta[live[escape]] * sky(dd[escape])
