@@ -7,17 +7,17 @@ error against a converged walk.
 For each scene (default: every scene of scenes/translucent/) at its own size and spp (with
 ``--shrink K``: each side over K and the spp over K², a K⁴-th of the work, each mode's
 cost a sample kept), through ``mimarble.render`` as a user renders: one render of each
-mode at the measured size and spp first (the kernels compiled, the recordings made: a
-recording is keyed on the spp), then two pairs of renders alternating ``--mode preview``
+mode at the measured size and spp first, twice (the kernels compiled, the recordings made:
+a recording is keyed on the spp, and made again at the second call), then two pairs of renders alternating ``--mode preview``
 and ``--mode path`` (the walk) at that spp, seeds 1 and 2, so that other work on the
 machine slows both alike; then the walk at ``--extra`` × the spp (seed 100; none with 0).
-The converged walk W is the mean of all the walk's samples (3 + extra times the spp, the
-warm render's included). Reports the median seconds of each mode and their ratio,
+The converged walk W is the mean of all the walk's samples (4 + extra times the spp, the
+warm renders' included). Reports the median seconds of each mode and their ratio,
 wall-clock and the process's CPU seconds (both modes run on all cores: the CPU ratio is
 the one other work on the machine disturbs least); the walk's noise σ at the spp (per
 pixel and channel, from its two seeds: mean (w₁ − w₂)²/2); the preview's RMSE against W,
 as measured and with the noise of W and the preview's own taken out
-(√(RMSE² − σ²/n − σ_p²), n = 3 + extra: its difference from the walk's expected image);
+(√(RMSE² − σ²/n − σ_p²), n = 4 + extra: its difference from the walk's expected image);
 each also over W's mean. Writes the images (.npy, linear: the preview's first, W) and
 results.json (with the machine and its load average) to OUT_DIR (default
 /tmp/preview_speed); ``--pair`` makes a side-by-side PNG of them.
@@ -64,11 +64,15 @@ def shrunk(scene, k: int):
 def measure(path: str, extra: int, out: Path, shrink: int = 1) -> dict:
     scene = shrunk(mimarble.scene.load(packaged_scenes.resolve(path)), shrink)
     spp, name = scene.image.samples, Path(str(packaged_scenes.resolve(path))).stem
-    # Warm each mode at the measured spp (a render's recording is keyed on its spp and
-    # width: the first render at an spp records it, ~1 CPU s on carrara); the walk's warm
-    # render is one more sample of the converged walk.
-    mimarble.render(scene, mode="preview", spp=spp, seed=0)
-    warm_walk = mimarble.render(scene, mode="path", spp=spp, seed=99).astype(np.float64)
+    # Warm each mode at the measured spp, twice (a render's recording is keyed on its spp
+    # and width, and Dr.Jit records again on the second call, making the values that
+    # changed — the seed — opaque: ~1 CPU s on carrara at 240×160); the walk's warm renders
+    # are two more samples of the converged walk.
+    warm_walk = 0.0
+    for seed in (98, 99):
+        mimarble.render(scene, mode="preview", spp=spp, seed=seed)
+        warm_walk = warm_walk + mimarble.render(scene, mode="path", spp=spp,
+                                                seed=seed).astype(np.float64)
     seconds = {"preview": [], "path": []}
     cpu = {"preview": [], "path": []}
     images = {"preview": [], "path": []}
@@ -84,7 +88,7 @@ def measure(path: str, extra: int, out: Path, shrink: int = 1) -> dict:
         t_extra, _, more = timed(scene, "path", extra * spp, 100)
         walk += extra * more.astype(np.float64)
         print(f"{name}: walk {extra * spp} spp: {t_extra:.1f} s", flush=True)
-    n = 3 + extra
+    n = 4 + extra
     walk /= n
     preview = images["preview"][0]
     np.save(out / f"{name}-preview.npy", preview.astype(np.float32))
