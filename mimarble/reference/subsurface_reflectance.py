@@ -24,7 +24,8 @@ import numpy as np
 from mimarble.contract import FLT_MIN_NORMAL
 from mimarble.contract import SPHERICAL_ALBEDO_FIT_B as FIT_B, SPHERICAL_ALBEDO_FIT_C as FIT_C
 
-__all__ = ["diffuse_fresnel_reflectance", "single_scattering_albedo"]
+__all__ = ["diffuse_fresnel_reflectance", "single_scattering_albedo", "spherical_albedo",
+           "spherical_albedo_seen"]
 
 #: Decimal digits Walsh's form is evaluated with: its terms grow as 1/(η − 1)² near η = 1
 #: while their sum falls as (η − 1)/3, so float64 would lose every digit within 10⁻⁸ of 1.
@@ -60,12 +61,27 @@ def diffuse_fresnel_reflectance(eta: float) -> float:
     return 1.0 - eta * eta * (1.0 - _walsh(1.0 / eta))
 
 
+def spherical_albedo_seen(reflectance, fresnel_mean: float) -> np.ndarray:
+    """a = clamp((C − F̄)/(1 − F̄), 0, 1) (same shape as ``reflectance``, float64, C clamped
+    to [0, 1] first): the spherical albedo the walk must return under a boundary of
+    F̄ = ``fresnel_mean`` for a thick piece to show C (module docstring); 0 where F̄ rounds
+    to 1."""
+    c = np.clip(np.asarray(reflectance, dtype=np.float64), 0.0, 1.0)
+    return np.clip((c - fresnel_mean) / max(1.0 - fresnel_mean, FLT_MIN_NORMAL), 0.0, 1.0)
+
+
+def spherical_albedo(albedo) -> np.ndarray:
+    """Van de Hulst's fit forwards: A = (1 − s)(1 − B s)/(1 + C_fit s), s = √(1 − α), of the
+    single-scattering albedo α clamped to [0, 1] (same shape, float64)."""
+    s = np.sqrt(1.0 - np.clip(np.asarray(albedo, dtype=np.float64), 0.0, 1.0))
+    return (1.0 - s) * (1.0 - FIT_B * s) / (1.0 + FIT_C * s)
+
+
 def single_scattering_albedo(reflectance, fresnel_mean: float) -> np.ndarray:
     """α (same shape as ``reflectance``, float64) of each reflectance component, for a
     boundary of F̄ = ``fresnel_mean`` (module docstring); 0 everywhere where F̄ rounds to 1
     (the coat reflects all even light)."""
-    c = np.clip(np.asarray(reflectance, dtype=np.float64), 0.0, 1.0)
-    a = np.clip((c - fresnel_mean) / max(1.0 - fresnel_mean, FLT_MIN_NORMAL), 0.0, 1.0)
+    a = spherical_albedo_seen(reflectance, fresnel_mean)
     b = 1.0 + FIT_B + FIT_C * a
     s = (b - np.sqrt(b * b - 4.0 * FIT_B * (1.0 - a))) / (2.0 * FIT_B)
     return 1.0 - s * s

@@ -236,8 +236,6 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     order of their lanes (pixel by pixel, a pixel's samples together).
     """
     _checked(scene, spp, max_depth, rr_depth, chunk_paths)
-    spp = int(spp)
-    width, height = scene.image.width, scene.image.height
     spheres = _Spheres(scene)
     lights = _Lights(scene)
     ambient = _sky(scene)
@@ -245,7 +243,17 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     depth_cap = math.inf if max_depth == -1 else int(max_depth)
     roulette = math.inf if rr_depth is None else int(rr_depth)
     q_max = ROULETTE_MAX if max_depth == -1 else 1.0
+    return pixel_means(scene, int(spp), rng, chunk_paths, variance,
+                       lambda o, d: _walk(spheres, lights, ambient, o, d, rng, depth_cap,
+                                          roulette, q_max, steps))
 
+
+def pixel_means(scene, spp: int, rng, chunk_paths: int, variance: bool, paths):
+    """The image (H, W, 3) of ``spp`` samples a pixel at uniform random positions in it,
+    each the value of ``paths(o, d)`` ((n, 3) from the camera rays' origins and directions,
+    both (n, 3)), traced in batches of about ``chunk_paths`` samples (whole pixels); with
+    ``variance`` also each pixel's unbiased variance of one sample (0 at spp 1)."""
+    width, height = scene.image.width, scene.image.height
     pixels = width * height
     total = np.zeros((pixels, 3))
     square = np.zeros((pixels, 3))
@@ -256,8 +264,7 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
         x = ((pixel % width) + rng.random(len(pixel))) / width
         y = ((pixel // width) + rng.random(len(pixel))) / height
         eye, d = camera_rays(scene, x, y)
-        value = _walk(spheres, lights, ambient, np.broadcast_to(eye, d.shape).copy(), d, rng,
-                      depth_cap, roulette, q_max, steps)
+        value = paths(np.broadcast_to(eye, d.shape).copy(), d)
         for c in range(3):
             total[:, c] += np.bincount(pixel, value[:, c], minlength=pixels)
             square[:, c] += np.bincount(pixel, value[:, c] ** 2, minlength=pixels)
@@ -268,6 +275,35 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     spread = np.maximum(square - spp * mean * mean, 0.0) / (spp - 1) if spp > 1 \
         else np.zeros_like(mean)
     return image, spread.reshape(height, width, 3)
+
+
+def nearer_lights(lights, oo, dd, scale, camera, best, which):
+    """(best, which, emitted): the rays (oo, dd) that meet an area light's shape (beyond
+    ``scale``, camera rays — ``camera`` true — never: hide_emitters) nearer than ``best``
+    get its distance, ``which`` −2 and the radiance it sends them (a rectangle's on its
+    emitting side only, else 0); ``emitted`` (n, 3) is 0 elsewhere."""
+    emitted = np.zeros((len(dd), 3))
+    for c, radius, radiance in lights.spheres:
+        tn, _ = sphere_roots(oo, dd, c, radius)
+        t = np.where((tn > scale) & ~camera, tn, np.inf)
+        closer = t < best
+        best = np.where(closer, t, best)
+        which = np.where(closer, -2, which)
+        emitted = np.where(closer[:, None], radiance, emitted)
+    for c, to_local, normal, radiance in lights.rectangles:
+        facing = dd @ normal
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = ((c - oo) @ normal) / facing
+            local = (oo + t[:, None] * dd - c) @ to_local.T
+        inside_rect = (np.abs(local[:, 0]) <= 1.0) & (np.abs(local[:, 1]) <= 1.0)
+        t = np.where((t > scale) & inside_rect & ~camera, t, np.inf)
+        closer = t < best
+        best = np.where(closer, t, best)
+        which = np.where(closer, -2, which)
+        # one-sided: it emits towards its normal, to rays arriving against it
+        emitted = np.where(closer[:, None], np.where((facing < 0)[:, None], radiance, 0.0),
+                           emitted)
+    return best, which, emitted
 
 
 def _sky(scene):
@@ -314,27 +350,7 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 closer = t < best
                 best, which = np.where(closer, t, best), np.where(closer, s, which)
             camera = depth[idx] == 0                  # hide_emitters: camera rays see no light
-            emitted = np.zeros((out.size, 3))
-            for c, radius, radiance in lights.spheres:
-                tn, _ = sphere_roots(oo, dd, c, radius)
-                t = np.where((tn > scale) & ~camera, tn, np.inf)
-                closer = t < best
-                best = np.where(closer, t, best)
-                which = np.where(closer, -2, which)
-                emitted = np.where(closer[:, None], radiance, emitted)
-            for c, to_local, normal, radiance in lights.rectangles:
-                facing = dd @ normal
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    t = ((c - oo) @ normal) / facing
-                    local = (oo + t[:, None] * dd - c) @ to_local.T
-                inside_rect = (np.abs(local[:, 0]) <= 1.0) & (np.abs(local[:, 1]) <= 1.0)
-                t = np.where((t > scale) & inside_rect & ~camera, t, np.inf)
-                closer = t < best
-                best = np.where(closer, t, best)
-                which = np.where(closer, -2, which)
-                # one-sided: it emits towards its normal, to rays arriving against it
-                emitted = np.where(closer[:, None], np.where((facing < 0)[:, None], radiance, 0.0),
-                                   emitted)
+            best, which, emitted = nearer_lights(lights, oo, dd, scale, camera, best, which)
             escape = which == -1
             if callable(ambient):                     # an environment: seen by every ray
                 value[idx[escape]] += beta[idx[escape]] * ambient(dd[escape])

@@ -12,13 +12,14 @@ integrator (``volpath`` when a material has a ``subsurface``, max_depth
 ``subsurface`` keyword). docs/rendering-model.md says how the paper's quantities map.
 
 ``preview``: path mode with every translucent material's fast preview in place of its
-walk (``subsurface_preview``: a surface, no medium), so ``path`` for every scene.
+walk (``subsurface_preview``: a surface, no medium), so ``path`` for every scene, at
+max_depth :data:`PREVIEW_MAX_DEPTH` (direct light only) where a material is translucent.
 """
 
 from __future__ import annotations
 
-from mimarble.contract import (RENDER_MODES, ROULETTE_DEPTH, ROULETTE_MAX, VOLPATH_MAX_DEPTH,
-                               VOLPATH_RR_DEPTH)
+from mimarble.contract import (PATH_MAX_DEPTH, PREVIEW_MAX_DEPTH, RENDER_MODES, ROULETTE_DEPTH,
+                               ROULETTE_MAX, VOLPATH_MAX_DEPTH, VOLPATH_RR_DEPTH)
 from mimarble.scene.errors import SceneError
 from mimarble.scene.rules import shortened
 from mimarble.texture import error_budget
@@ -73,7 +74,9 @@ def integrator_and_sampler(scene, mode: str, spp: int, translucent: tuple,
         return ({"type": "volpath", "max_depth": VOLPATH_MAX_DEPTH,
                  "rr_depth": roulette_depth(translucent), "hide_emitters": hidden},
                 {"type": "independent", "sample_count": spp})
-    return ({"type": "path", "max_depth": 4, "hide_emitters": hidden},
+    # preview: direct light only when a translucent material is previewed (its aim is speed)
+    depth = PREVIEW_MAX_DEPTH if translucent and mode == "preview" else PATH_MAX_DEPTH
+    return ({"type": "path", "max_depth": depth, "hide_emitters": hidden},
             {"type": "independent", "sample_count": spp})
 
 
