@@ -181,6 +181,24 @@ def test_structural_edit_compiles_once(session, monkeypatch):
     assert passes._traced_pass.recordings == recordings
 
 
+def test_the_render_thread_is_not_resting_while_a_state_waits():
+    """``resting`` says the thread has nothing to do: from the moment a state is
+    submitted it is clear, before the thread has woken to take it (the thread is kept
+    from waking by holding its condition)."""
+    from mimarble.studio.worker import RenderThread, Request
+    worker = RenderThread(lambda *a: None, lambda *a: None)
+    worker.start()
+    try:
+        assert _eventually(worker.resting.is_set)
+        with worker._condition:
+            worker.submit(Request(1, None, "whitted"))
+            assert not worker.resting.is_set()
+            worker._stopping = True                  # it takes no state: it stops
+    finally:
+        worker.stop()
+    assert not worker.is_alive()
+
+
 def _eventually(condition, seconds: float = 60.0) -> bool:
     deadline = time.monotonic() + seconds
     while not condition():

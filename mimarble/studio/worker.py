@@ -100,8 +100,8 @@ class RenderThread(threading.Thread):
         self._kept_passes: dict = {}
         #: 1 spp passes recorded again after a load, in order (a test's check).
         self.recorded_again: list = []
-        #: Set while the thread waits for a state or for edits to pause: nothing of its
-        #: own is in progress (a test's check).
+        #: Set while the thread waits for a state or for edits to pause and no state
+        #: waits for it (:meth:`submit` clears it): nothing is in progress (a test's check).
         self.resting = threading.Event()
 
     # -- Called from other threads ---------------------------------------------------
@@ -111,6 +111,7 @@ class RenderThread(threading.Thread):
         with self._condition:
             self._pending = request
             self._last_submit = time.monotonic()
+            self.resting.clear()          # work waits, before the thread has woken to it
             self._condition.notify()
 
     def stop(self, timeout: float | None = 30.0) -> None:
@@ -126,8 +127,8 @@ class RenderThread(threading.Thread):
     def run(self) -> None:
         while True:
             with self._condition:
-                self.resting.set()
                 while self._pending is None and not self._stopping:
+                    self.resting.set()
                     self._condition.wait()
                 self.resting.clear()
                 if self._stopping:
@@ -147,12 +148,12 @@ class RenderThread(threading.Thread):
         """Wait until no edit has come for ``idle_s``; False if a new state (or stop)
         came first."""
         with self._condition:
-            self.resting.set()
             try:
                 while self._pending is None and not self._stopping:
                     left = self._last_submit + self.idle_s - time.monotonic()
                     if left <= 0:
                         return True
+                    self.resting.set()
                     self._condition.wait(left)
                 return False
             finally:
