@@ -199,6 +199,33 @@ def test_the_render_thread_is_not_resting_while_a_state_waits():
     assert not worker.is_alive()
 
 
+def test_a_scene_the_loaded_scenes_drop_is_freed(monkeypatch):
+    """With room for 2 loaded scenes, a third structure drops the first: nothing of the
+    render thread's (its kept passes, recorded again after each load) holds it, so it is
+    freed — it would otherwise stay in Dr.Jit's registry and in every later recording's
+    key. Seen by a weak reference to one of its materials (a Python object the scene
+    holds; the scene itself takes none)."""
+    import gc
+    import weakref
+    from mimarble.mitsuba.plugins.whitted import Whitted
+    from mimarble.studio import worker as worker_module
+    monkeypatch.setattr(worker_module, "KEPT_SCENES", 2)
+    s = _session()
+    try:
+        s.wait_frame()
+        worker = s._worker
+        (first, _, _), = worker.loaded.scenes.values()
+        material = weakref.ref(next(iter(Whitted._materials(first))))
+        del first
+        for octaves in (9, 10):
+            s.wait_frame(s.edit("marble.octaves", octaves))
+        assert _eventually(worker.resting.is_set) and len(worker.loaded.scenes) == 2
+        gc.collect()
+        assert material() is None
+    finally:
+        s.close()
+
+
 def _eventually(condition, seconds: float = 60.0) -> bool:
     deadline = time.monotonic() + seconds
     while not condition():
