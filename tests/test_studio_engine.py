@@ -226,6 +226,27 @@ def test_a_scene_the_loaded_scenes_drop_is_freed(monkeypatch):
         s.close()
 
 
+def test_going_back_after_an_in_place_edit_changed_the_key_shows_the_same_frame():
+    """An in-place edit can change a loaded scene's pass key (distortion 0: the marble
+    needs no noise, other kernels). The passes recorded again behind a new structure are
+    made from the scenes as they are: only a scene's key now may be recorded again, or its
+    older key would hold the kernels of its state now. The same state (fig11a as loaded,
+    after distortion 0, octaves 9 and back, distortion 3 again) gives the same 1 spp
+    frame, byte for byte (PNG), as it did first."""
+    s = StudioSession("fig11a", watch=False, idle_s=3600.0, frame_format="png")
+    try:
+        s.edits(SMALL)
+        first = s.wait_frame().image
+        worker = s._worker
+        for key, value in (("marble.distortion", 0.0), ("marble.octaves", 9),
+                           ("marble.octaves", 12), ("marble.distortion", 3.0)):
+            s.wait_frame(s.edit(key, value))
+            assert _eventually(worker.resting.is_set)
+        assert s.latest_frame().image == first
+    finally:
+        s.close()
+
+
 def _eventually(condition, seconds: float = 60.0) -> bool:
     deadline = time.monotonic() + seconds
     while not condition():

@@ -96,7 +96,8 @@ class RenderThread(threading.Thread):
         self._loads = 0              # scenes loaded so far
         self._recorded: dict = {}    # a 1 spp pass's key → self._loads when it last ran
         #: A kept structure's 1 spp pass: its key → (Target, facts), the most recently
-        #: shown last; only structures whose scene :attr:`loaded` keeps.
+        #: shown last; only structures whose scene :attr:`loaded` keeps, one key a scene
+        #: (the key of its state now: the one its recording may be made again for).
         self._kept_passes: dict = {}
         #: 1 spp passes recorded again after a load, in order (a test's check).
         self.recorded_again: list = []
@@ -191,7 +192,12 @@ class RenderThread(threading.Thread):
         histograms = self.histograms.cached(scene)
         target_spp = scene.image.samples
         self._show(request, sums, 1, target_spp, elapsed, histograms)
-        self._kept_passes.pop(first_key, None)
+        # One pass a loaded scene: its key now. An in-place edit can change the key (the
+        # marble's octaves evaluated, whether it needs noise): an older key of this scene,
+        # recorded again from the scene as it is now, would hold the wrong kernels.
+        for key in [key for key, (kept, _) in self._kept_passes.items()
+                    if kept.scene is target.scene]:
+            del self._kept_passes[key]
         self._kept_passes[first_key] = (target, facts)
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
