@@ -464,6 +464,49 @@ def test_an_edit_made_while_saving_neither_waits_for_the_save_nor_is_lost(tmp_pa
         s.close()
 
 
+def test_a_reload_made_while_saving_wins_and_nothing_is_written(tmp_path, monkeypatch):
+    """An editor writes the file and the user reloads it while a save rewrites the text
+    (outside the session's lock): the save writes nothing and says why, the file keeps the
+    editor's text, and the session holds it with no edit."""
+    from mimarble.studio import StudioError
+    from mimarble.studio import session as session_module
+    path = _copy(tmp_path)
+    s = _session(str(path))
+    inside, reloaded = threading.Event(), threading.Event()
+    original = session_module.rewrite
+
+    def slow_rewrite(*args, **kwargs):
+        inside.set()
+        reloaded.wait(30)
+        return original(*args, **kwargs)
+
+    errors = []
+
+    def save():
+        try:
+            s.save()
+        except StudioError as e:
+            errors.append(str(e))
+
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+        saving = threading.Thread(target=save)
+        saving.start()
+        assert inside.wait(30)
+        editors = path.read_text().replace("      period 1.3", "      period 1.7", 1)
+        path.write_text(editors)
+        assert s.reload()["reloaded"]
+        reloaded.set()
+        saving.join(60)
+        assert len(errors) == 1 and "reloaded while it was being saved" in errors[0]
+        assert path.read_text() == editors and s.text == editors
+        assert s.edits_made == {} and not s.state()["dirty"]
+    finally:
+        reloaded.set()
+        s.close()
+
+
 def test_save_refuses_a_file_changed_on_disk_and_a_packaged_scene(tmp_path):
     from mimarble.studio import StudioError
     path = _copy(tmp_path)
