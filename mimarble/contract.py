@@ -68,8 +68,13 @@ SKIPPED_OCTAVES_BOUND = NOISE_BOUND * 2.0 ** (1 - MAX_OCTAVES_EVALUATED)
 #: float64 reference random walk on a unit sphere under a white sky, albedo 0.99 and mean
 #: free path 0.05 keep 0.628 of the light at 64, 0.697 at 256, 0.699 at 1024 and 4096;
 #: albedo 0.999, mfp 0.02, 0.888 at 1024 against 0.895 at 4096. Russian roulette ends
-#: paths long before the cap wherever the albedo is lower.
-VOLPATH_MAX_DEPTH = 1024
+#: paths long before the cap wherever the albedo is lower. 256 (issue 40 item 3), Cycles'
+#: cap on a random walk (BSSRDF_MAX_STEPS in its subsurface_random_walk.h), a stated bias
+#: that both renderers share: the light of walks longer than 256 events is lost (0.3 % of
+#: it at albedo 0.99 above; measured on fig11a-translucent and the Cycles-twin sphere in
+#: docs/benchmarks.md, "Walk length and sampler against Cycles"), for 0.6–0.7× the CPU
+#: time of 1024 on fig11a-translucent, whose red walks are long.
+VOLPATH_MAX_DEPTH = 256
 #: volpath's rr_depth where a translucent material's single-scattering albedo may pass
 #: ROULETTE_MAX: max_depth, no Russian roulette (elsewhere ROULETTE_DEPTH;
 #: mimarble/mitsuba/translate/modes.py, roulette_depth). volpath survives a path with

@@ -1,7 +1,7 @@
 """The marble studio's latency, measured in a real (headless) browser (issue 41's targets).
 
     ./go python scripts/studio_browser_latency.py [--edits N] [--drag-seconds S]
-        [--panel] [--json OUT.json] [--screenshot docs/gallery/studio.png]
+        [--panel] [--json OUT.json] [--screenshot docs/gallery/studio.png] [--no-reduced]
 
 Opens the studio (mimarble/studio/server.py) on fig11a at 512×512 in Debian's headless
 Chromium (mimarble/studio/headless.py) and measures, in the page, with
@@ -317,6 +317,9 @@ def main(argv=None) -> int:
                              "(the machine's load drifts; turns share it alike)")
     parser.add_argument("--json", type=Path)
     parser.add_argument("--screenshot", type=Path)
+    parser.add_argument("--no-reduced", action="store_true",
+                        help="whole frames only, also while the slider moves (the render "
+                             "thread's reduced frames off: mimarble/studio/worker.py)")
     args = parser.parse_args(argv)
 
     import mimarble  # noqa: F401  (starts Dr.Jit and Mitsuba, registers the plugins)
@@ -330,6 +333,14 @@ def main(argv=None) -> int:
     driver = start_browser()
     try:
         with StudioSession(SCENE) as session:
+            if args.no_reduced:
+                session._worker.frame_budget_s = None
+            strides: dict = {}
+
+            def count(kind, payload):
+                if kind == "frame":
+                    strides[payload.stride] = strides.get(payload.stride, 0) + 1
+            session.subscribe(count)
             session.edits({"image.width": SIZE, "image.height": SIZE})
             wait_final(session)
             for turn in range(args.rounds):
@@ -346,6 +357,8 @@ def main(argv=None) -> int:
         if name in results:
             pooled = [x for run in results[name] for x in run.pop("latencies")]
             results[f"{name}_pooled"] = summary(pooled)
+    # Frames the render thread made, by stride (1: whole; 2, 4: reduced while moving).
+    results["frames_by_stride"] = {str(k): v for k, v in sorted(strides.items())}
     results["load_after"] = round(os.getloadavg()[0], 2)
     results["targets"] = TARGETS
     print(json.dumps(results, indent=2))

@@ -60,4 +60,4 @@ def test_path_mode_ends_white_walks_at_the_phase_function_where_volpath_rolls_no
             'sphere { material "m" }')
     d = to_mitsuba(S.parse(text), mode="path")
     assert d["sphere_0"]["interior"].get("phase", {}).get("type") == phase
-    assert d["integrator"]["rr_depth"] == (5 if phase is None else 1024)
+    assert d["integrator"]["rr_depth"] == (5 if phase is None else 256)

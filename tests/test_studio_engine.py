@@ -635,3 +635,82 @@ def test_snapshot_and_export_into_a_missing_folder_are_one_sentence(session, tmp
             write(target)
         assert str(caught.value).endswith(f"{target}: No such file or directory")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_moving_control_over_budget_gets_reduced_frames_then_the_whole_one():
+    """Edits in a stream while whole frames take longer than the budget (here every
+    frame does: a budget of 0) are shown as the whole 1 spp image's pixels of every k-th
+    row and column — compared with the whole frame that follows once the edits stop,
+    a different pass — without loading a scene; a lone edit gets a whole frame."""
+    s = _session(idle_s=0.3)
+    frames = []
+    try:
+        s.wait_frame(final=True)
+        worker = s._worker
+        worker.frame_budget_s = 0.0
+        s.subscribe(lambda kind, payload: frames.append(payload) if kind == "frame" else None)
+        s.wait_frame(s.edit("marble.period", 1.8))  # a whole frame, timed (not compiled)
+        assert worker.last_frame_s is not None
+        loads = worker._loads
+        s.edit("marble.period", 2.0)
+        last = s.edit("marble.period", 2.5)          # within MOTION_GAP_S: moving
+        s.wait_frame(last, final=True)
+        mine = [f for f in frames if f.version == last]
+        assert mine[0].stride > 1 and not mine[0].final
+        k = mine[0].stride
+        whole = [f for f in mine if f.stride == 1 and f.spp == 1]
+        assert len(whole) == 1 and mine.index(whole[0]) == 1    # right after, before refining
+        assert mine[0].pixels.shape == (48 // k, 48 // k, 3)
+        assert np.allclose(mine[0].pixels, whole[0].pixels[::k, ::k], rtol=1e-6, atol=0)
+        assert not np.allclose(mine[0].pixels, frames[0].pixels[::k, ::k], rtol=1e-3)
+        assert worker._loads == loads                # the loaded scene's own: no new one
+        time.sleep(0.5)                              # idle: the next edit is a lone one
+        frames.clear()
+        lone = s.edit("marble.period", 1.5)
+        assert s.wait_frame(lone).stride == 1
+    finally:
+        s.close()
+
+
+def test_a_snapshot_during_a_drag_writes_the_whole_image(tmp_path, monkeypatch):
+    """The latest frame of a drag is reduced: a snapshot waits for the whole frame (it
+    comes when the edits stop), and says so, writing nothing, if it does not come."""
+    from PIL import Image
+    from mimarble.studio import StudioError, session as session_module
+    for idle_s, comes in ((3600.0, False), (0.3, True)):
+        s = _session(idle_s=idle_s)
+        try:
+            s.wait_frame()
+            s._worker.frame_budget_s = 0.0
+            s.wait_frame(s.edit("marble.period", 1.8))
+            s.edit("marble.period", 2.0)
+            moving = s.edit("marble.period", 2.5)
+            assert s.wait_frame(moving).stride > 1
+            monkeypatch.setattr(session_module, "SNAPSHOT_WAIT_S", 2.0)
+            target = tmp_path / f"snapshot-{comes}.png"
+            if comes:
+                assert s.snapshot(target).stride == 1
+                assert Image.open(target).size == (48, 48)
+            else:
+                with pytest.raises(StudioError, match="reduced while it moves"):
+                    s.snapshot(target)
+                assert not target.exists()
+        finally:
+            s.close()
+
+
+def test_the_stride_of_a_moving_controls_frames_follows_the_frames_times():
+    from mimarble.studio.worker import RenderThread
+    worker = RenderThread(lambda *a: None, lambda *a: None)     # not started: its policy
+    worker.frame_budget_s = 0.04
+    assert worker.stride(True) == 1                   # no whole frame timed yet
+    worker.last_frame_s = 0.03
+    assert (worker.stride(True), worker.stride(False)) == (1, 1)     # within the budget
+    worker.last_frame_s = 0.09
+    assert (worker.stride(True), worker.stride(False)) == (2, 1)
+    worker.last_reduced_s = 0.05                      # stride 2 over the budget too
+    assert worker.stride(True) == 4
+    worker.last_reduced_s, worker.last_frame_s = 0.02, 0.2        # four budgets over
+    assert worker.stride(True) == 4
+    worker.frame_budget_s = None                      # reduced frames off
+    assert worker.stride(True) == 1

@@ -297,9 +297,9 @@ def test_a_marble_density_is_bounded_by_its_ramp():
 
 def test_a_scene_with_a_translucent_material_renders_under_volpath():
     d = translucent("albedo color < 1 1 1 > mean_free_path 1")
-    assert d["integrator"] == {"type": "volpath", "max_depth": 1024, "rr_depth": 1024,
+    assert d["integrator"] == {"type": "volpath", "max_depth": 256, "rr_depth": 256,
                                "hide_emitters": True}          # albedo 1: no roulette
-    assert translate.VOLPATH_MAX_DEPTH == 1024
+    assert translate.VOLPATH_MAX_DEPTH == 256
     opaque = to_mitsuba(parse('material "m" { diffuse { color < 1 1 1 > } } sphere { material "m" }'),
                         mode="path")
     assert opaque["integrator"]["type"] == "path"
@@ -307,16 +307,16 @@ def test_a_scene_with_a_translucent_material_renders_under_volpath():
 
 @pytest.mark.parametrize("albedo, rr_depth", [
     ("color < 0.95 0.9 0.5 >", 5),                                 # at most volpath's 0.95
-    ("color < 0.9 0.951 0.5 >", 1024),
-    ("marble { ramp { < 0.3 0.3 0.3 > < 0.96 0.9 0.9 > } }", 1024),
+    ("color < 0.9 0.951 0.5 >", 256),
+    ("marble { ramp { < 0.3 0.3 0.3 > < 0.96 0.9 0.9 > } }", 256),
     ("marble { ramp { < 0.3 0.3 0.3 > < 0.9 0.9 0.9 > } }", 5),
-    ("add { color < 0.5 0.5 0.5 > color < 0.5 0.5 0.5 > }", 1024),  # a bound of 1
+    ("add { color < 0.5 0.5 0.5 > color < 0.5 0.5 0.5 > }", 256),  # a bound of 1
 ])
 def test_the_roulette_is_off_where_an_albedo_may_pass_its_cap(albedo, rr_depth):
     # volpath survives a path with min(max β, 0.95): above albedo 0.95 its weights run
     # away (docs/rendering-model.md, "Translucent materials"), so no roulette there.
     d = translucent(f"albedo {albedo} mean_free_path 1")
-    assert d["integrator"]["rr_depth"] == rr_depth and d["integrator"]["max_depth"] == 1024
+    assert d["integrator"]["rr_depth"] == rr_depth and d["integrator"]["max_depth"] == 256
 
 
 def test_an_index_matched_boundary_is_a_subsurface_boundary_of_ior_1():

@@ -20,7 +20,7 @@ from the inversion.
   half-space) under a white sky, no lights, seen from afar: the mean radiance over its
   disk is within 5 % of C per channel, C in {0.2, 0.5, 0.8, 0.95}, with the reference
   random walk and with Mitsuba's volpath. Both run without Russian roulette
-  (``rr_depth`` = ``max_depth`` = 1024): every weight is a product of albedos ≤ 1, so the
+  (``rr_depth`` = ``max_depth`` = ``VOLPATH_MAX_DEPTH``, 256): every weight is a product of albedos ≤ 1, so the
   white sphere (α ≈ 0.9995) cannot run away. At ior 1 and 1.5 (:data:`IORS`), behind the
   diffuse-entry boundary (``subsurface_boundary``, docs/rendering-model.md).
 """

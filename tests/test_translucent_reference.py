@@ -268,7 +268,7 @@ def test_white_sphere_under_a_white_sky_returns_the_sky_exactly():
     """Energy conservation (the furnace test): albedo 1, no Russian roulette, an
     index-matched boundary (F = 0, W = 1), so every path leaves with weight 1 to a sky of
     radiance A, through the null collisions of a marble density: a pixel the sphere
-    covers is A exactly (to rounding), whatever the walk did (none reaches depth 1024 here)."""
+    covers is A exactly (to rounding), whatever the walk did (none reaches depth 256 here)."""
     scene = translucent_scene(albedo=model.ColorChannel((1.0, 1.0, 1.0)), mean_free_path=0.2,
                               density=MARBLE_DENSITY, ambient=(0.7, 0.5, 0.25), size=16, ior=1.0)
     image, variance = volume.render_translucent(scene, 16, seed=3, rr_depth=None, variance=True)

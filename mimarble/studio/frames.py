@@ -46,6 +46,8 @@ class Frame:
                version's first frame when they were not computed yet (a
                ``histograms`` event follows it)
     pixels     linear float32 (height, width, 3): the image before encoding
+    stride     1, or k > 1 for a reduced frame of a drag: the whole image's pixels of
+               every k-th row and column (worker.py, "Reduced frames"), never final
     ========== ==========================================================================
     """
 
@@ -61,17 +63,18 @@ class Frame:
     encode_ms: float
     histograms: tuple | None = ()
     pixels: np.ndarray | None = dataclasses.field(default=None, repr=False)
+    stride: int = 1
 
     @property
     def final(self) -> bool:
-        """Whether refinement has reached the target."""
-        return self.spp >= self.target_spp
+        """Whether refinement has reached the target (a reduced frame never has)."""
+        return self.spp >= self.target_spp and self.stride == 1
 
     def meta(self) -> dict:
         """Everything but the bytes and the pixels, JSON-able."""
         return {"version": self.version, "mime": self.mime, "width": self.width,
                 "height": self.height, "spp": self.spp, "target_spp": self.target_spp,
-                "final": self.final, "mode": self.mode,
+                "final": self.final, "mode": self.mode, "stride": self.stride,
                 "render_ms": round(self.render_ms, 3), "encode_ms": round(self.encode_ms, 3),
                 "histograms": None if self.histograms is None else list(self.histograms)}
 

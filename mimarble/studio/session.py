@@ -52,6 +52,10 @@ MODES = MODE.choices
 VIEW_KEYS = ("mode", "image.width", "image.height")
 
 
+#: How long a snapshot taken during a drag waits for the whole frame (seconds).
+SNAPSHOT_WAIT_S = 10.0
+
+
 class StudioError(Exception):
     """Something the studio cannot do now (save over a changed file, compare in path
     mode, …): one sentence, for the page to show."""
@@ -248,16 +252,17 @@ class StudioSession:
             return kept
 
     def wait_frame(self, version: int | None = None, final: bool = False,
-                   timeout: float = 60.0) -> Frame:
+                   timeout: float = 60.0, whole: bool = False) -> Frame:
         """The first frame of at least ``version`` (default: the current one), at the
-        target spp if ``final``; TimeoutError after ``timeout`` seconds."""
+        target spp if ``final``, of every pixel (not a drag's reduced frame) if ``whole``;
+        TimeoutError after ``timeout`` seconds."""
         deadline = time.monotonic() + timeout
         with self._lock:
             version = self._version if version is None else version
             while True:
                 frame = self._frame
                 if frame is not None and frame.version >= version and \
-                        (not final or frame.final):
+                        (not final or frame.final) and (not whole or frame.stride == 1):
                     return frame
                 left = deadline - time.monotonic()
                 if left <= 0 or self._closed:
@@ -345,6 +350,12 @@ class StudioSession:
         frame = self.latest_frame()
         if frame is None:
             raise StudioError("snapshot: no frame has been rendered yet")
+        if frame.stride > 1:     # a drag's reduced frame: the whole one follows when it stops
+            try:
+                frame = self.wait_frame(frame.version, timeout=SNAPSHOT_WAIT_S, whole=True)
+            except TimeoutError:
+                raise StudioError("snapshot: the image is shown reduced while it moves; take "
+                                  "the snapshot when it stops (nothing was written)") from None
         try:
             write_image(path, frame.pixels)
         except OSError as e:      # the system's words, not the temporary file's name

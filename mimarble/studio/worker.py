@@ -18,6 +18,16 @@ request never waits for a render or a compile. Its contract:
   float64 rounding of the runs' sums (tests/test_studio_engine.py); path mode's runs are
   seeded one by one (run r: seed r + 1), so its frames converge as the render does.
   A new edit stops refinement between runs.
+* **Reduced frames while a control moves.** When a state comes less than
+  :data:`MOTION_GAP_S` after the one before (a drag, a slider held: a stream of edits)
+  and the last whole 1 spp frame took longer than :data:`FRAME_BUDGET_S` (render and
+  encode: a loaded machine), the state's first frame is the whole image's pixels of
+  every second row and column (every fourth when the last whole frame took over four
+  budgets, or the last frame at stride 2 over one)
+  — a quarter (a sixteenth) of the lanes, traced by a pass over that pixel list of the
+  same loaded scene (``trace_sums``: no new structure, one small recording per size),
+  the page scaling it up. Once the edits stop (``idle_s``) the whole 1 spp frame
+  follows, then refinement.
 * **Compiling.** Before a state whose structure no loaded scene holds, or whose passes
   have no recording, is rendered, ``compiling`` is published as True, then False with
   its frame.
@@ -45,7 +55,8 @@ import numpy as np
 
 from mimarble.runtime import environment
 from mimarble.mitsuba.rendering.loaded_scenes import LoadedScenes
-from mimarble.mitsuba.rendering.passes import Target, samples_pass_key, trace_samples, _traced_pass
+from mimarble.mitsuba.rendering.passes import (Target, samples_pass_key, trace_samples,
+                                               trace_sums, _traced_pass)
 from mimarble.mitsuba.rendering.replay import enabled as replay_enabled, scene_facts
 from .frames import FRAME_FORMAT, Frame, encode
 from .histogram import Histograms
@@ -61,6 +72,13 @@ FIRST_RUN = 4
 #: Loaded scenes a session keeps: its structures (octaves 8 and 9, both modes, …), so
 #: that going back to one reuses its loaded scene and its recorded passes.
 KEPT_SCENES = 6
+#: The time a whole 1 spp frame may take (render and encode) before the frames of a drag
+#: are reduced: 40 ms leaves 10 ms of the 50 ms a frame has at 20 frames/s (the issue's
+#: target) to the socket, the decode and the paint.
+FRAME_BUDGET_S = 0.040
+#: Edits closer together than this are a control moving (a drag sends one per animation
+#: frame, ~16 ms; a held arrow key one per ~33 ms).
+MOTION_GAP_S = 0.1
 
 
 class Request(NamedTuple):
@@ -88,6 +106,13 @@ class RenderThread(threading.Thread):
         self._condition = threading.Condition()
         self._pending: Request | None = None
         self._last_submit = 0.0
+        self._moving = False         # the pending state came within MOTION_GAP_S
+        self.frame_budget_s = FRAME_BUDGET_S
+        #: Seconds the last whole 1 spp frame took (render and encode; None: none yet).
+        self.last_frame_s: float | None = None
+        #: Seconds the last frame at stride 2 took (render and encode).
+        self.last_reduced_s: float | None = None
+        self._reduced_seen: set = set()   # (scene key, stride, pixels) traced reduced
         self._stopping = False
         #: Versions rendered (their first frame), in order: what a test of dropping reads.
         self.rendered: list[int] = []
@@ -110,8 +135,10 @@ class RenderThread(threading.Thread):
     def submit(self, request: Request) -> None:
         """Make ``request`` the state to render next, replacing any waiting one."""
         with self._condition:
+            now = time.monotonic()
             self._pending = request
-            self._last_submit = time.monotonic()
+            self._moving = now - self._last_submit < MOTION_GAP_S
+            self._last_submit = now
             self.resting.clear()          # work waits, before the thread has woken to it
             self._condition.notify()
 
@@ -135,8 +162,9 @@ class RenderThread(threading.Thread):
                 if self._stopping:
                     return
                 request, self._pending = self._pending, None
+                moving = self._moving
             try:
-                self._render(request)
+                self._render(request, moving)
             except Exception as error:       # a state that cannot render: said, not fatal
                 self.publish("status", {"compiling": False, "rendering": False})
                 self.failed(request, error)
@@ -160,7 +188,17 @@ class RenderThread(threading.Thread):
             finally:
                 self.resting.clear()
 
-    def _render(self, request: Request) -> None:
+    def stride(self, moving: bool) -> int:
+        """1 (the whole image), or the stride of a reduced frame: 2, or 4 when the last
+        whole frame took over four frame budgets or the last frame at stride 2 took
+        over one (module docstring)."""
+        last, budget = self.last_frame_s, self.frame_budget_s
+        if not moving or last is None or budget is None or last <= budget:
+            return 1
+        halved = self.last_reduced_s
+        return 4 if last > 4.0 * budget or (halved is not None and halved > budget) else 2
+
+    def _render(self, request: Request, moving: bool = False) -> None:
         scene, mode = request.scene, request.mode
         options = {"mode": mode, "spp": None, "tolerance": None, "filter": None}
         new_structure = not self.loaded.is_loaded(scene, **options)
@@ -183,15 +221,28 @@ class RenderThread(threading.Thread):
         self._recorded[first_key] = self._loads
         if compiling and not new_structure:
             self.publish("status", {"compiling": True, "rendering": True})
-        # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
-        sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
+        stride = 1 if compiling else self.stride(moving)
+        first_reduced = False
+        if stride > 1:        # its pass's first time for this structure records it: untimed
+            first_reduced = (facts.key, stride, pixels) not in self._reduced_seen
+            if len(self._reduced_seen) >= 64:        # bounded: a long session's structures
+                self._reduced_seen.clear()
+            self._reduced_seen.add((facts.key, stride, pixels))
+            sums = _reduced(target, stride, facts)
+        else:
+            # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
+            sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
         elapsed = time.perf_counter() - start
         if compiling:
             self.compile_seconds[(facts.key[1:], mode)] = elapsed
         self.rendered.append(request.version)
         histograms = self.histograms.cached(scene)
         target_spp = scene.image.samples
-        self._show(request, sums, 1, target_spp, elapsed, histograms)
+        encode_s = self._show(request, sums, 1, target_spp, elapsed, histograms, stride)
+        if stride == 1 and not compiling:
+            self.last_frame_s, self.last_reduced_s = elapsed + encode_s, None
+        elif stride == 2 and not first_reduced:
+            self.last_reduced_s = elapsed + encode_s
         # One pass a loaded scene: its key now. An in-place edit can change the key (the
         # marble's octaves evaluated, whether it needs noise): an older key of this scene,
         # recorded again from the scene as it is now, would hold the wrong kernels.
@@ -213,8 +264,17 @@ class RenderThread(threading.Thread):
         if not self._wait_idle():
             return
         self._record_kept(first_key)    # any a newer edit cut short, now that edits pause
-        if target_spp <= 1:
+        if target_spp <= 1 and stride == 1:
             return
+        if stride > 1:                  # the control stopped: the whole frame now
+            start = time.perf_counter()
+            sums = trace_samples(target, 1, 0, 1, seed=0, key=facts)
+            elapsed = time.perf_counter() - start
+            self.last_frame_s = elapsed + self._show(request, sums, 1, target_spp, elapsed,
+                                                     histograms)
+            self.last_reduced_s = None   # the next drag tries stride 2 again
+            if target_spp <= 1:
+                return
         # Refinement: runs of samples, accumulated; the first of FIRST_RUN samples, then
         # each as many as all before it (the frames' spp double), up to RUN_LANES lanes.
         total = np.zeros_like(sums)
@@ -255,16 +315,40 @@ class RenderThread(threading.Thread):
             self.recorded_again.append(key)
 
     def _show(self, request: Request, sums: np.ndarray, spp: int, target_spp: int,
-              seconds: float, histograms: tuple | None) -> None:
-        """Publish the frame of ``sums`` (pixels, 3) over ``spp`` samples: JPEG while it
-        is not final (``frame_format`` ``auto``), else the format asked for."""
+              seconds: float, histograms: tuple | None, stride: int = 1) -> float:
+        """Publish the frame of ``sums`` (pixels, 3) over ``spp`` samples (the pixels of
+        every ``stride``-th row and column when ``stride`` > 1): JPEG while it is not
+        final (``frame_format`` ``auto``), else the format asked for. Returns the
+        seconds spent encoding it."""
         scene = request.scene
-        pixels = (sums / spp).astype(np.float32).reshape(scene.image.height,
-                                                          scene.image.width, 3)
+        height, width = _reduced_size(scene.image.height, scene.image.width, stride)
+        pixels = (sums / spp).astype(np.float32).reshape(height, width, 3)
         fmt = self.frame_format
         if fmt == "auto":
-            fmt = "png" if spp >= target_spp else "jpeg"
+            fmt = "png" if spp >= target_spp and stride == 1 else "jpeg"
         image, mime, encode_ms = encode(pixels, fmt)
-        self.publish("frame", Frame(request.version, image, mime, scene.image.width,
-                                    scene.image.height, spp, target_spp, request.mode,
-                                    seconds * 1e3, encode_ms, histograms, pixels))
+        self.publish("frame", Frame(request.version, image, mime, width, height, spp,
+                                    target_spp, request.mode, seconds * 1e3, encode_ms,
+                                    histograms, pixels, stride))
+        return encode_ms * 1e-3
+
+
+def _reduced_size(height: int, width: int, stride: int) -> tuple[int, int]:
+    """Rows and columns of a frame of every ``stride``-th row and column (from 0)."""
+    return -(-height // stride), -(-width // stride)
+
+
+def _reduced(target: Target, stride: int, facts) -> np.ndarray:
+    """The 1 spp radiance of the pixels of every ``stride``-th row and column of
+    ``target``'s image, float64 (pixels, 3), row by row: the same samples the whole
+    frame takes there (the pixel centre in whitted mode), traced as a pixel list of the
+    loaded scene (``trace_sums``), so no scene is loaded and no structure is new."""
+    height, width = _reduced_size(target.height, target.width, stride)
+    rows = np.arange(0, target.height, stride, dtype=np.uint32)[:, None]
+    columns = np.arange(0, target.width, stride, dtype=np.uint32)[None, :]
+    pixels = (rows * np.uint32(target.width) + columns).ravel()
+    sums = np.empty((height * width, 3), dtype=np.float64)
+    for part in trace_sums(target, 1, mi.UInt32(pixels), len(pixels), with_estimates=False,
+                           key=facts):
+        sums[part.start:part.start + part.count] = part.sums.numpy().T[:part.count]
+    return sums
