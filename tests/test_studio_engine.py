@@ -428,24 +428,31 @@ def test_save_changes_only_the_edited_values(tmp_path):
         s.close()
 
 
+def _held_rewrite(monkeypatch, release: threading.Event) -> threading.Event:
+    """Make a save's rewrite of the text (outside the session's lock) wait for ``release``;
+    returns the event set when a save is inside it."""
+    from mimarble.studio import session as session_module
+    inside, original = threading.Event(), session_module.rewrite
+
+    def slow_rewrite(*args, **kwargs):
+        inside.set()
+        release.wait(30)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+    return inside
+
+
 def test_an_edit_made_while_saving_neither_waits_for_the_save_nor_is_lost(tmp_path, monkeypatch):
     """The text is rewritten and parsed outside the session's lock: an edit made while a
     save rewrites the text returns at once, and stays an unsaved edit (the file holds the
     value of when the save began)."""
-    from mimarble.studio import session as session_module
     path = _copy(tmp_path)
     s = _session(str(path))
-    inside, edited = threading.Event(), threading.Event()
-    original = session_module.rewrite
-
-    def slow_rewrite(*args, **kwargs):
-        inside.set()
-        edited.wait(30)               # without the fix the edit waits for this save: 30 s
-        return original(*args, **kwargs)
-
+    edited = threading.Event()      # without the fix the edit waits for this save: 30 s
     try:
         s.edit("material.marble.diffuse.period", 2.25)
-        monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+        inside = _held_rewrite(monkeypatch, edited)
         saving = threading.Thread(target=s.save)
         saving.start()
         assert inside.wait(30)
@@ -456,7 +463,7 @@ def test_an_edit_made_while_saving_neither_waits_for_the_save_nor_is_lost(tmp_pa
         assert edit_returned_during_save
         assert "      period 2.25" in path.read_text().splitlines()
         assert s.state()["dirty"] and s.edits_made == {"material.marble.diffuse.period": 2.5}
-        monkeypatch.setattr(session_module, "rewrite", original)
+        monkeypatch.undo()
         s.save()
         assert "      period 2.5" in path.read_text().splitlines() and not s.state()["dirty"]
     finally:
@@ -469,17 +476,9 @@ def test_a_reload_made_while_saving_wins_and_nothing_is_written(tmp_path, monkey
     (outside the session's lock): the save writes nothing and says why, the file keeps the
     editor's text, and the session holds it with no edit."""
     from mimarble.studio import StudioError
-    from mimarble.studio import session as session_module
     path = _copy(tmp_path)
     s = _session(str(path))
-    inside, reloaded = threading.Event(), threading.Event()
-    original = session_module.rewrite
-
-    def slow_rewrite(*args, **kwargs):
-        inside.set()
-        reloaded.wait(30)
-        return original(*args, **kwargs)
-
+    reloaded = threading.Event()
     errors = []
 
     def save():
@@ -490,7 +489,7 @@ def test_a_reload_made_while_saving_wins_and_nothing_is_written(tmp_path, monkey
 
     try:
         s.edit("material.marble.diffuse.period", 2.25)
-        monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+        inside = _held_rewrite(monkeypatch, reloaded)
         saving = threading.Thread(target=save)
         saving.start()
         assert inside.wait(30)
