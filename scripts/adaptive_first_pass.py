@@ -1,6 +1,6 @@
 """The first pass of an adaptive render with and without whitted's doubt kernel (issue 43).
 
-    ./go python scripts/adaptive_first_pass.py [SCENE …] [--size 256] [--rounds 9]
+    ./go python scripts/adaptive_first_pass.py [SCENE …] [--size 256] [--rounds 9] [--filters …]
 
 For each scene, point-sampled and prefiltered: the first pass and its estimates alone (a
 threshold no pixel is above, 1 spp)
@@ -26,12 +26,16 @@ dr, mi = mimarble.dr, mimarble.mi
 
 
 def first_pass(loaded, doubt_kernel: bool):
+    """The first pass with the doubt kernel, or without it: the doubt from the image, also
+    where ``traces_doubts`` would choose the kernel (a prefiltered marble), so that the two
+    differ in every scene."""
     def render():
-        adaptive.DOUBT_KERNEL = doubt_kernel
+        decide = adaptive.traces_doubts
+        adaptive.traces_doubts = lambda scene: doubt_kernel
         try:
             return adaptive.render_adaptive(loaded, 1, 1e9, 81)   # no pixel refined
         finally:
-            adaptive.DOUBT_KERNEL = False
+            adaptive.traces_doubts = decide
     return render
 
 
@@ -53,12 +57,13 @@ def main() -> None:
                                                       "scenes/fine-veins/veins-p4-d8-s4.scene"])
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--rounds", type=int, default=9)
+    parser.add_argument("--filters", nargs="+", default=["none", "prefilter"])
     args = parser.parse_args()
     facts = machine_facts()
     print(f"{facts.get('processor', '?')} ({facts.get('llvm_target', {}).get('cpu', '?')}); "
           f"load {os.getloadavg()}; {args.size}², medians of {args.rounds}")
     for path in args.scenes:
-        for filter_name in ("none", "prefilter"):
+        for filter_name in args.filters:
             scene = with_marbles(resized(mimarble.scene.load(path), args.size), filter=filter_name)
             loaded = mi.load_dict(to_mitsuba(scene, spp=1))
             renders = {"plain 1 spp": lambda: render_in_passes(loaded, 1),

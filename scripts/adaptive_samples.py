@@ -7,7 +7,8 @@ Samples do not depend on the machine's load. 256², against the float64 referenc
 oracle over the ladder's levels (mimarble/bench/oracle.py). The estimate's weights and the
 bar's power can be tried from the environment: SW, DW, CW (SPREAD_, DOUBT_, CONTRAST_WEIGHT),
 BAR (BAR_POWER), KW (CURVATURE_WEIGHT); DK=1 traces the first pass's doubt kernel
-(DK=0: the doubt from the image's second difference); ORACLE=0 leaves the oracle out.
+(DK=0, the default: ``traces_doubts`` decides — the image's second difference unless a
+marble is prefiltered); ORACLE=0 leaves the oracle out.
 """
 import sys, os
 from pathlib import Path

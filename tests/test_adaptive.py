@@ -14,7 +14,7 @@ from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.passes import _traced_pass, padded_count
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.scene.rules import adaptive_problem
-from mimarble.scene.edits import resized, with_marbles
+from mimarble.scene.edits import resized, with_image_size, with_marbles
 
 from commands import mimarble_cli
 
@@ -220,6 +220,58 @@ def test_adaptive_numbers_are_checked():
     assert "below the first pass" in adaptive_problem(0.01, 4, 16, 10, 10)
     assert adaptive_problem(0.01, 16384 ** 2, 1, 16384, 16384).startswith("max_spp=")
     assert adaptive_problem(np.float32(0.01), np.int64(16), 1, 10, 10) is None
+
+
+def _second_difference(image):
+    """The test's own second difference of a plain 1-spp image (float64): each pixel's
+    3×3 neighbourhood, clipped at the border (the edge row or column again), summed, less
+    9 times the pixel, over 8; the largest colour."""
+    padded = np.pad(np.asarray(image, np.float64), ((1, 1), (1, 1), (0, 0)), mode="edge")
+    h, w = image.shape[:2]
+    total = sum(padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+                for dy in (-1, 0, 1) for dx in (-1, 0, 1))
+    return np.abs(total - 9.0 * image).max(axis=2) / 8.0
+
+
+@pytest.mark.parametrize("width, height", [(23, 17), (1, 1), (2, 5)])
+def test_the_first_round_refines_where_the_images_second_difference_says(llvm, monkeypatch,
+                                                                         width, height):
+    """After a plain first pass (a point-sampled marble: no doubt kernel) a pixel's doubt
+    is the first image's second difference (``refine``), weighed by CURVATURE_WEIGHT:
+    E = CURVATURE_WEIGHT · second at 1 sample (second: |Σ₃ₓ₃ − 9·pixel| / 8). With the
+    silhouette's term off, the pixels the first round takes to 9 are those whose E, from
+    the test's own second difference of a plain 1-spp render, is above the threshold
+    (odd sizes, and images of one pixel or one column: the clipped borders)."""
+    monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
+    scene = with_image_size(small(size=max(width, height)), width, height)
+    m = loaded(scene)
+    assert not adaptive.traces_doubts(m)
+    errors = adaptive.CURVATURE_WEIGHT * _second_difference(render_in_passes(m, 1))
+    for threshold in np.quantile(errors, [0.3, 0.7]) if errors.size > 1 else [0.0]:
+        result = adaptive.render_adaptive(m, 1, float(threshold), 9, rounds=1)
+        refined = result.samples == 9
+        assert np.all(result.samples[~refined] == 1)
+        # float32 sums in the kernel, float64 here: a margin of 1e-4 relative.
+        assert refined[errors > threshold * (1 + 1e-4)].all()
+        assert not refined[errors < threshold * (1 - 1e-4)].any()
+    if errors.size > 1:
+        assert 0 < np.mean(result.samples == 9) < 1
+
+
+def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm):
+    """A crop is traced with a ring of one pixel, so its pixels' first-round estimates
+    (the image's second difference, the silhouette's contrast) read the whole image's
+    neighbourhoods: after one round each pixel of the crop has the samples and the value
+    it has in the whole image, bit for bit — at the image's border, inside, and 1×1."""
+    scene = with_image_size(small(size=29), 29, 21)
+    m = loaded(scene)
+    whole = adaptive.render_adaptive(m, 1, 2e-4, 9, rounds=1)
+    assert 0 < np.mean(whole.samples == 9) < 1
+    for crop in ((0, 0, 11, 7), (5, 4, 24, 19), (13, 10, 14, 11), (20, 14, 29, 21)):
+        x0, y0, x1, y1 = crop
+        part = adaptive.render_adaptive(m, 1, 2e-4, 9, crop=crop, rounds=1)
+        np.testing.assert_array_equal(part.samples, whole.samples[y0:y1, x0:x1])
+        np.testing.assert_array_equal(part.image, whole.image[y0:y1, x0:x1])
 
 
 def test_the_default_max_spp_is_81_or_the_first_pass_when_more():

@@ -181,6 +181,72 @@ def test_structural_edit_compiles_once(session, monkeypatch):
     assert passes._traced_pass.recordings == recordings
 
 
+def test_the_render_thread_is_not_resting_while_a_state_waits():
+    """``resting`` says the thread has nothing to do: from the moment a state is
+    submitted it is clear, before the thread has woken to take it (the thread is kept
+    from waking by holding its condition)."""
+    from mimarble.studio.worker import RenderThread, Request
+    worker = RenderThread(lambda *a: None, lambda *a: None)
+    worker.start()
+    try:
+        assert _eventually(worker.resting.is_set)
+        with worker._condition:
+            worker.submit(Request(1, None, "whitted"))
+            assert not worker.resting.is_set()
+            worker._stopping = True                  # it takes no state: it stops
+    finally:
+        worker.stop()
+    assert not worker.is_alive()
+
+
+def test_a_scene_the_loaded_scenes_drop_is_freed(monkeypatch):
+    """With room for 2 loaded scenes, a third structure drops the first: nothing of the
+    render thread's (its kept passes, recorded again after each load) holds it, so it is
+    freed — it would otherwise stay in Dr.Jit's registry and in every later recording's
+    key. Seen by a weak reference to one of its materials (a Python object the scene
+    holds; the scene itself takes none)."""
+    import gc
+    import weakref
+    from mimarble.mitsuba.plugins.whitted import Whitted
+    from mimarble.studio import worker as worker_module
+    monkeypatch.setattr(worker_module, "KEPT_SCENES", 2)
+    s = _session()
+    try:
+        s.wait_frame()
+        worker = s._worker
+        (first, _, _), = worker.loaded.scenes.values()
+        material = weakref.ref(next(iter(Whitted._materials(first))))
+        del first
+        for octaves in (9, 10):
+            s.wait_frame(s.edit("marble.octaves", octaves))
+        assert _eventually(worker.resting.is_set) and len(worker.loaded.scenes) == 2
+        gc.collect()
+        assert material() is None
+    finally:
+        s.close()
+
+
+def test_going_back_after_an_in_place_edit_changed_the_key_shows_the_same_frame():
+    """An in-place edit can change a loaded scene's pass key (distortion 0: the marble
+    needs no noise, other kernels). The passes recorded again behind a new structure are
+    made from the scenes as they are: only a scene's key now may be recorded again, or its
+    older key would hold the kernels of its state now. The same state (fig11a as loaded,
+    after distortion 0, octaves 9 and back, distortion 3 again) gives the same 1 spp
+    frame, byte for byte (PNG), as it did first."""
+    s = StudioSession("fig11a", watch=False, idle_s=3600.0, frame_format="png")
+    try:
+        s.edits(SMALL)
+        first = s.wait_frame().image
+        worker = s._worker
+        for key, value in (("marble.distortion", 0.0), ("marble.octaves", 9),
+                           ("marble.octaves", 12), ("marble.distortion", 3.0)):
+            s.wait_frame(s.edit(key, value))
+            assert _eventually(worker.resting.is_set)
+        assert s.latest_frame().image == first
+    finally:
+        s.close()
+
+
 def _eventually(condition, seconds: float = 60.0) -> bool:
     deadline = time.monotonic() + seconds
     while not condition():
@@ -362,24 +428,31 @@ def test_save_changes_only_the_edited_values(tmp_path):
         s.close()
 
 
+def _held_rewrite(monkeypatch, release: threading.Event) -> threading.Event:
+    """Make a save's rewrite of the text (outside the session's lock) wait for ``release``;
+    returns the event set when a save is inside it."""
+    from mimarble.studio import session as session_module
+    inside, original = threading.Event(), session_module.rewrite
+
+    def slow_rewrite(*args, **kwargs):
+        inside.set()
+        release.wait(30)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+    return inside
+
+
 def test_an_edit_made_while_saving_neither_waits_for_the_save_nor_is_lost(tmp_path, monkeypatch):
     """The text is rewritten and parsed outside the session's lock: an edit made while a
     save rewrites the text returns at once, and stays an unsaved edit (the file holds the
     value of when the save began)."""
-    from mimarble.studio import session as session_module
     path = _copy(tmp_path)
     s = _session(str(path))
-    inside, edited = threading.Event(), threading.Event()
-    original = session_module.rewrite
-
-    def slow_rewrite(*args, **kwargs):
-        inside.set()
-        edited.wait(30)               # without the fix the edit waits for this save: 30 s
-        return original(*args, **kwargs)
-
+    edited = threading.Event()      # without the fix the edit waits for this save: 30 s
     try:
         s.edit("material.marble.diffuse.period", 2.25)
-        monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+        inside = _held_rewrite(monkeypatch, edited)
         saving = threading.Thread(target=s.save)
         saving.start()
         assert inside.wait(30)
@@ -390,11 +463,46 @@ def test_an_edit_made_while_saving_neither_waits_for_the_save_nor_is_lost(tmp_pa
         assert edit_returned_during_save
         assert "      period 2.25" in path.read_text().splitlines()
         assert s.state()["dirty"] and s.edits_made == {"material.marble.diffuse.period": 2.5}
-        monkeypatch.setattr(session_module, "rewrite", original)
+        monkeypatch.undo()
         s.save()
         assert "      period 2.5" in path.read_text().splitlines() and not s.state()["dirty"]
     finally:
         edited.set()
+        s.close()
+
+
+def test_a_reload_made_while_saving_wins_and_nothing_is_written(tmp_path, monkeypatch):
+    """An editor writes the file and the user reloads it while a save rewrites the text
+    (outside the session's lock): the save writes nothing and says why, the file keeps the
+    editor's text, and the session holds it with no edit."""
+    from mimarble.studio import StudioError
+    path = _copy(tmp_path)
+    s = _session(str(path))
+    reloaded = threading.Event()
+    errors = []
+
+    def save():
+        try:
+            s.save()
+        except StudioError as e:
+            errors.append(str(e))
+
+    try:
+        s.edit("material.marble.diffuse.period", 2.25)
+        inside = _held_rewrite(monkeypatch, reloaded)
+        saving = threading.Thread(target=save)
+        saving.start()
+        assert inside.wait(30)
+        editors = path.read_text().replace("      period 1.3", "      period 1.7", 1)
+        path.write_text(editors)
+        assert s.reload()["reloaded"]
+        reloaded.set()
+        saving.join(60)
+        assert len(errors) == 1 and "reloaded while it was being saved" in errors[0]
+        assert path.read_text() == editors and s.text == editors
+        assert s.edits_made == {} and not s.state()["dirty"]
+    finally:
+        reloaded.set()
         s.close()
 
 

@@ -383,6 +383,47 @@ def test_a_tab_that_sends_without_reading_is_held_to_a_bounded_queue(studio):
     assert pongs == list(range(1, len(pongs) + 1)) and len(pongs) >= socket.received - 1
 
 
+def test_a_tab_gone_while_its_answers_are_full_ends_its_connection(studio):
+    """A tab that floods, reads nothing, then goes away: the server's send fails while
+    MAX_ANSWERS answers wait. The connection's handler ends (it does not wait for room
+    that no send will make) and the tab leaves the server's clients."""
+    import asyncio
+
+    class Gone:
+        """The server's side of a websocket whose peer flooded and closed."""
+        def __init__(self):
+            self.received = 0
+
+        async def accept(self):
+            pass
+
+        async def receive(self):
+            self.received += 1
+            await asyncio.sleep(0)
+            return {"type": "websocket.receive",
+                    "text": json.dumps({"type": "ping", "seq": self.received})}
+
+        async def send_text(self, text):
+            await asyncio.sleep(0.05)
+            raise ConnectionResetError("the peer is gone")
+
+        async def send_bytes(self, data):
+            await self.send_text(None)
+
+    async def run():
+        serving = asyncio.ensure_future(studio._websocket(Gone()))
+        try:
+            await asyncio.wait_for(asyncio.shield(serving), 5)
+            return True
+        except asyncio.TimeoutError:
+            serving.cancel()
+            return False
+
+    clients = len(studio.clients)
+    assert asyncio.run(run()), "the handler of a gone tab never ended"
+    assert len(studio.clients) == clients
+
+
 # ---- stopping ------------------------------------------------------------------------------
 
 

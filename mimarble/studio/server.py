@@ -86,6 +86,17 @@ class _Mailbox:
             self.room.clear()
         self.wake.set()
 
+    async def wait_room(self, pump: asyncio.Future) -> bool:
+        """Wait until fewer than :data:`MAX_ANSWERS` answers wait: True; False if the
+        ``pump`` sending them ended first (a send failed: the tab is gone, and no send
+        will make room)."""
+        room = asyncio.ensure_future(self.room.wait())
+        await asyncio.wait({room, pump}, return_when=asyncio.FIRST_COMPLETED)
+        if not room.done():
+            room.cancel()
+            return False
+        return True
+
     def put(self, kind: str, message) -> None:
         self.latest[kind] = message
         self.wake.set()
@@ -290,7 +301,9 @@ class StudioServer:
             if latest is not None:
                 client.put("histograms", {"type": "histograms", "histograms": latest})
             while True:
-                await client.room.wait()          # a tab that does not read is not read
+                if not client.room.is_set():      # a tab that does not read is not read
+                    if not await client.wait_room(pump):
+                        break                     # its sends failed: the tab is gone
                 received = await websocket.receive()
                 if received["type"] == "websocket.disconnect":
                     break
@@ -303,6 +316,8 @@ class StudioServer:
         finally:
             self.clients.discard(client)
             pump.cancel()
+            if pump.done() and not pump.cancelled():
+                pump.exception()                  # a failed send: said by the tab's going
 
     # ---- the page's messages ------------------------------------------------------------
 

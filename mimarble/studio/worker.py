@@ -121,12 +121,13 @@ class RenderThread(threading.Thread):
         self._loads = 0              # scenes loaded so far
         self._recorded: dict = {}    # a 1 spp pass's key → self._loads when it last ran
         #: A kept structure's 1 spp pass: its key → (Target, facts), the most recently
-        #: shown last; only structures whose scene :attr:`loaded` keeps.
+        #: shown last; only structures whose scene :attr:`loaded` keeps, one key a scene
+        #: (the key of its state now: the one its recording may be made again for).
         self._kept_passes: dict = {}
         #: 1 spp passes recorded again after a load, in order (a test's check).
         self.recorded_again: list = []
-        #: Set while the thread waits for a state or for edits to pause: nothing of its
-        #: own is in progress (a test's check).
+        #: Set while the thread waits for a state or for edits to pause and no state
+        #: waits for it (:meth:`submit` clears it): nothing is in progress (a test's check).
         self.resting = threading.Event()
 
     # -- Called from other threads ---------------------------------------------------
@@ -138,6 +139,7 @@ class RenderThread(threading.Thread):
             self._pending = request
             self._moving = now - self._last_submit < MOTION_GAP_S
             self._last_submit = now
+            self.resting.clear()          # work waits, before the thread has woken to it
             self._condition.notify()
 
     def stop(self, timeout: float | None = 30.0) -> None:
@@ -153,8 +155,8 @@ class RenderThread(threading.Thread):
     def run(self) -> None:
         while True:
             with self._condition:
-                self.resting.set()
                 while self._pending is None and not self._stopping:
+                    self.resting.set()
                     self._condition.wait()
                 self.resting.clear()
                 if self._stopping:
@@ -175,12 +177,12 @@ class RenderThread(threading.Thread):
         """Wait until no edit has come for ``idle_s``; False if a new state (or stop)
         came first."""
         with self._condition:
-            self.resting.set()
             try:
                 while self._pending is None and not self._stopping:
                     left = self._last_submit + self.idle_s - time.monotonic()
                     if left <= 0:
                         return True
+                    self.resting.set()
                     self._condition.wait(left)
                 return False
             finally:
@@ -241,7 +243,12 @@ class RenderThread(threading.Thread):
             self.last_frame_s, self.last_reduced_s = elapsed + encode_s, None
         elif stride == 2 and not first_reduced:
             self.last_reduced_s = elapsed + encode_s
-        self._kept_passes.pop(first_key, None)
+        # One pass a loaded scene: its key now. An in-place edit can change the key (the
+        # marble's octaves evaluated, whether it needs noise): an older key of this scene,
+        # recorded again from the scene as it is now, would hold the wrong kernels.
+        for key in [key for key, (kept, _) in self._kept_passes.items()
+                    if kept.scene is target.scene]:
+            del self._kept_passes[key]
         self._kept_passes[first_key] = (target, facts)
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
