@@ -162,10 +162,12 @@ def dask_results(jobs, workers, scheduler):
             _stop_dask(client, cluster)          # a second Ctrl-C is held till it is done
 
 
-#: LocalCluster workers log at this level and above (Dask's default, WARNING, prints
-#: "Event loop was unresponsive" while a frame holds the interpreter, and the like):
-#: a frame's failure is in the index, the sweep's in its own error.
-WORKER_LOG_LEVEL = "ERROR"
+#: LocalCluster workers log at this level and above. Dask's default, WARNING, prints
+#: "Event loop was unresponsive" while a frame holds the interpreter; at ERROR a worker
+#: whose heartbeat outlives the scheduler by a beat at Ctrl-C prints a traceback ("Failed
+#: to communicate with scheduler during heartbeat"). Neither is the user's: a frame's
+#: failure is in the index, the sweep's in its own error.
+WORKER_LOG_LEVEL = "CRITICAL"
 
 
 def local_cluster(workers: int, variant: str | None = None):
