@@ -455,6 +455,23 @@ def test_the_project_path_mode_agrees_where_it_renders_subsurface(llvm_variant):
     assert ratio < 1, (z, m)
 
 
+def test_the_pass_renderer_stratified_agrees_with_the_walk(llvm_variant):
+    """``mimarble.render`` in path mode — the pass renderer, whose translucent scenes draw a
+    pixel's samples as one stratified (``multijitter``) sequence (rendering/passes.py,
+    ``stratify``) — against the walk: stratified samples are still an unbiased estimate, and
+    the spread of :data:`SEEDS` seeds still gives its standard error (each seed's render is
+    independent of the others)."""
+    from mimarble.mitsuba.translate.modes import translucent_sampler
+    assert translucent_sampler(48)["type"] == "multijitter"
+    renders = np.stack([np.asarray(mimarble.render(MARBLED, mode="path", spp=48, seed=4000 + k),
+                                   dtype=np.float64) for k in range(SEEDS)])
+    from mimarble.contract import VOLPATH_MAX_DEPTH
+    image, variance = volume.render_translucent(MARBLED, 256, seed=9, max_depth=VOLPATH_MAX_DEPTH,
+                                                variance=True)
+    ratio, z, m = agreement(MARBLED, image, variance, 256, renders)
+    assert ratio < 1, (z, m)
+
+
 # ---------------------------------------------------------------------------
 # What the walk refuses
 

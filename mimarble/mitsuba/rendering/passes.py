@@ -74,6 +74,37 @@ def _sampler(scene, mode: str):
     return _CLONES[id(original)][1]
 
 
+def stratify(target: Target, samples: int, spp: int) -> bool:
+    """Set ``target``'s sampler (path mode) to stratify a pass's lanes across their pixel's
+    samples; whether it does.
+
+    Mitsuba's samplers number a lane's sample ``sample_index · w + lane mod w`` (w:
+    ``set_samples_per_wavefront``) and seed one sequence per run of w lanes
+    (``Sampler::compute_per_sequence_seed``). A pass's lanes are pixel-major, ``samples``
+    per pixel, so w = ``samples`` makes a pixel's lanes samples 0 … spp − 1 of one
+    stratified sequence (``stratified``: each dimension a per-pixel permutation of spp
+    jittered strata; ``multijitter``: the same with multi-jittered 2-D points). That holds
+    when the pass holds all of the pixel's samples (``samples`` = ``spp``) and the sampler
+    takes spp samples as they are (``stratified``: a square; ``multijitter``: a ⌈spp/r⌉·r
+    grid, r = ⌊√spp⌋); otherwise w = 1: one lane, one sequence of which it draws sample 0,
+    a uniform point (the samples are then independent, as before stratification). Whitted
+    mode's sampler draws nothing, and ``independent`` draws the same either way: both are
+    left as they are (opaque path-mode images unchanged bit for bit)."""
+    sampler = target.sampler
+    if target.mode == "whitted" or sampler.class_name() == "IndependentSampler":
+        return False
+    if 1 < samples == spp and sampler.sample_count() != spp:
+        level = mi.log_level()
+        mi.set_log_level(mi.LogLevel.Error)      # its warning that it rounds spp up
+        try:
+            sampler.set_sample_count(spp)
+        finally:
+            mi.set_log_level(level)
+    stratified = 1 < samples == spp and sampler.sample_count() == spp
+    sampler.set_samples_per_wavefront(samples if stratified else 1)
+    return stratified
+
+
 class TracedPass(NamedTuple):
     """The pixels one pass completed, and how many of their samples it traced (a pass
     over a pixel list also traces the few it pads the list with; they are not counted).
@@ -145,9 +176,10 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
         lanes = traced_pixels * n_samples
         asked = n_pixels * n_samples                 # the samples it reports (not the padding)
         split = n_samples < spp                      # one pixel, over several passes
+        stratified = stratify(target, n_samples, spp)
         values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
-             with_estimates, split), target.scene, inputs, target.sampler, lanes, n_samples,
+             with_estimates, split) + ((True,) if stratified else ()), target.scene, inputs, target.sampler, lanes, n_samples,
             numbers, subset, with_radiance, with_shapes, with_estimates, split, target.mode)
         # Views of the Dr.Jit arrays (no copy): means interleaved per pixel, or a split
         # pixel's sums as Color3d (3, 1); the first n_pixels of a padded list.
@@ -211,8 +243,10 @@ def trace_samples(target: Target, spp: int, first_sample: int, count: int, *,
         numbers = PassNumbers(p0, first_sample, count, spp,
                               (seed * 0x9E3779B1 + index) & 0xFFFFFFFF, target.mode == "whitted")
         lanes = n_pixels * count
+        stratified = stratify(target, count, spp)
         values = _pass_function(target.scene)(
-            samples_pass_key(key, target.mode, lanes, count), target.scene,
+            samples_pass_key(key, target.mode, lanes, count) + ((True,) if stratified else ()),
+            target.scene,
             inputs, target.sampler, lanes, count, numbers, None, True, False, False, True,
             target.mode)[0]
         sums[p0:p0 + n_pixels] = values.numpy().T
@@ -276,9 +310,11 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
             subset = dr.gather(mi.UInt32, pixels, at)
             dr.eval(subset)
         lanes = traced_pixels * n_samples
+        stratified = stratify(target, 0 if nested else n_samples, spp)
         values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, True, with_estimates,
-             with_estimates, True, nested, doubts), target.scene, inputs,
+             with_estimates, True, nested, doubts) + ((True,) if stratified else ()),
+            target.scene, inputs,
             target.sampler, lanes, n_samples, numbers, subset, True, with_estimates,
             with_estimates, True, target.mode, nested, doubts)
         doubt_sums = low = high = None
