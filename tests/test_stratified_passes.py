@@ -26,7 +26,7 @@ def _sphere_scene(subsurface: bool):
 
 @pytest.mark.parametrize("spp, kind", [(16, "multijitter"), (48, "multijitter"),
                                        (64, "multijitter"), (10, "independent"),
-                                       (1, "independent")])
+                                       (1, "multijitter")])
 def test_the_translucent_sampler_is_multijitter_where_it_takes_spp_as_it_is(spp, kind):
     """multijitter takes an r × ⌈spp/r⌉ grid, r = ⌊√spp⌋ (10 would become 12: independent)."""
     from mimarble.mitsuba.translate.modes import translucent_sampler

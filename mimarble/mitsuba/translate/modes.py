@@ -85,7 +85,8 @@ def translucent_sampler(spp: int) -> dict:
     """Path mode's sampler for a scene with translucent materials: Mitsuba's
     ``multijitter`` where it takes ``spp`` samples as they are (an r × c grid, r = ⌊√spp⌋,
     c = ⌈spp/r⌉, r·c = spp), else ``independent`` (``multijitter`` would round spp up, with a
-    warning). The pass renderer draws a pixel's spp samples as one such sequence
+    warning; JIT variants load a scene at 1 spp, ``multijitter`` too, and the pass
+    renderer sets the render's spp). The pass renderer draws a pixel's spp samples as one such sequence
     (``rendering.passes.stratify``): every dimension of the walk — the pixel position, the
     light sample at an exit, each scattering's distance and direction — is stratified
     across the pixel's samples, a per-pixel permutation of spp jittered strata (of a
@@ -97,7 +98,7 @@ def translucent_sampler(spp: int) -> dict:
     while rows * rows > spp:                   # ⌊√spp⌋ (a float root may round up)
         rows -= 1
     columns = -(-spp // rows) if rows else 0
-    kind = "multijitter" if spp > 1 and rows * columns == spp else "independent"
+    kind = "multijitter" if rows * columns == spp else "independent"
     return {"type": kind, "sample_count": spp}
 
 
