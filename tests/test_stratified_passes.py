@@ -28,7 +28,8 @@ def _sphere_scene(subsurface: bool):
                                        (64, "multijitter"), (10, "independent"),
                                        (1, "multijitter")])
 def test_the_translucent_sampler_is_multijitter_where_it_takes_spp_as_it_is(spp, kind):
-    """multijitter takes an r × ⌈spp/r⌉ grid, r = ⌊√spp⌋ (10 would become 12: independent)."""
+    """multijitter takes an r × ⌈spp/r⌉ grid, r = ⌊√spp⌋ (10 would become 12:
+    independent)."""
     from mimarble.mitsuba.translate.modes import translucent_sampler
     assert translucent_sampler(spp) == {"type": kind, "sample_count": spp}
     loaded = mi.load_dict({"type": kind, "sample_count": spp})

@@ -179,8 +179,9 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
         stratified = stratify(target, n_samples, spp)
         values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
-             with_estimates, split) + ((True,) if stratified else ()), target.scene, inputs, target.sampler, lanes, n_samples,
-            numbers, subset, with_radiance, with_shapes, with_estimates, split, target.mode)
+             with_estimates, split) + ((True,) if stratified else ()), target.scene, inputs,
+            target.sampler, lanes, n_samples, numbers, subset, with_radiance, with_shapes,
+            with_estimates, split, target.mode)
         # Views of the Dr.Jit arrays (no copy): means interleaved per pixel, or a split
         # pixel's sums as Color3d (3, 1); the first n_pixels of a padded list.
         traced = (None if values is None else
