@@ -31,6 +31,9 @@ REPEATS = 5                       # warm renders per figure (the median is quote
 COMPARED = ("fig10a", "fig11a", "fig07a")   # against the reference tracer, at COMPARE_SIZE
 COMPARE_SIZE = 64
 SWEEP_FRAMES = 24
+SPPS = (1, 16, 256)
+#: Also timed in llvm_ad_rgb on the same machine's CPU, for the ratio (as cpu_timing.py).
+ON_THE_CPU_TOO = ("fig10a", "fig10d", "fig11a", "fig11b")
 
 
 def gpu_name() -> str:
@@ -82,7 +85,8 @@ def main() -> int:
     clock = Clock(dr)
     results = {"gpu": gpu_name(), "variant": mi.variant(), "size": args.size,
                "mitsuba": mi.__version__, "drjit": dr.__version__,
-               "scenes": {}, "compare": {}, "sweep": None, "translucent": {}, "skipped": []}
+               "scenes": {}, "compare": {}, "sweep": None, "translucent": {}, "cpu": {},
+               "cpu_threads": dr.thread_count(), "skipped": []}
     out_json = args.out_dir / "gpu-timing.json"
 
     def save():
@@ -106,7 +110,7 @@ def main() -> int:
             scene = mi.load_dict(mimarble.to_mitsuba(model, spp=1))
             first, compile_s = clock.once(lambda: mimarble.render(scene, spp=1))
             row["first_s"], row["compile_s"] = first, compile_s
-            for spp in (1, 16):
+            for spp in SPPS:
                 row[f"warm_{spp}spp_ms"] = 1000 * clock.median(
                     lambda: mimarble.render(scene, spp=spp))
             if name == "fig11a":
@@ -160,20 +164,39 @@ def main() -> int:
         except Exception as error:
             results["translucent"][name] = {"error": f"{type(error).__name__}: {error}"}
         save()
+    # 5. The same machine's CPU (llvm_ad_rgb), where it can render.
+    gpu_variant = mi.variant()
+    try:
+        mi.set_variant("llvm_ad_rgb")
+        for name in ON_THE_CPU_TOO:
+            if not time_left(f"cpu {name}"):
+                continue
+            model = resized(mimarble.scene.load(ROOT / "scenes" / f"{name}.scene"), args.size)
+            scene = mi.load_dict(mimarble.to_mitsuba(model, spp=1))
+            mimarble.render(scene, spp=1)
+            results["cpu"][name] = {f"warm_{spp}spp_ms": 1000 * clock.median(
+                lambda: mimarble.render(scene, spp=spp), repeats=3) for spp in (1, 16)}
+            save()
+    except Exception as error:
+        results["cpu"]["error"] = f"{type(error).__name__}: {error}"
+    finally:
+        mi.set_variant(gpu_variant)
     save()
     print(f"{results['gpu']} · {results['variant']} · Mitsuba {results['mitsuba']}, "
           f"Dr.Jit {results['drjit']} · {args.size}²\n")
-    print("| scene | first render s (compile s) | warm 1 spp ms | warm 16 spp ms |\n|---|---|---|---|")
+    print("| scene | first render s (compile s) | warm 1 spp ms | warm 16 spp ms | warm 256 spp ms |\n"
+          "|---|---|---|---|---|")
     for name, row in results["scenes"].items():
         if "error" in row:
             print(f"| {name} | {row['error'][:80]} | | |")
             continue
         print(f"| {name} | {row['first_s']:.2f} ({row['compile_s']:.2f}) | "
-              f"{row['warm_1spp_ms']:.2f} | {row['warm_16spp_ms']:.2f} |")
-    for key in ("compare", "translucent"):
+              f"{row['warm_1spp_ms']:.2f} | {row['warm_16spp_ms']:.2f} | "
+              f"{row['warm_256spp_ms']:.2f} |")
+    for key in ("compare", "translucent", "cpu"):
         for name, row in results[key].items():
             print(f"{key} {name}: {row}")
-    print(f"sweep: {results['sweep']}")
+    print(f"sweep: {results['sweep']}\nCPU threads: {results['cpu_threads']}")
     print(f"skipped (budget): {results['skipped']}")
     return 0
 

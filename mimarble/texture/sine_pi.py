@@ -1,4 +1,4 @@
-"""sin(πx) and cos(πx) whose relative error stays small near their zeros on every backend.
+"""sin(πx) and cos(πx) accurate on a GPU too: the sine relatively so near its zeros.
 
 Dr.Jit evaluates float32 ``dr.sin`` and ``dr.cos`` on a CUDA GPU with PTX's
 ``sin.approx`` / ``cos.approx`` (drjit src/extra/math.cpp, ``jit_var_sin``): their
