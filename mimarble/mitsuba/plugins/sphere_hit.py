@@ -57,6 +57,9 @@ SHADOW_END_REL = 2.0 ** -20
 #: (:func:`_occluded_checking_spheres`): None — on a CUDA GPU only, where Mitsuba's
 #: sphere hits are float32; True runs it on the CPU too (its tests).
 CHECK_SPHERE_HITS: bool | None = None
+#: At most this many spheres are tested in float64 by every shadow ray (each is code in
+#: the kernel); a scene with more keeps the CPU's test on a GPU too.
+CHECKED_SPHERES_MAX = 64
 
 
 def spheres_only(scene) -> bool:
@@ -183,7 +186,8 @@ class SphereTable:
         # Where Mitsuba's sphere hits are float32 (OptiX): each checked in float64.
         checks = CHECK_SPHERE_HITS if CHECK_SPHERE_HITS is not None else \
             dr.is_jit_v(mi.Float) and dr.backend_v(mi.Float) == dr.JitBackend.CUDA
-        self.checks_hits = self.large and checks
+        self.checks_hits = self.large and checks and \
+            len(self.sphere_ids) <= CHECKED_SPHERES_MAX
 
     def entry(self, shape_id: int):
         """(centre: Point3d, radius: Float64) of the sphere whose shape id is
