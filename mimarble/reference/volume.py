@@ -66,18 +66,13 @@ restricted to what translucent scenes need:
   real medium collision increments depth (and its lighting is skipped once depth reaches
   max_depth), a non-null BSDF sample increments it, and an emitter met on a surface is
   counted at the depth the path has then.
-* :data:`MAX_DEPTH` = **1024** is this module's default and its recommendation for the
-  ``volpath`` of path mode. A marble's albedo is high (0.99–0.999) and its mean free path
-  short beside the object, so light leaves after hundreds of collisions. Measured on a
-  unit sphere (η 1.5, behind the former smooth dielectric boundary) under a white sky,
-  the mean of the pixels it covers (24², 64 spp):
-  albedo 0.99, mean free path 0.05: 0.628 at depth 64, 0.697 at 256, 0.699 at 1024 and
-  4096; albedo 0.999, mean free path 0.02: 0.665, 0.828, 0.888, 0.895 (± 0.003). So 64
-  loses 10–26 % of the light there, 1024 under 1 %; the tests' spheres (mean free path
+* :data:`MAX_DEPTH` = ``contract.VOLPATH_MAX_DEPTH`` is this module's default, path
+  mode's ``volpath``'s too. A marble's albedo is high (0.99–0.999) and its mean free path
+  short beside the object, so light leaves after hundreds of collisions: a low cap loses
+  light, the more the whiter the marble, while the tests' spheres (mean free path
   0.25–0.3, albedo ≤ 0.97) lose nothing at 64. The cost grows with the cap only where
-  light does travel that far: in the albedo 0.999 case this walk takes 2.8 s at 1024
-  against 0.7 s at 64, Mitsuba's volpath without roulette 5.6 s against 0.5 s per
-  256-spp render (24², llvm_ad_rgb, 2-core AMD EPYC).
+  light does travel that far. The light kept and the time at each cap:
+  docs/benchmarks.md, "Walk length and sampler against Cycles".
 * **Russian roulette** (unbiased): after a real event that leaves a path at depth
   k > ``rr_depth`` (default :data:`ROULETTE_DEPTH` = 5, Mitsuba's ``rr_depth``), the path
   survives with probability q = min(max_c β_c, q_max) (β its RGB weight) and its weight
