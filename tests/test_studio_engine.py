@@ -233,7 +233,7 @@ def test_a_scene_the_loaded_scenes_drop_is_freed(monkeypatch):
         s.wait_frame()
         worker = s._worker
         (first, _, _), = worker.loaded.scenes.values()
-        material = weakref.ref(next(iter(Whitted._materials(first))))
+        material = weakref.ref(next(iter(Whitted.scene_materials(first))))
         del first
         for octaves in (9, 10):
             s.wait_frame(s.edit("marble.octaves", octaves))

@@ -56,7 +56,7 @@ import numpy as np
 from mimarble.runtime import environment
 from mimarble.mitsuba.rendering.loaded_scenes import LoadedScenes
 from mimarble.mitsuba.rendering.passes import (Target, samples_pass_key, trace_samples,
-                                               trace_sums, _traced_pass)
+                                               trace_sums, traced_pass)
 from mimarble.mitsuba.rendering.replay import enabled as replay_enabled, scene_facts
 from .frames import FRAME_FORMAT, Frame, encode
 from .histogram import Histograms
@@ -217,7 +217,7 @@ class RenderThread(threading.Thread):
             self._loads += 1
             self._forget_dropped()
         compiling = new_structure or (replay_enabled() and (
-            first_key not in _traced_pass.frozen or self._recorded.get(first_key) != self._loads))
+            first_key not in traced_pass.frozen or self._recorded.get(first_key) != self._loads))
         self._recorded[first_key] = self._loads
         if compiling and not new_structure:
             self.publish("status", {"compiling": True, "rendering": True})
