@@ -192,11 +192,11 @@ def _structural_edits(session, monkeypatch):
     # "compiling".
     worker = session._worker
     assert _eventually(worker.resting.is_set) and worker.recorded_again
-    recordings = passes._traced_pass.recordings
+    recordings = passes.traced_pass.recordings
     for octaves in (12, 9, 12, 9):
         session.wait_frame(session.edit("marble.octaves", octaves))
     assert loads == [1] and True not in statuses
-    assert passes._traced_pass.recordings == recordings
+    assert passes.traced_pass.recordings == recordings
 
 
 def test_the_render_thread_is_not_resting_while_a_state_waits():
@@ -449,15 +449,15 @@ def test_save_changes_only_the_edited_values(tmp_path):
 def _held_rewrite(monkeypatch, release: threading.Event) -> threading.Event:
     """Make a save's rewrite of the text (outside the session's lock) wait for ``release``;
     returns the event set when a save is inside it."""
-    from mimarble.studio import session as session_module
-    inside, original = threading.Event(), session_module.rewrite
+    from mimarble.studio import saving
+    inside, original = threading.Event(), saving.rewrite
 
     def slow_rewrite(*args, **kwargs):
         inside.set()
         release.wait(30)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+    monkeypatch.setattr(saving, "rewrite", slow_rewrite)
     return inside
 
 
