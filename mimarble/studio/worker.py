@@ -67,8 +67,9 @@ from .histogram import Histograms
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-#: Most lanes (pixels × samples) of one refinement run: 2²¹, 8 spp at 512² — about 80 ms
-#: of fig11a on the AMD EPYC, the longest an edit waits behind refinement.
+#: Most lanes (pixels × samples) of one refinement run: 2²¹, 8 spp at 512² — the longest an
+#: edit waits behind refinement is one such run (docs/benchmarks.md, "Figures moved out of
+#: the code").
 RUN_LANES = 1 << 21
 #: Samples of the first refinement run: the scene's 4 spp (the paper scenes') in one run,
 #: a frame at 4, 8, 16, … spp for more (runs of 4, 4, 8, …; docs/benchmarks.md, "Studio").

@@ -291,7 +291,7 @@ class Whitted:
             one, none = (lambda si, on: materials[0].channels(si, on)), _no_channels
         if len({id(m) for m in materials}) == 1 and dr.is_jit_v(mi.Float):
             # One material: no symbolic call, and a symbolic `if` that lets packets of
-            # missed rays skip the texture (measured: 9.5 → 7.8 ms for fig11a at 1 spp).
+            # missed rays skip the texture (docs/benchmarks.md, "What made it fast").
             channels = dr.if_stmt((si, hit), hit, one, lambda si, on: none(si))
         elif footprints or doubts:
             channels = self._channels(si, ray, hit, doubts)
