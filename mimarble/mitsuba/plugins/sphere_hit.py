@@ -159,7 +159,8 @@ class SphereTable:
         self.geometry = [_sphere_geometry(s) for s in shapes]
         # Held only where the lookup needs them (the scalar variant): a table of a JIT
         # variant holds no shape, so a dropped scene's shapes leave Dr.Jit's registry, which
-        # every recorded pass walks (issue 43: 0.57 → 1.07 ms a replay after three scenes).
+        # every recorded pass walks (issue 43: a replay grew slower with each scene held;
+        # docs/benchmarks.md, "Figures moved out of the code").
         self.shapes = None if dr.is_jit_v(mi.Float) else shapes
         self.sphere_ids = ()
         self.spheres_only = all(g is not None for g in self.geometry)
@@ -217,8 +218,8 @@ def refine(table: SphereTable, ray, si, hit):
     Mitsuba hit a sphere (Mitsuba's own p and n elsewhere).
 
     Scenes without a large sphere keep Mitsuba's hit as it is: its error is then
-    below the shadow-ray offset, and the refinement would cost ~18 % of a render
-    (fig11a 500², 1 spp, 2-core AMD EPYC: 29.8 → 35.3 ms).
+    below the shadow-ray offset, and the refinement would cost a noticeable part of a
+    render (docs/benchmarks.md, "Figures moved out of the code").
     """
     if not table.large:
         return si.p, mi.Vector3f(si.n), mi.Bool(False) & hit
