@@ -96,13 +96,26 @@ def test_a_ground_sphere_under_grazing_light(llvm, light):
                                [("0 0 0", 1.0, "m"), ("0 0 0", 1e5, "g")], size=48),
                  id="inside a sphere of radius 1e5"),
     pytest.param(lambda: ground(1e7, extra='box { min < 1.2 -1 -0.5 > max < 2 0.3 0.5 > '
-                                          'material "g" }\n'), id="ground 1e7 and a box")])
+                                          'material "g" }\n'), id="ground 1e7 and a box"),
+    # A segment with one end inside a sphere crosses it once: entering it (the light
+    # enclosed) or leaving it (the eye and the marble enclosed, the light outside).
+    pytest.param(lambda: scene("eye < 0 0 6 > lookat < 0 0 0 >", "0 10 10",
+                               [("0 0 0", 1.0, "g"), ("0 10 10", 0.005, "g"),
+                                ("0 -10001 0", 1e4, "g")], size=24),
+                 id="a light inside a tiny sphere, a ground of radius 1e4"),
+    pytest.param(lambda: scene("eye < 0 0 3 > lookat < 0 0 0 >", "0 0 2e5",
+                               [("0 0 0", 1.0, "m"), ("0 0 0", 1e5, "g")], size=24),
+                 id="the light outside a sphere of radius 1e5 around the rest")])
 def test_shadow_rays_that_check_each_sphere_hit_in_float64_agree(llvm, monkeypatch, model):
     """The GPU's shadow test (sphere_hit._occluded_checking_spheres: OptiX's float32 sphere
     hits checked in float64), run on the CPU, agrees with the reference as the CPU's own."""
     from mimarble.mitsuba.plugins import sphere_hit
     monkeypatch.setattr(sphere_hit, "CHECK_SPHERE_HITS", True)
     assert_agrees(model())
+    # The table the render traced with (the most recently used) is one that checks: not
+    # one kept from an earlier test of the same scene structure, built without the switch.
+    _, table, _ = list(sphere_hit.SphereTable._tables.values())[-1]
+    assert table.checks_hits
 
 
 def test_a_light_inside_a_tiny_sphere_lights_nothing_outside_it(variant):

@@ -111,13 +111,16 @@ class SphereTable:
     @classmethod
     def of(cls, scene, placements=None) -> "SphereTable":
         """The table of ``scene``: the one built before, unless a shape has moved or
-        changed size since — told by ``placements`` (the shapes' ``to_world``, as
+        changed size since, or :data:`CHECK_SPHERE_HITS` was set otherwise — told by ``placements`` (the shapes' ``to_world``, as
         ``mi.traverse`` holds them: the same variables as the table's copies), else by the
         shapes' bounding boxes (the scalar variant)."""
         if placements is not None:
             facts = tuple(tuple(dr.detail.collect_indices(p)) for p in placements)
         else:
             facts = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
+        # The switch decides checks_hits (the traced code): a table built under the other
+        # setting is stale, as one of moved shapes.
+        facts = (CHECK_SPHERE_HITS, facts)
         facts_then, table, held = cls._tables.pop(id(scene), (None, None, None))
         # A new scene may take a freed one's id. Its spheres' ``to_world`` are other
         # variables than the held copies (whose indices cannot be reused while held), so
