@@ -67,3 +67,17 @@ def test_the_sine_the_texture_uses_is_relatively_exact_near_zero_on_every_backen
 def test_the_cosine_the_texture_uses_is_absolutely_exact_on_every_backend(jit_variant):
     x = arguments()
     check(sine_pi.cos_pi(mi.Float(x)), "cos", x, ulps=8, relative=False)
+
+
+def test_arguments_without_a_fraction_have_the_sign_of_their_parity(jit_variant):
+    """Every float32 past 2²⁴ is an even integer: sin(πx) = 0, cos(πx) = 1, up to the
+    largest float32 (an int32 parity would saturate on a GPU past 2³¹ and say odd)."""
+    x = [2.0 ** 23 + 1, 2.0 ** 24 - 1, 2.0 ** 24, 2.0 ** 31 - 128, 2.0 ** 31, 3e9, -3e9,
+         1e30, -1e30, float(np.finfo(np.float32).max)]
+    x32 = np.array(x, dtype=np.float32)
+    parity = [int(v) % 2 for v in x32.astype(np.float64)]      # exact, in Python integers
+    assert parity[:2] == [1, 1] and not any(parity[2:])
+    cosine = np.asarray(sine_pi.cos_pi_series(mi.Float(x32)))
+    sine = np.asarray(sine_pi.sin_pi_series(mi.Float(x32)))
+    np.testing.assert_array_equal(cosine, [(-1.0) ** p for p in parity])
+    np.testing.assert_array_equal(np.abs(sine), 0.0)

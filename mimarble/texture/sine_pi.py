@@ -41,10 +41,14 @@ def _series(coefficients, z):
 
 
 def _reduced(x):
-    """(r, odd): x = n + r with n = round(x), r ∈ [−½, ½]; odd where n is odd."""
+    """(r, odd): x = n + r with n = round(x), r ∈ [−½, ½]; odd where n is odd.
+
+    The parity is read in floating point (n/2 not an integer; both steps exact), not
+    from an int32 conversion: past 2³¹ that conversion saturates on a GPU (PTX's
+    float-to-integer ``cvt`` clamps, to 2³¹ − 1: odd) where every float32 is even."""
     n = dr.round(x)
-    odd = (dr.int32_array_t(type(x))(n) & 1) != 0
-    return x - n, odd
+    half = 0.5 * n
+    return x - n, dr.floor(half) != half
 
 
 def sin_pi(x):
