@@ -33,7 +33,7 @@ from .intersection import sphere_roots    # both roots, the stable quadratic
 
 
 def exit_lighting(spheres, lights, p, n, s, lobe, rng) -> np.ndarray:
-    """(k, 3): the light of every point and area light of ``lights`` (volume_scene._Lights)
+    """(k, 3): the light of every point and area light of ``lights`` (volume_scene.WalkLights)
     leaving the exit points p (k, 3) of spheres s (k,) with outward normals n, one sample a
     light (module docstring). ``lobe(cos θ_l, s)`` is the exit lobe's f·cos θ_l (0 where
     cos θ_l ≤ 0)."""
