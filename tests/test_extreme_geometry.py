@@ -164,3 +164,24 @@ def test_what_mitsubas_cpu_ray_tracer_cannot_reach_is_warned_about():
     far_eye = scene("eye < 0 0 2e18 > lookat < 0 0 0 >", "0 5 0", [("0 0 0", 1e18, "m")])
     with pytest.warns(Float32RangeWarning, match=r"extreme\.scene:2:1: the eye at 2e\+18"):
         mimarble.to_mitsuba(far_eye)
+
+
+def test_the_gpu_shadow_test_takes_scenes_of_up_to_its_most_spheres(llvm, monkeypatch):
+    """Each sphere is code in the kernel of _occluded_checking_spheres: a scene of more than
+    CHECKED_SPHERES_MAX keeps the CPU's test, and so does one without a large sphere."""
+    from mimarble.mitsuba.plugins import sphere_hit
+    monkeypatch.setattr(sphere_hit, "CHECK_SPHERE_HITS", True)
+
+    def table(spheres, ground=1e4):
+        shapes = {"ground": {"type": "sphere", "center": [0.0, -ground - 1.0, 0.0],
+                             "radius": ground}}
+        shapes.update({f"s{k}": {"type": "sphere", "center": [3.0 * k, 0.0, 0.0],
+                                 "radius": 1.0} for k in range(spheres - 1)})
+        return sphere_hit.SphereTable(mimarble.mi.load_dict({"type": "scene", **shapes}))
+
+    most = sphere_hit.CHECKED_SPHERES_MAX
+    at_most, past = table(most), table(most + 1)
+    assert at_most.checks_hits and len(at_most.sphere_ids) == most
+    assert not past.checks_hits and past.large
+    assert not table(3, ground=10.0).checks_hits        # no large sphere: Mitsuba's test
+    assert at_most.structure != past.structure

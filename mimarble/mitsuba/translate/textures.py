@@ -88,8 +88,8 @@ def scene_marble_gains(scene: model.Scene) -> dict:
 
 def named_texture_id(name: str) -> str:
     """A named texture's id: its name with every run of characters other than ASCII
-    letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), at
-    most 64 characters, starting with a letter (else after ``texture_``)."""
+    letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), its
+    first 64 characters, starting with a letter (else after ``texture_``)."""
     text = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_")[:64]
     return text if text[:1].isalpha() else f"texture_{text}".rstrip("_")
 
