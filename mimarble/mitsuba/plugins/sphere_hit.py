@@ -333,7 +333,9 @@ def _occluded_checking_spheres(scene, table: SphereTable, ray, active):
         _, radius = table.lookup(first.shape)
         blocked |= hit & (radius <= 0.0)
         searching = hit & (radius > 0.0)
-        step = dr.maximum(first.t, EPS_REL * (1.0 + _largest_component(part(first.t))))
+        # Past the reported hit by the shadow-ray offset ε there: from the hit itself the
+        # next search would find the same sphere again at t ≈ 0, a step spent for nothing.
+        step = first.t + EPS_REL * (1.0 + _largest_component(part(first.t)))
         start = dr.select(searching, start + step, start)
         searching &= start < ray.maxt
     return blocked
