@@ -121,6 +121,14 @@ CURVATURE_WEIGHT = 0.125
 #: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
 #: cheaper per sample (module docstring).
 THIRDS = False
+#: The first round's jump: a pixel of m² samples whose estimate E, over its bar
+#: ``threshold``·m³, is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m² samples,
+#: replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n² law of the
+#: estimate (E·m²/n² ≤ threshold·n³ once n⁵ ≥ E·m²/threshold), that band is the pixels
+#: the 3m grid would not satisfy and the 4m grid would: 3⁵ < E/bar ≤ 4⁵. Such a pixel
+#: ends at 17 samples traced where the ladder gives it 81 (docs/design-decisions.md,
+#: "Adaptive samples: a jump to 16"). None: no jump.
+JUMP = (3.0 ** 5, 4.0 ** 5)
 
 
 class AdaptiveRender(NamedTuple):
@@ -174,6 +182,18 @@ def ladder(spp: int, max_spp: int) -> list[Level]:
             levels.append(Level(3 * m * m, 3 * m, m, 2, 0))
         levels.append(Level(max_spp, most))
     return levels
+
+
+def jump_ladder(spp: int, max_spp: int) -> list[Level] | None:
+    """The levels of a pixel the first round sends from ``spp`` = m² straight to the 4m
+    grid (16m² samples, a level that replaces, :data:`JUMP`), and on from there as
+    :func:`ladder` goes (the 12m grid keeps the 4m one's centres, as any odd refinement
+    does; else ``max_spp``'s own grid, replacing). None when 16m² is above ``max_spp``
+    or :data:`JUMP` is None."""
+    m = samples_per_axis(spp)
+    if JUMP is None or 16 * m * m > max_spp:
+        return None
+    return [Level(spp, m), Level(16 * m * m, 4 * m)] + ladder(16 * m * m, max_spp)[1:]
 
 
 def sample_levels(spp: int, max_spp: int) -> list[int]:
@@ -282,7 +302,7 @@ def _neighbours(pixels, width: int, height: int):
 
 
 def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
-           height: int, doubt_from_image: bool = False):
+           height: int, doubt_from_image: bool = False, jump: tuple | None = None):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
     estimated error is above ``threshold`` · axis^:data:`BAR_POWER` (module docstring), in
     their order:
@@ -295,7 +315,10 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     :data:`CURVATURE_WEIGHT`. For a smooth image it is (3/8)·h²·|f_xx + f_yy| to leading
     order, 9× the midpoint rule's error of a 1-spp pixel, h²·|f_xx + f_yy|/24; where veins
     finer than a pixel alias, neighbours disagree at random and it is large. Held as the
-    doubt of one sample, it falls as 1/n² as the kernel's doubt does."""
+    doubt of one sample, it falls as 1/n² as the kernel's doubt does.
+
+    ``jump`` (lo, hi): two lists, in their order — the pixels over the bar whose E / bar is
+    not in (lo, hi], and those whose is (:data:`JUMP`)."""
     least = most = None
     low_mean = high_mean = total = None
     for around in _neighbours(pixels, width, height):
@@ -325,14 +348,19 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
         doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
     errors = estimated_errors(axis, doubt, mi.Float64(spread), mi.Float64(contrast),
                               on_silhouette)
-    keep = errors > dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
-    return dr.gather(mi.UInt32, pixels, dr.compress(keep))
+    bar = dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
+    keep = errors > bar
+    if jump is None:
+        return dr.gather(mi.UInt32, pixels, dr.compress(keep))
+    jumps = keep & (errors > bar * jump[0]) & (errors <= bar * jump[1])
+    return (dr.gather(mi.UInt32, pixels, dr.compress(keep & ~jumps)),
+            dr.gather(mi.UInt32, pixels, dr.compress(jumps)))
 
 
 def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                     max_spp: int = DEFAULT_MAX_SPP, progress=False, crop=None,
-                    pass_samples: int | None = None, rounds: int | None = None
-                    ) -> AdaptiveRender:
+                    pass_samples: int | None = None, rounds: int | None = None,
+                    jump: str = "estimate") -> AdaptiveRender:
     """Render a loaded whitted scene (JIT variants) adaptively: a first pass of ``spp``
     stratum centres, then rounds that refine every pixel whose estimated error is above
     ``threshold`` (linear colour units) up to ``max_spp`` (module docstring).
@@ -343,7 +371,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     pixels only, so they can be refined otherwise than in the whole image. ``progress``:
     as ``mimarble.render`` takes it (the total grows with each round). ``rounds``: stop
     after that many rounds (the benchmark's oracle, mimarble/bench/oracle.py, takes every
-    pixel to each level with a threshold below 0)."""
+    pixel to each level with a threshold below 0). ``jump``: which pixels the first round
+    sends to 16m² samples (:func:`jump_ladder`) — ``"estimate"`` those whose estimate says
+    so (:data:`JUMP`), ``"never"``, or ``"always"`` (every pixel it refines)."""
     if not isinstance(mitsuba_scene.integrator(), Whitted):
         raise ValueError(f"render_adaptive: the scene's integrator is "
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
@@ -360,46 +390,67 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     done = report(progress, "render")
     traced, total = 0, count * spp
     done(0, total + 1)                         # open until the last round has said its size
-    levels = ladder(spp, max_spp)
-    if rounds is not None:
-        levels = levels[:rounds + 1]
-    pixels, listed = dr.arange(mi.UInt32, count), count  # the first pass: row by row
+    main, jumped = ladder(spp, max_spp), jump_ladder(spp, max_spp)
+    if jump == "never" or (jump == "always" and jumped is None):
+        jumped = None
+    # Each group: the pixels (local indices, a Dr.Jit list) at the same step of the same
+    # ladder, traced in one pass a round. The first pass: every pixel, row by row.
+    groups = [(main, 0, dr.arange(mi.UInt32, count), count)]
     taken = 0
-    for number, level in enumerate(levels):
-        last = number + 1 == len(levels)   # no estimates: nothing reads them after it
-        if number > 0 and not level.parent:
-            state.clear(pixels)
-        whole = number == 0 and window.whole
-        for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
-                               listed, with_estimates=not last, doubts=doubts and number == 0,
-                               parent_axis=level.parent, per_cell=level.per_cell,
-                               cell_offset=level.offset, pass_samples=pass_samples, key=facts):
-            lanes = dr.width(part.sums)
-            if whole and part.count == count == lanes and part.samples == level.spp:
-                state.take(part, level.spp)          # the whole image in one pass
-            else:
-                at = dr.arange(mi.UInt32, lanes)
-                active = at < dr.opaque(mi.UInt32, part.count)
-                state.add(part, dr.gather(mi.UInt32, pixels,
-                                          at + dr.opaque(mi.UInt32, part.start), active),
-                          active, part.samples)
-            done(traced + (part.start + part.count) * level.traced, total + 1)
-        dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
-        traced += listed * level.traced
-        taken += number > 0
-        if last:
+    while groups:
+        for levels, number, pixels, listed in groups:
+            level = levels[number]
+            last = number + 1 == len(levels) or rounds == taken   # no estimates after it
+            if number > 0 and not level.parent:
+                state.clear(pixels)
+            whole = number == 0 and window.whole
+            for part in trace_sums(target, level.grid ** 2,
+                                   None if whole else _global(window, pixels), listed,
+                                   with_estimates=not last, doubts=doubts and number == 0,
+                                   parent_axis=level.parent, per_cell=level.per_cell,
+                                   cell_offset=level.offset, pass_samples=pass_samples,
+                                   key=facts):
+                lanes = dr.width(part.sums)
+                if whole and part.count == count == lanes and part.samples == level.spp:
+                    state.take(part, level.spp)          # the whole image in one pass
+                else:
+                    at = dr.arange(mi.UInt32, lanes)
+                    active = at < dr.opaque(mi.UInt32, part.count)
+                    state.add(part, dr.gather(mi.UInt32, pixels,
+                                              at + dr.opaque(mi.UInt32, part.start), active),
+                              active, part.samples)
+                done(traced + (part.start + part.count) * level.traced, total + 1)
+            dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
+            traced += listed * level.traced
+        if rounds == taken:
             break
         means = state.means()
-        # The first round's candidates: every pixel (local indices) in Morton order, made
-        # only when a round follows.
-        candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
-        pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
-                        height, doubt_from_image=number == 0 and not doubts)
-        dr.eval(pixels)
-        listed = dr.width(pixels)
-        if listed == 0:
-            break
-        total = traced + listed * levels[number + 1].traced
+        following = []
+        for levels, number, pixels, listed in groups:
+            if number + 1 == len(levels):
+                continue
+            axis = math.sqrt(levels[number].spp)
+            if number == 0:
+                # The first round's candidates: every pixel (local indices) in Morton
+                # order, made only when a round follows.
+                candidates = mi.UInt32(morton_order(width, height))
+                split = jumped is not None and jump == "estimate"
+                found = refine(state, means, candidates, axis, threshold, width, height,
+                               doubt_from_image=not doubts, jump=JUMP if split else None)
+                if split:
+                    following += [(levels, 1, found[0]), (jumped, 1, found[1])]
+                else:
+                    following.append((levels if jumped is None else jumped, 1, found))
+            else:
+                following.append((levels, number + 1,
+                                  refine(state, means, pixels, axis, threshold, width,
+                                         height)))
+        dr.eval(*(pixels for _, _, pixels in following))
+        groups = [(levels, number, pixels, dr.width(pixels))
+                  for levels, number, pixels in following if dr.width(pixels)]
+        total = traced + sum(listed * levels[number].traced
+                             for levels, number, _, listed in groups)
+        taken += bool(groups)
     done(traced, traced)
     image = state.means()
     image = dr.ravel(image, order="F").numpy().reshape(height, width, 3)
