@@ -299,6 +299,7 @@ def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeyp
     is above the band or below it; E from the test's own second difference of a plain
     1-spp render (silhouettes off)."""
     monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)      # a 40² image: few jump
     m = loaded(small(size=40, period=6.0))
     errors = adaptive.CURVATURE_WEIGHT * _second_difference(render_in_passes(m, 1))
     low, high = adaptive.JUMP
@@ -312,6 +313,10 @@ def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeyp
     assert jumped.sum() > 5 and nine.sum() > 5 and (ratio > high * margin).sum() > 0
     assert np.all(result.samples[jumped] == 16) and np.all(result.samples[nine] == 9)
     assert np.all(result.samples[ratio < 1 / margin] == 1)
+    # Fewer than JUMP_LEAST to jump: they go to 9 with the others (one pass, not two).
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", int(jumped.sum()) + 100)
+    merged = adaptive.render_adaptive(m, 1, threshold, 16, rounds=1)
+    np.testing.assert_array_equal(merged.samples, np.where(result.samples > 1, 9, 1))
 
 
 def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm):

@@ -129,6 +129,10 @@ THIRDS = False
 #: ends at 17 samples traced where the ladder gives it 81 (docs/design-decisions.md,
 #: "Adaptive samples: a jump to 16"). None: no jump.
 JUMP = (3.0 ** 5, 4.0 ** 5)
+#: Fewer pixels than this that the band sends to 16m² go to 9m² with the others: a pass
+#: has fixed costs (a replay's host work, its small kernels: about a millisecond, what
+#: ~20 000 lanes of a sphere cost), which a few pixels' gain does not pay.
+JUMP_LEAST = 1024
 
 
 class AdaptiveRender(NamedTuple):
@@ -248,17 +252,20 @@ class PixelState:
 
     def clear(self, pixels) -> None:
         """Forget what ``pixels`` (UInt32 local indices) hold: a level that replaces them."""
+        self._settle()
         for name, value in (("sums", 0.0), ("doubt_sums", 0.0), ("samples", 0), ("doubted", 0),
                             ("first", 0xFFFFFFFF), ("last", 0), ("low", dr.inf),
                             ("high", -dr.inf)):
             array = getattr(self, name)
             dr.scatter(array, type(array)(value), pixels)
+        self._settle()
 
     def add(self, traced, pixels, active, samples: int) -> None:
         """Add a pass's :class:`~mimarble.mitsuba.rendering.passes.PassSums` ``traced`` at
         ``pixels`` (its lanes' local indices) where ``active`` (the padding is not), of
         ``samples`` samples a pixel: sums and counts added, extremes kept. Gathered,
         combined and scattered (a pixel is once in a pass): no atomic scatter."""
+        self._settle()             # the arrays evaluated before the scatters are queued
         add, least, most = (lambda a, b: a + b), dr.minimum, dr.maximum
         parts = [("sums", add, traced.sums)]
         if traced.doubt_sums is not None:
@@ -271,6 +278,15 @@ class PixelState:
             array = getattr(self, name)
             dr.scatter(array, combine(dr.gather(type(array), array, pixels, active), value),
                        pixels, active)
+        self._settle()
+
+    NAMES = ("sums", "samples", "first", "last", "doubt_sums", "doubted", "low", "high")
+
+    def _settle(self) -> None:
+        """Evaluate every array: the scatters queued into them run as one kernel. (A
+        scatter into an array not yet evaluated — a literal ``dr.zeros``, a lazy gather —
+        evaluates it first, which runs the scatters queued so far: a kernel per array.)"""
+        dr.eval(*(getattr(self, name) for name in self.NAMES))
 
     def take(self, traced, samples: int) -> None:
         """What a first pass over every pixel in order (one pass, ``traced``) found: its
@@ -353,7 +369,9 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     if jump is None:
         return dr.gather(mi.UInt32, pixels, dr.compress(keep))
     jumps = keep & (errors > bar * jump[0]) & (errors <= bar * jump[1])
-    return (dr.gather(mi.UInt32, pixels, dr.compress(keep & ~jumps)),
+    stays = keep & ~jumps
+    dr.eval(stays, jumps)             # one kernel for both lists (else each compress's own)
+    return (dr.gather(mi.UInt32, pixels, dr.compress(stays)),
             dr.gather(mi.UInt32, pixels, dr.compress(jumps)))
 
 
@@ -425,6 +443,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
         if rounds == taken:
             break
         means = state.means()
+        dr.eval(means)                 # its three colours in one kernel, not one a gather
         following = []
         for levels, number, pixels, listed in groups:
             if number + 1 == len(levels):
@@ -438,7 +457,11 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                 found = refine(state, means, candidates, axis, threshold, width, height,
                                doubt_from_image=not doubts, jump=JUMP if split else None)
                 if split:
-                    following += [(levels, 1, found[0]), (jumped, 1, found[1])]
+                    dr.eval(*found)
+                    if dr.width(found[1]) < JUMP_LEAST:   # not worth a pass of its own
+                        following.append((levels, 1, _joined(*found)))
+                    else:
+                        following += [(levels, 1, found[0]), (jumped, 1, found[1])]
                 else:
                     following.append((levels if jumped is None else jumped, 1, found))
             else:
@@ -473,6 +496,12 @@ def traces_doubts(mitsuba_scene) -> bool:
                for material in Whitted._materials(mitsuba_scene)
                for name in CHANNELS
                for texture in textures_within(getattr(material, name)))
+
+
+def _joined(first, second):
+    """Two UInt32 lists, one after the other (Dr.Jit's ``concat`` refuses an empty one)."""
+    return first if dr.width(second) == 0 else second if dr.width(first) == 0 else \
+        dr.concat((first, second))
 
 
 def _global(window: Window, pixels):
