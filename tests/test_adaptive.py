@@ -319,7 +319,7 @@ def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeyp
     np.testing.assert_array_equal(merged.samples, np.where(result.samples > 1, 9, 1))
 
 
-def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm):
+def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm, monkeypatch):
     """A crop is traced with a ring of one pixel, so its pixels' first-round estimates
     (the image's second difference, the silhouette's contrast) read the whole image's
     neighbourhoods: after one round each pixel of the crop has the samples and the value
@@ -331,6 +331,15 @@ def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm):
     for crop in ((0, 0, 11, 7), (5, 4, 24, 19), (13, 10, 14, 11), (20, 14, 29, 21)):
         x0, y0, x1, y1 = crop
         part = adaptive.render_adaptive(m, 1, 2e-4, 9, crop=crop, rounds=1)
+        np.testing.assert_array_equal(part.samples, whole.samples[y0:y1, x0:x1])
+        np.testing.assert_array_equal(part.image, whole.image[y0:y1, x0:x1])
+    # With the first round's jump to 16 (every jump a pass, however few), alike.
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)
+    whole = adaptive.render_adaptive(m, 1, 2e-5, 16, rounds=1)
+    assert {1, 9, 16} <= set(np.unique(whole.samples))
+    for crop in ((0, 0, 11, 7), (5, 4, 24, 19)):
+        x0, y0, x1, y1 = crop
+        part = adaptive.render_adaptive(m, 1, 2e-5, 16, crop=crop, rounds=1)
         np.testing.assert_array_equal(part.samples, whole.samples[y0:y1, x0:x1])
         np.testing.assert_array_equal(part.image, whole.image[y0:y1, x0:x1])
 

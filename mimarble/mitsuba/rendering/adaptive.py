@@ -15,8 +15,17 @@ sooner on every scene measured). A ``max_spp`` off the ladder is a last level of
 grid, which replaces the pixel's samples. Only the pixels a round refined are candidates
 in the next. Deterministic, like the rest of whitted mode.
 
-**What a pixel is at the end.** At 9^k·m² samples a pixel holds the stratum centres of
-the plain render's grid, one per stratum, summed as a plain render sums them (in float32
+**The jump to 16.** 9 and 81 straddle 16: where every pixel of an object needs about 16
+samples (fine veins) the ladder takes many to 81. So the first round sends a pixel whose
+estimate says the 3m grid will not do and the 4m grid will (:data:`JUMP`) straight to
+the 4m grid, 16m² stratum centres that replace its m² (the 4m grid does not hold the
+pixel's centre); from there it goes on as the ladder does from 16m² (the 12m grid keeps
+the 4m one's centres; under ``max_spp`` 81, the 9×9 grid, replacing: :func:`jump_ladder`).
+The rounds then trace one pass per group of pixels at the same step of the same ladder.
+
+**What a pixel is at the end.** At 9^k·m² or 16·9^k·m² samples (and at ``max_spp``) a
+pixel holds the stratum centres of the plain render's grid, one per stratum, summed as a
+plain render sums them (in float32
 with compensation, the partial sums added in float64), so for point-sampled marbles its
 mean is the plain render's at that spp up to the rounding of that sum's order (a float32
 ulp at most; none in the tests). At 3·9^k·m² it holds, in each of the 9^k·m² strata of
@@ -29,8 +38,10 @@ samples a pixel keeps from a coarser grid keep their wider footprints
 
 Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample counts,
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
-(``dr.compress``); only its length comes back to size the passes. The lists are in Morton
-order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
+(``dr.compress``); only its length comes back to size the passes. The scatters into the
+pixels' arrays are queued together and run as one kernel (:meth:`PixelState.add`). The
+lists are in Morton order (:func:`morton_order`), so that a pass's neighbouring lanes are
+neighbouring pixels.
 The first pass is the plain kernel, and a pixel's doubt is read from its image (the
 second difference, :func:`refine`), except in scenes with a
 prefiltered marble, where the first pass traces the marbles' doubts
@@ -121,13 +132,14 @@ CURVATURE_WEIGHT = 0.125
 #: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
 #: cheaper per sample (module docstring).
 THIRDS = False
-#: The first round's jump: a pixel of m² samples whose estimate E, over its bar
-#: ``threshold``·m³, is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m² samples,
+#: The first round's jump: a pixel of m² samples whose estimate E over its bar
+#: ``threshold``·m³ is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m² samples,
 #: replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n² law of the
-#: estimate (E·m²/n² ≤ threshold·n³ once n⁵ ≥ E·m²/threshold), that band is the pixels
-#: the 3m grid would not satisfy and the 4m grid would: 3⁵ < E/bar ≤ 4⁵. Such a pixel
-#: ends at 17 samples traced where the ladder gives it 81 (docs/design-decisions.md,
-#: "Adaptive samples: a jump to 16"). None: no jump.
+#: estimate, n² samples pass their bar once E·m²/n² ≤ threshold·n³, i.e. (n/m)⁵ ≥ E/bar
+#: (the 5 is 2 + BAR_POWER): the band is the pixels that the 3m grid would leave over
+#: their bar and the 4m grid would not, 3⁵ < E/bar ≤ 4⁵. Such a pixel ends at 17 samples
+#: traced where the ladder takes it to 81 (docs/design-decisions.md, "Adaptive samples:
+#: the jump to 16 and fewer kernels"). None: no jump.
 JUMP = (3.0 ** 5, 4.0 ** 5)
 #: Fewer pixels than this that the band sends to 16m² go to 9m² with the others: a pass
 #: has fixed costs (a replay's host work, its small kernels: about a millisecond, what
@@ -140,8 +152,8 @@ class AdaptiveRender(NamedTuple):
     it; ``samples`` (H, W), each pixel's samples at the end; ``traced``, every sample
     traced for a pixel (the samples a round replaces included: the cost; not the few a
     pass over a pixel list pads itself with,
-    :func:`~mimarble.mitsuba.rendering.passes.padded_count`); ``rounds``, the passes over
-    pixel lists after the first pass."""
+    :func:`~mimarble.mitsuba.rendering.passes.padded_count`); ``rounds``, the rounds
+    after the first pass (a round is a pass over each group's pixel list)."""
     image: np.ndarray
     samples: np.ndarray
     traced: int
