@@ -18,7 +18,7 @@ from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.scene.edits import resized, with_marbles
 from mimarble.bench.timing import converged
-from mimarble.bench.curves import _interpolated
+from mimarble.bench.curves import value_at_crossing
 from mimarble.bench.oracle import oracle_samples, level_images
 from mimarble.bench.modes import ADAPTIVE_THRESHOLDS
 from mimarble.runtime import files
@@ -46,6 +46,6 @@ for path in sys.argv[1:]:
     o16 = o64 = None
     if ORACLE: o16 = oracle_samples(images, truth, costs, t16)
     if ORACLE: o64 = oracle_samples(images, truth, costs, t64)
-    a16, a64 = _interpolated(runs, t16, "mean_spp"), _interpolated(runs, t64, "mean_spp")
+    a16, a64 = value_at_crossing(runs, t16, "mean_spp"), value_at_crossing(runs, t64, "mean_spp")
     f = lambda x: "—" if x is None else f"{x:.1f}"
     print(f"{Path(path).stem} {filt} SW={adaptive.SPREAD_WEIGHT} DW={adaptive.DOUBT_WEIGHT} CW={adaptive.CONTRAST_WEIGHT} BAR={adaptive.BAR_POWER} DK={int(adaptive.DOUBT_KERNEL)} JUMP={adaptive.JUMP} KW={adaptive.CURVATURE_WEIGHT}: to plain16 ({t16:.5f}) adaptive {f(a16)} oracle {f(o16)}; to plain64 ({t64:.5f}) adaptive {f(a64)} oracle {f(o64)}; last {runs[-1]['mean_spp']:.1f} spp {runs[-1]['rmse']:.5f}")

@@ -11,7 +11,7 @@ import mimarble
 from mimarble import reference
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering import adaptive
-from mimarble.mitsuba.rendering.passes import _traced_pass, padded_count
+from mimarble.mitsuba.rendering.passes import traced_pass, padded_count
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.scene.rules import adaptive_problem
 from mimarble.scene.edits import resized, with_image_size, with_marbles
@@ -238,9 +238,9 @@ def test_rounds_replay_their_recordings(llvm):
     gc.collect()     # earlier tests' scenes freed now, not between the renders below
     m = loaded(small(size=32))
     adaptive.render_adaptive(m, 1, 0.002, 16)
-    recorded = _traced_pass.recordings
+    recorded = traced_pass.recordings
     adaptive.render_adaptive(m, 1, 0.002, 16)
-    assert _traced_pass.recordings == recorded
+    assert traced_pass.recordings == recorded
     # Pixel lists are padded to a few sizes: lists of many lengths share a recording.
     assert {padded_count(n, 10 ** 6) for n in range(1000, 1190)} == {1024, 1218}
 

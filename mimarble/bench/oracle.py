@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimarble.bench.curves import _interpolated
+from mimarble.bench.curves import value_at_crossing
 
 
 def level_images(mitsuba_scene, spp: int, max_spp: int) -> tuple[list[np.ndarray], list[int]]:
@@ -62,4 +62,4 @@ def oracle_samples(images: list[np.ndarray], truth: np.ndarray, costs: list[int]
                    target: float) -> float | None:
     """Samples a pixel the oracle needs for RMSE ``target`` (interpolated in log-log
     between its runs), None when even every pixel at its best level misses it."""
-    return _interpolated(oracle_curve(images, truth, costs), target, "mean_spp")
+    return value_at_crossing(oracle_curve(images, truth, costs), target, "mean_spp")

@@ -505,7 +505,7 @@ def traces_doubts(mitsuba_scene) -> bool:
     if DOUBT_KERNEL:
         return True
     return any(isinstance(getattr(texture, "pixel_filter", None), Prefilter)
-               for material in Whitted._materials(mitsuba_scene)
+               for material in Whitted.scene_materials(mitsuba_scene)
                for name in CHANNELS
                for texture in textures_within(getattr(material, name)))
 

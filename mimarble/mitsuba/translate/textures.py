@@ -74,7 +74,7 @@ def marble_tolerance(scene: model.Scene, channel: model.MarbleChannel,
         / max(gain, 1.0)
 
 
-def _marble_gains(scene: model.Scene) -> dict:
+def scene_marble_gains(scene: model.Scene) -> dict:
     """Each marble's largest expression gain over the channels it is in."""
     gains: dict = {}
     for material in scene.materials.values():
@@ -86,7 +86,7 @@ def _marble_gains(scene: model.Scene) -> dict:
     return gains
 
 
-def _texture_id(name: str) -> str:
+def named_texture_id(name: str) -> str:
     """A named texture's id: its name with every run of characters other than ASCII
     letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), at
     most 64 characters, starting with a letter (else after ``texture_``)."""
@@ -94,7 +94,7 @@ def _texture_id(name: str) -> str:
     return text if text[:1].isalpha() else f"texture_{text}".rstrip("_")
 
 
-def _unused(candidate: str, taken: set) -> str:
+def unused_texture(candidate: str, taken: set) -> str:
     """``candidate``, or ``candidate_2``, ``_3``, … the first not in ``taken`` (then taken)."""
     found, k = candidate, 2
     while found in taken:
