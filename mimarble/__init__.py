@@ -8,7 +8,8 @@ overrides), and registers the ``marble`` texture for every variant.
 The ``mimarble`` command's own process (its console script, ``python -m
 mimarble``) defers all of that to :func:`start`, which a command calls once it
 needs to render: help, usage errors and scene errors then answer before Dr.Jit
-and Mitsuba load (about 0.6 s saved; docs/design-decisions.md, "Start-up").
+and Mitsuba load (docs/design-decisions.md, "Start-up"; the times: docs/benchmarks.md,
+"Start-up: the whole process").
 Touching any of the names below that need them (``mimarble.render``,
 ``mimarble.mi``, …) starts the package too.
 

@@ -67,36 +67,34 @@ PATH_MAX_DEPTH = 4
 #: ``path``'s max_depth in preview mode, and the reference preview's default: direct light
 #: only (the camera's surface point lit by next-event estimation and by one BSDF sample that
 #: meets the sky or a light), no interreflection. The preview's aim is speed (issue 40: at
-#: least 10× the walk at equal spp): on carrara (240×160, 16 spp, CPU time) depth 4 cost
-#: 0.219 s, 3 0.196 s, 2 0.160 s against the walk's 1.634 s; its RMSE against the walk at
-#: 128 spp 0.319 / 0.321 / 0.343, mean 0.209 / 0.206 / 0.182 against the walk's 0.284
-#: (docs/rendering-model.md, "The fast preview").
+#: least 10× the walk at equal spp): depth 2 is the lever that reaches it without touching
+#: the walk or the marble, and its price, interreflection, is small beside the bias no depth
+#: removes (the walk's glow through thin parts and its blur of the veins). Its cost and
+#: bias at depths 4, 3 and 2: docs/benchmarks.md, "Fast preview at max_depth 2"; the bias in
+#: words: docs/rendering-model.md, "The fast preview".
 PREVIEW_MAX_DEPTH = 2
 
 #: volpath's max_depth for a scene with a translucent material, and the reference random
 #: walk's: the most scattering events of a path, each medium scattering and each non-null
 #: surface interaction (a refraction through the boundary too) counting one (Mitsuba's
-#: volpath.cpp). Light in a white marble scatters hundreds of times: measured with the
-#: float64 reference random walk on a unit sphere under a white sky, albedo 0.99 and mean
-#: free path 0.05 keep 0.628 of the light at 64, 0.697 at 256, 0.699 at 1024 and 4096;
-#: albedo 0.999, mfp 0.02, 0.888 at 1024 against 0.895 at 4096. Russian roulette ends
-#: paths long before the cap wherever the albedo is lower. 256 (issue 40 item 3), Cycles'
-#: cap on a random walk (BSSRDF_MAX_STEPS in its subsurface_random_walk.h), a stated bias
-#: that both renderers share: the light of walks longer than 256 events is lost (0.3 % of
-#: it at albedo 0.99 above; measured on fig11a-translucent and the Cycles-twin sphere in
-#: docs/benchmarks.md, "Walk length and sampler against Cycles"), for 0.6–0.7× the CPU
-#: time of 1024 on fig11a-translucent, whose red walks are long.
+#: volpath.cpp). Light in a white marble scatters hundreds of times, so a low cap darkens it;
+#: Russian roulette ends paths long before the cap wherever the albedo is lower. 256 (issue
+#: 40 item 3) is Cycles' cap on a random walk (BSSRDF_MAX_STEPS in its
+#: subsurface_random_walk.h): a stated bias that both renderers share — the light of walks
+#: longer than 256 events is lost, a little at albedo 0.99, more in whiter marble of shorter
+#: mean free path — taken for the time that longer caps spend on long (red) walks. The light
+#: kept and the time taken at each cap: docs/benchmarks.md, "Walk length and sampler against
+#: Cycles".
 VOLPATH_MAX_DEPTH = 256
 #: volpath's rr_depth where a translucent material's single-scattering albedo may pass
 #: ROULETTE_MAX: max_depth, no Russian roulette (elsewhere ROULETTE_DEPTH;
 #: mimarble/mitsuba/translate/modes.py, roulette_depth). volpath survives a path with
 #: q = min(max β, 0.95), so in a medium of albedo α > 0.95 the weight grows as (α/0.95)ᵏ
 #: while the path survives with 0.95ᵏ: white marble (α ≈ 0.9995) becomes a few huge
-#: fireflies. Measured on a white sphere (α 0.9995, mean free path 0.05 / 0.02): without
-#: roulette 4.1× / 14× the efficiency (1/(variance·time)) of rr_depth 5, which missed the
-#: mean by 145 % at 0.02; at α ≤ 0.95 the roulette is 2.5–8.5× more efficient
-#: (docs/benchmarks.md, "Russian roulette on white marble"). Where it is off, the media
-#: end walks by their albedo instead (the ``roulette_isotropic`` phase function).
+#: fireflies, and no roulette is the more efficient there, while at α ≤ 0.95 the roulette
+#: is (the efficiencies: docs/benchmarks.md, "Russian roulette on white marble"). Where it
+#: is off, the media end walks by their albedo instead (the ``roulette_isotropic`` phase
+#: function).
 VOLPATH_RR_DEPTH = VOLPATH_MAX_DEPTH
 #: Russian roulette from this depth on (Mitsuba volpath's default ``rr_depth``; the
 #: reference walk's default).

@@ -143,7 +143,7 @@ def structure(size: int, pause: float) -> dict:
     out = {}
     for octaves in (9, 8, 9):
         time.sleep(pause)
-        recordings = passes._traced_pass.recordings
+        recordings = passes.traced_pass.recordings
         start = time.perf_counter()
         version = session.edit("marble.octaves", octaves)
         returned = time.perf_counter() - start
@@ -151,7 +151,7 @@ def structure(size: int, pause: float) -> dict:
         out[f"{len(out) + 1}: octaves to {octaves}"] = {"edit_returned_ms": returned * 1e3,
                                 "frame_s": seen - start,
                                 "compiling_said": version in clock.compiling,
-                                "recordings": passes._traced_pass.recordings - recordings}
+                                "recordings": passes.traced_pass.recordings - recordings}
     session.close()
     return out
 

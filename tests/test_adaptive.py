@@ -11,7 +11,7 @@ import mimarble
 from mimarble import reference
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering import adaptive
-from mimarble.mitsuba.rendering.passes import _traced_pass, padded_count
+from mimarble.mitsuba.rendering.passes import traced_pass, padded_count
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.scene.rules import adaptive_problem
 from mimarble.scene.edits import resized, with_image_size, with_marbles
@@ -112,7 +112,7 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
     mean of point-sampled marble is the plain render's at that spp, bit for bit."""
     scene = small()
     m = loaded(scene)
-    result = adaptive.render_adaptive(m, 1, 3e-5, 81)
+    result = adaptive.render_adaptive(m, 1, 3e-5, 81, jump="never")
     counts = {int(k): int(n) for k, n in zip(*np.unique(result.samples, return_counts=True))}
     assert {1, 9, 81} <= set(counts) and min(counts.values()) > 0
     for spp in (1, 9, 81):
@@ -122,15 +122,49 @@ def test_each_pixel_is_the_plain_render_at_the_samples_it_ended_with(llvm):
     # The cost counts every sample traced for a pixel once: kept ones are not traced again.
     assert result.traced == int(result.samples.sum())
     # Deterministic, and the same in passes of any size (pixels split across passes too).
-    again = adaptive.render_adaptive(m, 1, 3e-5, 81, pass_samples=8)
+    again = adaptive.render_adaptive(m, 1, 3e-5, 81, pass_samples=8, jump="never")
     np.testing.assert_array_equal(again.image, result.image)
     np.testing.assert_array_equal(again.samples, result.samples)
     # A level off the ladder (16 after 9) replaces: the plain render's again, at a cost.
-    off = adaptive.render_adaptive(m, 1, 1e-6, 16)
+    off = adaptive.render_adaptive(m, 1, 1e-6, 16, jump="never")
     where = off.samples == 16
     assert where.any()
     np.testing.assert_array_equal(off.image[where], render_in_passes(m, 16)[where])
     assert off.traced == int(np.sum(np.where(off.samples == 16, 9 + 16, off.samples)))
+
+
+def test_levels_after_a_jump_to_the_four_by_four_grid():
+    """A pixel the first round sends to 16 samples (the 4×4 grid, replacing its 1) goes on
+    to 144 (the 12×12 grid keeps the 4×4 centres) or to max_spp's own grid."""
+    levels = adaptive.jump_ladder(1, 144)
+    assert [level.spp for level in levels] == [1, 16, 144]
+    assert [level.traced for level in levels] == [1, 16, 128]
+    assert [level.parent for level in levels] == [0, 0, 4]
+    assert adaptive.sample_levels(16, 144) == [16, 144]
+    assert [level.spp for level in adaptive.jump_ladder(1, 81)] == [1, 16, 81]
+    assert [level.traced for level in adaptive.jump_ladder(1, 81)] == [1, 16, 81]
+    assert [level.spp for level in adaptive.jump_ladder(4, 576)] == [4, 64, 576]
+    assert adaptive.jump_ladder(1, 9) is None
+
+
+def test_a_jumped_pixel_is_the_plain_render_at_its_samples(llvm):
+    """Every pixel the first round refines sent to 16 (``jump="always"``): each is the
+    plain 16-spp render's bit for bit, the others the plain 1-spp render's, and the cost
+    counts the first sample it dropped; at 81 after 16 (max_spp's grid, replacing
+    again) the plain 81-spp render's, at 1 + 16 + 81 traced."""
+    m = loaded(small())
+    result = adaptive.render_adaptive(m, 1, 3e-5, 81, jump="always", rounds=1)
+    at_16 = result.samples == 16
+    assert 0 < at_16.mean() < 1 and np.all(result.samples[~at_16] == 1)
+    np.testing.assert_array_equal(result.image[at_16], render_in_passes(m, 16)[at_16])
+    np.testing.assert_array_equal(result.image[~at_16], render_in_passes(m, 1)[~at_16])
+    assert result.traced == result.samples.size + 16 * int(at_16.sum())
+    deeper = adaptive.render_adaptive(m, 1, 3e-5, 81, jump="always")
+    at_81 = deeper.samples == 81
+    assert at_81.any() and set(np.unique(deeper.samples)) <= {1, 16, 81}
+    np.testing.assert_array_equal(deeper.image[at_81], render_in_passes(m, 81)[at_81])
+    assert deeper.traced == deeper.samples.size + 16 * int(np.sum(deeper.samples > 1)) \
+        + 81 * int(at_81.sum())
 
 
 def test_a_pixel_of_three_samples_is_its_centre_and_a_symmetric_pair(llvm, monkeypatch):
@@ -204,9 +238,9 @@ def test_rounds_replay_their_recordings(llvm):
     gc.collect()     # earlier tests' scenes freed now, not between the renders below
     m = loaded(small(size=32))
     adaptive.render_adaptive(m, 1, 0.002, 16)
-    recorded = _traced_pass.recordings
+    recorded = traced_pass.recordings
     adaptive.render_adaptive(m, 1, 0.002, 16)
-    assert _traced_pass.recordings == recorded
+    assert traced_pass.recordings == recorded
     # Pixel lists are padded to a few sizes: lists of many lengths share a recording.
     assert {padded_count(n, 10 ** 6) for n in range(1000, 1190)} == {1024, 1218}
 
@@ -258,7 +292,34 @@ def test_the_first_round_refines_where_the_images_second_difference_says(llvm, m
         assert 0 < np.mean(result.samples == 9) < 1
 
 
-def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm):
+def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeypatch):
+    """With max_spp 16 a pixel the first round refines goes to 16 samples (the 4×4 grid)
+    when its E over the bar is in JUMP's band (3⁵, 4⁵] — the 3×3 grid would leave it over
+    the bar at 9 under the estimate's 1/n² law, the 4×4 one would not — and to 9 when it
+    is above the band or below it; E from the test's own second difference of a plain
+    1-spp render (silhouettes off)."""
+    monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)      # a 40² image: few jump
+    m = loaded(small(size=40, period=6.0))
+    errors = adaptive.CURVATURE_WEIGHT * _second_difference(render_in_passes(m, 1))
+    low, high = adaptive.JUMP
+    assert (low, high) == (3.0 ** 5, 4.0 ** 5)
+    # A threshold that puts the band across the errors' spread: every kind present.
+    threshold = float(np.quantile(errors, 0.9)) / (low * high) ** 0.5
+    result = adaptive.render_adaptive(m, 1, threshold, 16, rounds=1)
+    ratio, margin = errors / threshold, 1 + 1e-4
+    jumped = (ratio > low * margin) & (ratio < high / margin)
+    nine = (ratio > margin) & ((ratio < low / margin) | (ratio > high * margin))
+    assert jumped.sum() > 5 and nine.sum() > 5 and (ratio > high * margin).sum() > 0
+    assert np.all(result.samples[jumped] == 16) and np.all(result.samples[nine] == 9)
+    assert np.all(result.samples[ratio < 1 / margin] == 1)
+    # Fewer than JUMP_LEAST to jump: they go to 9 with the others (one pass, not two).
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", int(jumped.sum()) + 100)
+    merged = adaptive.render_adaptive(m, 1, threshold, 16, rounds=1)
+    np.testing.assert_array_equal(merged.samples, np.where(result.samples > 1, 9, 1))
+
+
+def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm, monkeypatch):
     """A crop is traced with a ring of one pixel, so its pixels' first-round estimates
     (the image's second difference, the silhouette's contrast) read the whole image's
     neighbourhoods: after one round each pixel of the crop has the samples and the value
@@ -270,6 +331,15 @@ def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm):
     for crop in ((0, 0, 11, 7), (5, 4, 24, 19), (13, 10, 14, 11), (20, 14, 29, 21)):
         x0, y0, x1, y1 = crop
         part = adaptive.render_adaptive(m, 1, 2e-4, 9, crop=crop, rounds=1)
+        np.testing.assert_array_equal(part.samples, whole.samples[y0:y1, x0:x1])
+        np.testing.assert_array_equal(part.image, whole.image[y0:y1, x0:x1])
+    # With the first round's jump to 16 (every jump a pass, however few), alike.
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)
+    whole = adaptive.render_adaptive(m, 1, 2e-5, 16, rounds=1)
+    assert {1, 9, 16} <= set(np.unique(whole.samples))
+    for crop in ((0, 0, 11, 7), (5, 4, 24, 19)):
+        x0, y0, x1, y1 = crop
+        part = adaptive.render_adaptive(m, 1, 2e-5, 16, crop=crop, rounds=1)
         np.testing.assert_array_equal(part.samples, whole.samples[y0:y1, x0:x1])
         np.testing.assert_array_equal(part.image, whole.image[y0:y1, x0:x1])
 

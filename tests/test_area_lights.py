@@ -220,7 +220,7 @@ def test_an_edited_area_light_replays_what_a_fresh_trace_renders(llvm, monkeypat
     scene = mi.load_dict(to_mitsuba(floor_scene(SPHERE, samples=9, size=16)))
     render_in_passes(scene, 1)
     before = render_in_passes(scene, 1)
-    key, recordings = scene_key(scene), passes._traced_pass.recordings
+    key, recordings = scene_key(scene), passes.traced_pass.recordings
     for name, value in [("light_0.position", mi.Point3f(-2, 6, 3)),
                         ("light_0.intensity", mi.Color3f(2, 1, 0.5)), ("light_0.radius", mi.Float(0.3))]:
         params = mi.traverse(scene)
@@ -233,7 +233,7 @@ def test_an_edited_area_light_replays_what_a_fresh_trace_renders(llvm, monkeypat
         np.testing.assert_array_equal(replayed, fresh)
         assert not np.array_equal(replayed, before)
         before = replayed
-    assert passes._traced_pass.recordings == recordings and scene_key(scene) == key
+    assert passes.traced_pass.recordings == recordings and scene_key(scene) == key
 
 
 # ---------------------------------------------------------------------------

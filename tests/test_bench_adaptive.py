@@ -251,7 +251,8 @@ def test_the_oracle_needs_no_more_samples_than_adaptive_renders(llvm):
     truth = reference.render(scene, spp=64)
     loaded = mimarble.mi.load_dict(to_mitsuba(scene, spp=1))
     images, costs = level_images(loaded, 1, 16)
-    assert costs == [1, 9, 9 + 16]          # kept samples not traced again; 16 replaces
+    # Kept samples not traced again; 16 replaces (after 1: the first round's jump, or 9).
+    assert costs == [1, 9, 1 + 16, 9 + 16]
     for threshold in (0.01, 0.001):
         run = render_adaptive(loaded, 1, threshold, 16)
         rmse = float(np.sqrt(np.mean(np.square(run.image.astype(np.float64) - truth))))

@@ -82,7 +82,7 @@ def test_every_scene_renders_from_its_xml_and_python_as_from_its_dict(path, tmp_
     scene_dict = to_mitsuba(scene, "path" if translucent else "whitted", 1)
     ours = render(mi.load_dict(scene_dict))
     # XML: bit for bit — the translator gives its shapes' transforms the inverses XML
-    # makes (translate._transform), and the scenes' cameras read none.
+    # makes (translate.shapes.mitsuba_transform), and the scenes' cameras read none.
     np.testing.assert_array_equal(xml_render(scene_dict, tmp_path), ours)
     np.testing.assert_array_equal(python_render(scene_dict, tmp_path), ours)
 

@@ -103,10 +103,10 @@ def test_scenes_copy_into_a_missing_parent_is_refused(tmp_path):
 def test_default_scene_list_is_the_packaged_figures_where_there_is_no_scenes_folder(
         tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    assert cli._scene_list([]) == [str(p) for p in packaged_scenes.figures()]
+    assert cli.scene_list([]) == [str(p) for p in packaged_scenes.figures()]
     (tmp_path / "scenes").mkdir()
     (tmp_path / "scenes" / "mine.scene").write_text(SMALL)
-    assert cli._scene_list([]) == [os.path.join("scenes", "mine.scene")]   # ./scenes first
+    assert cli.scene_list([]) == [os.path.join("scenes", "mine.scene")]   # ./scenes first
 
 
 def test_gallery_writes_into_gallery_where_you_stand(tmp_path):

@@ -232,13 +232,13 @@ def test_eye_inside_sphere_sees_its_inside_lit_two_sided():
 
 def test_shadow_hit_stops_testing_blocked_rays(monkeypatch):
     tested = []
-    real = intersection._roots
+    real = intersection.sphere_roots
 
     def counting(o, d, c, r):
         tested.append(len(d))
         return real(o, d, c, r)
 
-    monkeypatch.setattr(intersection, "_roots", counting)
+    monkeypatch.setattr(intersection, "sphere_roots", counting)
     centers = np.array([[0.0, 0, 0], [3.0, 0, 0], [6.0, 0, 0]])
     o = np.array([[-3.0, 0, 0], [-3.0, 0, 0], [-3.0, 5, 0]])
     d = np.array([[1.0, 0, 0], [1.0, 0, 0], [1.0, 0, 0]])

@@ -14,7 +14,7 @@ def test_width_and_height_give_the_image_the_command_line_renders(llvm):
     image = mimarble.render(SCENE, width=12, height=8, spp=1)
     assert image.shape == (8, 12, 3)
     args = cli.build_parser().parse_args(["render", SCENE, "--width", "12", "--height", "8"])
-    expected = mimarble.render(cli._load_scene(args), spp=1)
+    expected = mimarble.render(cli.load_scene(args), spp=1)
     assert np.array_equal(image, expected)
 
 

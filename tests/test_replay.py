@@ -68,9 +68,9 @@ def assert_replay_is_fresh(mitsuba_scene, monkeypatch, recorded_again: bool | No
     False: it replayed (no new recording, the same key); True: its recording's key
     changed since ``key_before`` (a recording of that key may exist already: a freed
     scene's id can be taken by a new one); None: either."""
-    before = passes._traced_pass.recordings
+    before = passes.traced_pass.recordings
     replayed = render_in_passes(mitsuba_scene, 1, **kwargs)
-    again = passes._traced_pass.recordings > before
+    again = passes.traced_pass.recordings > before
     np.testing.assert_array_equal(replayed, traced_afresh(mitsuba_scene, monkeypatch, **kwargs))
     if recorded_again is False:
         assert not again
@@ -217,9 +217,9 @@ def test_two_scenes_of_one_structure_never_share_a_recording(llvm):
 def test_replay_can_be_turned_off(llvm, monkeypatch):
     scene = loaded()
     monkeypatch.setenv("MIMARBLE_FREEZE", "0")
-    before = passes._traced_pass.recordings
+    before = passes.traced_pass.recordings
     render_in_passes(scene, 1)
-    assert passes._traced_pass.recordings == before
+    assert passes.traced_pass.recordings == before
 
 
 # ---------------------------------------------------------------------------
@@ -345,9 +345,9 @@ def test_the_recording_call_gives_the_bits_of_its_replays_and_of_a_fresh_trace(l
     fresh = traced_afresh(scene, monkeypatch, 4, mode=mode, seed=7)
     calls = []
     for _ in range(4):
-        before = passes._traced_pass.recordings
+        before = passes.traced_pass.recordings
         calls.append((render_in_passes(scene, 4, mode, seed=7),
-                      passes._traced_pass.recordings > before))
+                      passes.traced_pass.recordings > before))
     assert calls[0][1] and not calls[-1][1]          # a recording call, then replays
     for image, _ in calls:
         np.testing.assert_array_equal(image, fresh)

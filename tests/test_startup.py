@@ -178,7 +178,7 @@ sys.orig_argv = [sys.executable, "-m", "mimarble"]    # as in the command's proc
 from mimarble.cli import main as cli
 args = cli.build_parser().parse_args({argv!r})
 args.variant = "llvm_ad_rgb"
-cli._start(args)
+cli.start_mitsuba(args)
 import mitsuba as mi
 try:
     mi.load_dict({{"type": "prb"}})

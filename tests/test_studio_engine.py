@@ -192,11 +192,11 @@ def _structural_edits(session, monkeypatch):
     # "compiling".
     worker = session._worker
     assert _eventually(worker.resting.is_set) and worker.recorded_again
-    recordings = passes._traced_pass.recordings
+    recordings = passes.traced_pass.recordings
     for octaves in (12, 9, 12, 9):
         session.wait_frame(session.edit("marble.octaves", octaves))
     assert loads == [1] and True not in statuses
-    assert passes._traced_pass.recordings == recordings
+    assert passes.traced_pass.recordings == recordings
 
 
 def test_the_render_thread_is_not_resting_while_a_state_waits():
@@ -233,7 +233,7 @@ def test_a_scene_the_loaded_scenes_drop_is_freed(monkeypatch):
         s.wait_frame()
         worker = s._worker
         (first, _, _), = worker.loaded.scenes.values()
-        material = weakref.ref(next(iter(Whitted._materials(first))))
+        material = weakref.ref(next(iter(Whitted.scene_materials(first))))
         del first
         for octaves in (9, 10):
             s.wait_frame(s.edit("marble.octaves", octaves))
@@ -449,15 +449,15 @@ def test_save_changes_only_the_edited_values(tmp_path):
 def _held_rewrite(monkeypatch, release: threading.Event) -> threading.Event:
     """Make a save's rewrite of the text (outside the session's lock) wait for ``release``;
     returns the event set when a save is inside it."""
-    from mimarble.studio import session as session_module
-    inside, original = threading.Event(), session_module.rewrite
+    from mimarble.studio import saving
+    inside, original = threading.Event(), saving.rewrite
 
     def slow_rewrite(*args, **kwargs):
         inside.set()
         release.wait(30)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(session_module, "rewrite", slow_rewrite)
+    monkeypatch.setattr(saving, "rewrite", slow_rewrite)
     return inside
 
 
@@ -668,7 +668,7 @@ def test_a_moving_control_over_budget_gets_reduced_frames_then_the_whole_one():
         s.subscribe(lambda kind, payload: frames.append(payload) if kind == "frame" else None)
         s.wait_frame(s.edit("marble.period", 1.8))  # a whole frame, timed (not compiled)
         assert worker.last_frame_s is not None
-        loads = worker._loads
+        loads = worker.loads
         s.edit("marble.period", 2.0)
         last = s.edit("marble.period", 2.5)          # within MOTION_GAP_S: moving
         s.wait_frame(last, final=True)
@@ -680,12 +680,43 @@ def test_a_moving_control_over_budget_gets_reduced_frames_then_the_whole_one():
         assert mine[0].pixels.shape == (48 // k, 48 // k, 3)
         assert np.allclose(mine[0].pixels, whole[0].pixels[::k, ::k], rtol=1e-6, atol=0)
         assert not np.allclose(mine[0].pixels, frames[0].pixels[::k, ::k], rtol=1e-3)
-        assert worker._loads == loads                # the loaded scene's own: no new one
+        assert worker.loads == loads                # the loaded scene's own: no new one
         time.sleep(0.5)                              # idle: the next edit is a lone one
         frames.clear()
         lone = s.edit("marble.period", 1.5)
         assert s.wait_frame(lone).stride == 1
     finally:
+        s.close()
+
+
+def test_going_back_replays_the_reduced_frames_too():
+    """After a structural edit the thread records again the reduced passes a kept
+    structure has shown, not only its 1 spp pass: a drag back there replays its reduced
+    frames — no recording, no load. (The cycle collector is held off, as in
+    test_structural_edit_compiles_once.)"""
+    import gc
+    from mimarble.mitsuba.rendering import passes
+    s = _session()
+    gc.collect()
+    gc.disable()
+    try:
+        s.wait_frame()
+        worker = s._worker
+        s.wait_frame(s.edit("marble.period", 1.8))   # a whole frame, timed (not compiled)
+        worker.frame_budget_s = 0.0                  # every drag's frames reduced
+        s.edit("marble.period", 2.0)
+        stride = s.wait_frame(s.edit("marble.period", 2.5)).stride
+        assert stride > 1
+        s.wait_frame(s.edit("marble.octaves", 9))    # a new structure: loaded, 12 stale
+        assert _eventually(worker.resting.is_set)
+        assert [key[2] for key in worker.recorded_again if key[0] == "reduced"] == [stride]
+        recordings, loads = passes.traced_pass.recordings, worker.loads
+        s.wait_frame(s.edit("marble.octaves", 12))   # back: the kept structure
+        s.edit("marble.period", 2.6)
+        assert s.wait_frame(s.edit("marble.period", 2.7)).stride == stride
+        assert passes.traced_pass.recordings == recordings and worker.loads == loads
+    finally:
+        gc.enable()
         s.close()
 
 

@@ -44,7 +44,7 @@ import numpy as np
 import pytest
 
 import mimarble
-from mimarble.reference import channels, tracer, volume
+from mimarble.reference import channels, tracer, volume, volume_scene
 from mimarble.scene import model
 
 dr, mi = mimarble.dr, mimarble.mi
@@ -254,14 +254,14 @@ def test_channel_interval_bounds_every_value():
     for channel in (a, b, model.Add((a, b)), model.Multiply((a, b, a)),
                     model.Mix(a, b, 0.3), model.Mix(a, b, MARBLE_ALBEDO),
                     model.Multiply((model.Add((a, model.ColorChannel((-1.0, -1.0, -1.0)))), b))):
-        lo, hi = volume.channel_interval(channel)
+        lo, hi = volume_scene.channel_interval(channel)
         values = channels.channel_color(channel, points)
         assert np.all(values >= lo - 1e-12) and np.all(values <= hi + 1e-12), channel
-    lo, hi = volume.channel_interval(model.Multiply((b, model.ColorChannel((-2.0, 1.0, 0.5)))))
+    lo, hi = volume_scene.channel_interval(model.Multiply((b, model.ColorChannel((-2.0, 1.0, 0.5)))))
     assert np.allclose(lo, [-1.0, -0.2, 1.0]) and np.allclose(hi, lo)
     sub = model.Subsurface(albedo=b, mean_free_path=0.5, density=model.Add((a, b)))
     # mean of the upper bounds (1.6 + 0.5, 1.4 − 0.2, 1.5 + 2)/3
-    assert volume.density_bound(sub) == pytest.approx((2.1 + 1.2 + 3.5) / 3)
+    assert volume_scene.density_bound(sub) == pytest.approx((2.1 + 1.2 + 3.5) / 3)
 
 
 def test_white_sphere_under_a_white_sky_returns_the_sky_exactly():

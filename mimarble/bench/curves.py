@@ -53,7 +53,7 @@ def time_to_rmse(curve, target: float) -> float | None:
     return _log_between(curve[i][0], curve[min(i + 1, len(curve) - 1)][0], f)
 
 
-def _interpolated(curve, target: float, key: str) -> float | None:
+def value_at_crossing(curve, target: float, key: str) -> float | None:
     """``key`` of a curve's runs (dicts, coarse to fine) where :func:`time_to_rmse` puts
     the crossing, interpolated as the time is (its logarithm linear in log RMSE)."""
     at = _crossing([r["rmse"] for r in curve], target)
@@ -91,7 +91,7 @@ def times_to_plain_rmse(runs, target_spps=TARGET_SPPS) -> dict:
                 ms = time_to_rmse([(r["run_ms"], r["rmse"]) for r in curve], plain["rmse"])
                 by_mode[mode] = None if ms is None else {
                     "ms": ms, "speedup": plain["run_ms"] / ms,
-                    "mean_spp": _interpolated(curve, plain["rmse"], "mean_spp")
+                    "mean_spp": value_at_crossing(curve, plain["rmse"], "mean_spp")
                     if all("mean_spp" in r for r in curve) else None}
             out[str(spp)] = {"rmse": plain["rmse"], "plain_ms": plain["run_ms"],
                              "by_mode": by_mode}

@@ -2,8 +2,8 @@
 RMSE, when each pixel may end at any level of adaptive sampling's ladder.
 
 The oracle is given, for each level, the image every pixel would have there (an adaptive
-render that takes every pixel to that level, :func:`level_images`; at 1, 9, 81 spp a
-point-sampled one is the plain render's) and the converged image. For a price λ per sample each pixel ends at the
+render that takes every pixel to that level, :func:`level_images`, the first round's
+jump to 16 included; at 1, 9, 16, 81 spp a point-sampled one is the plain render's) and the converged image. For a price λ per sample each pixel ends at the
 level k that minimises e_k² + λ·c_k — e_k² its squared error summed over the colours,
 c_k the samples traced to end there (the ladder's kept samples are not traced again;
 a level that replaces traces its own anew) — which is the least total squared error for
@@ -17,17 +17,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from mimarble.bench.curves import _interpolated
+from mimarble.bench.curves import value_at_crossing
 
 
 def level_images(mitsuba_scene, spp: int, max_spp: int) -> tuple[list[np.ndarray], list[int]]:
     """(images, costs): every pixel of a loaded whitted scene taken to each level of
     adaptive sampling's ladder from ``spp`` to ``max_spp`` (a threshold below every
-    estimate), and the samples a pixel traces to end at each level."""
-    from mimarble.mitsuba.rendering.adaptive import ladder, render_adaptive
-    levels = ladder(spp, max_spp)
-    runs = [render_adaptive(mitsuba_scene, spp, -1.0, max_spp, rounds=k)
+    estimate), and to each level after the first round's jump (``jump_ladder``), and the
+    samples a pixel traces to end at each level; in order of cost."""
+    from mimarble.mitsuba.rendering.adaptive import jump_ladder, ladder, render_adaptive
+    levels, jumped = ladder(spp, max_spp), jump_ladder(spp, max_spp)
+    runs = [render_adaptive(mitsuba_scene, spp, -1.0, max_spp, rounds=k, jump="never")
             for k in range(len(levels))]
+    runs += [render_adaptive(mitsuba_scene, spp, -1.0, max_spp, rounds=k, jump="always")
+             for k in range(1, len(jumped or ()))]
+    runs.sort(key=lambda r: r.traced)
     pixels = runs[0].image.shape[0] * runs[0].image.shape[1]
     return [r.image for r in runs], [r.traced // pixels for r in runs]
 
@@ -43,7 +47,7 @@ def oracle_curve(images: list[np.ndarray], truth: np.ndarray, costs: list[int],
     errors = np.stack([np.sum(np.square(np.asarray(i, np.float64) - truth), axis=-1).ravel()
                        for i in images])                            # (levels, pixels)
     cost = np.asarray(costs, np.float64)[:, None]
-    gains = np.abs(np.diff(errors, axis=0)) / np.diff(cost, axis=0)
+    gains = np.abs(np.diff(errors, axis=0)) / np.maximum(np.diff(cost, axis=0), 1.0)
     top = max(float(gains.max()) if gains.size else 1.0, 1e-30) * 2
     runs = []
     for price in np.geomspace(top, top * 1e-12, prices):
@@ -58,4 +62,4 @@ def oracle_samples(images: list[np.ndarray], truth: np.ndarray, costs: list[int]
                    target: float) -> float | None:
     """Samples a pixel the oracle needs for RMSE ``target`` (interpolated in log-log
     between its runs), None when even every pixel at its best level misses it."""
-    return _interpolated(oracle_curve(images, truth, costs), target, "mean_spp")
+    return value_at_crossing(oracle_curve(images, truth, costs), target, "mean_spp")

@@ -42,8 +42,9 @@ def _process_seconds(args, repeats: int, expect: int = 0, fresh_caches=False,
 
     ``fresh_caches``: each run gets empty kernel and parser caches, as a new user has.
     Python's bytecode is written and used as an installed package's is, whatever
-    ``PYTHONDONTWRITEBYTECODE`` says here (without it, every run compiles mimarble and
-    Lark from source: ~0.3 s more).
+    ``PYTHONDONTWRITEBYTECODE`` says here (without it, every run compiles mimarble and Lark
+    from source, a cost the user's installed package does not have: docs/benchmarks.md,
+    "Figures moved out of the code").
     """
     import subprocess
     import sys

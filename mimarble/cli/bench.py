@@ -6,24 +6,24 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
-from mimarble.cli.shared import (UsageError, _check_folder, _check_spp, _check_suffix,
-    _checked_name, _say, _scene_list, _start)
+from mimarble.cli.shared import (UsageError, check_folder, check_spp, check_suffix,
+    checked_name, say, scene_list, start_mitsuba)
 from mimarble.runtime.extras import require_extra
 
 
 def _bench(args) -> int:
     from mimarble import scene as mimarble_scene
     from mimarble.scene import LIMITS
-    scenes = _scene_list(args.scenes)
+    scenes = scene_list(args.scenes)
     if not args.scenes:     # the paper's figures, then the fine veins beside them (issue 24)
         scenes += sorted(str(p) for p in (Path(scenes[0]).parent / "fine-veins").glob("*.scene"))
     lo, hi = LIMITS["image_size"]
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
     for spp in args.spp:
-        _check_spp(spp)
-    _check_spp(args.converged_spp, option="--converged-spp")
-    _check_spp(args.max_spp, option="--max-spp")
+        check_spp(spp)
+    check_spp(args.converged_spp, option="--converged-spp")
+    check_spp(args.max_spp, option="--max-spp")
     for threshold in args.adaptive or ():
         if not 0 < threshold < float("inf"):
             raise UsageError(f"--adaptive {threshold}: a threshold must be a finite number > 0")
@@ -33,16 +33,16 @@ def _bench(args) -> int:
     if args.repeats < 1:
         raise UsageError(f"--repeats {args.repeats}: must be at least 1")
     if args.json is not None:
-        _check_folder(_checked_name(args.json, "--json"))
+        check_folder(checked_name(args.json, "--json"))
     if args.plot is not None:
-        _check_folder(_check_suffix(Path(_checked_name(args.plot, "--plot")),
+        check_folder(check_suffix(Path(checked_name(args.plot, "--plot")),
                                     (".png", ".pdf", ".svg"), "plot"))
         require_extra("bench --plot")
     if args.page is not None:
-        _check_folder(_check_suffix(Path(_checked_name(args.page, "--page")), (".md",), "page"))
+        check_folder(check_suffix(Path(checked_name(args.page, "--page")), (".md",), "page"))
     for path in scenes:
         mimarble_scene.load(path)   # every scene error before minutes of measuring
-    _start(args)
+    start_mitsuba(args)
     from mimarble.bench.modes import ADAPTIVE_THRESHOLDS, modes
     from mimarble.bench.run import run_bench
     from mimarble.bench.targets import targets_scene
@@ -70,7 +70,7 @@ def _bench(args) -> int:
         if args.page:
             from mimarble.bench.page import plot_relative_to, write_section
             slug = write_section(args.page, results, plot_relative_to(args.page, args.plot))
-            _say(f"wrote the section of this machine ({slug}) into {args.page}")
+            say(f"wrote the section of this machine ({slug}) into {args.page}")
     except OSError as e:
         raise UsageError(f"could not write the results: {e}") from None
     return 0
@@ -80,8 +80,8 @@ def _stress(args) -> int:
     if args.points < 1:
         raise UsageError(f"--points {args.points}: must be at least 1")
     if args.json is not None:
-        _check_folder(_checked_name(args.json, "--json"))
-    _start(args)
+        check_folder(checked_name(args.json, "--json"))
+    start_mitsuba(args)
     from mimarble.runtime.files import write_json
     from mimarble.tools.stress import format_report, run_stress
     data = run_stress(points=args.points)

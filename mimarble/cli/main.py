@@ -20,10 +20,10 @@ import sys
 
 from mimarble.cli.arguments import build_parser, command_named
 # What tests and scripts call as ``cli.X`` (mimarble/cli/shared.py).
-from mimarble.cli.shared import UsageError, _load_scene, _scene_list, _start
+from mimarble.cli.shared import UsageError, load_scene, scene_list, start_mitsuba
 
-__all__ = ["main", "build_parser", "HANDLERS", "UsageError", "_load_scene", "_scene_list",
-           "_start"]
+__all__ = ["main", "build_parser", "HANDLERS", "UsageError", "load_scene", "scene_list",
+           "start_mitsuba"]
 
 #: Each command's handler: (module under mimarble/cli, function). The function takes the
 #: parsed arguments and returns the exit status (or raises UsageError, SceneError, …).

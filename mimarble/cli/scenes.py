@@ -6,12 +6,12 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from mimarble.cli.shared import UsageError, _new_folder, _say, _scene_list, _start
+from mimarble.cli.shared import UsageError, new_folder, say, scene_list, start_mitsuba
 
 
 def _gallery(args) -> int:
     from mimarble.scene import LIMITS
-    scenes = _scene_list(args.scenes)
+    scenes = scene_list(args.scenes)
     lo, hi = LIMITS["image_size"]
     if not lo <= args.size <= hi:
         raise UsageError(f"--size {args.size}: must be in {lo}..{hi}")
@@ -23,24 +23,24 @@ def _gallery(args) -> int:
         if problem:
             raise UsageError(f"{path}: the gallery names each image after its scene file, "
                              f"and {problem}")
-    _start(args)
+    start_mitsuba(args)
     from mimarble.runtime.environment import EnvironmentProblem, whitted_problem
     import mitsuba as mi
     problem = whitted_problem(mi.variant()) if args.mode == "whitted" else None
     if problem:                     # before a folder is made
         raise UsageError(problem)
-    folder = _new_folder(args.output, "-o")
+    folder = new_folder(args.output, "-o")
     from mimarble.tools.gallery import make_gallery
     written = 0
     try:
         for out, seconds in make_gallery(scenes, folder, args.size, args.mode):
             written += 1
-            _say(f"{out} ({seconds:.2f} s)")
+            say(f"{out} ({seconds:.2f} s)")
     except EnvironmentProblem:
         raise                       # what cannot render here (a variant), said as itself
     except (OSError, RuntimeError) as e:
         raise UsageError(f"{folder}: could not write the gallery: {e}") from None
-    _say(f"wrote {written} image{'s' * (written != 1)} to {folder}{os.sep}")
+    say(f"wrote {written} image{'s' * (written != 1)} to {folder}{os.sep}")
     return 0
 
 
@@ -58,7 +58,7 @@ def _scenes(args) -> int:
         print("render one by name (`mimarble render fig11a`, when no file of that name is "
               "here); copy them out with `mimarble scenes --copy DIR`")
         return 0
-    folder = _new_folder(args.copy, "--copy")
+    folder = new_folder(args.copy, "--copy")
     try:
         written = packaged_scenes.copy_to(folder)
     except packaged_scenes.CopyRefused as e:
@@ -67,6 +67,6 @@ def _scenes(args) -> int:
         raise UsageError(f"{folder}: could not copy the scenes: {e.strerror or e}") from None
     scenes = sum(1 for p in written if p.suffix == packaged_scenes.SUFFIX)
     others = len(written) - scenes
-    _say(f"copied {scenes} scenes and {others} other file{'s' * (others != 1)} (image maps, "
+    say(f"copied {scenes} scenes and {others} other file{'s' * (others != 1)} (image maps, "
           f"README) to {folder}{os.sep}")
     return 0

@@ -17,7 +17,7 @@ class UsageError(Exception):
     """A user mistake on the command line (exit status 2)."""
 
 
-def _start(args) -> None:
+def start_mitsuba(args) -> None:
     """Load Dr.Jit and Mitsuba and set the variant, now that the command needs them.
 
     Everything before this (arguments, output names, the scene file) is checked
@@ -34,12 +34,12 @@ def _start(args) -> None:
     mimarble.start()
 
 
-def _scene_list(given) -> list[str]:
-    """The scenes named (each by the SCENE rule: :func:`_scene_path`), else
+def scene_list(given) -> list[str]:
+    """The scenes named (each by the SCENE rule: :func:`scene_path`), else
     ./scenes/*.scene, else the packaged paper figures."""
     from mimarble.runtime import packaged_scenes
     if given:
-        return [_scene_path(name) for name in given]
+        return [scene_path(name) for name in given]
     scenes = (sorted(str(p) for p in Path("scenes").glob("*.scene"))
               or [str(p) for p in packaged_scenes.figures()])
     if not scenes:
@@ -48,7 +48,7 @@ def _scene_list(given) -> list[str]:
     return scenes
 
 
-def _scene_path(argument) -> str:
+def scene_path(argument) -> str:
     """A SCENE argument as the file to read: a path that exists always wins, then a
     packaged scene's name (``fig11a``), else the path itself, whose reading says what is
     wrong (mimarble/runtime/packaged_scenes.py)."""
@@ -63,14 +63,14 @@ def _scene_path(argument) -> str:
     return path
 
 
-def _say(text: str, **print_options) -> None:
+def say(text: str, **print_options) -> None:
     """Print a line that echoes the user's names (scene files, output names, values), each
     character that would act on the terminal shown escaped (scene/errors.py, printable)."""
     from mimarble.scene.errors import printable
     print(printable(text), **print_options)
 
 
-def _checked_name(value, option: str | None = None) -> str:
+def checked_name(value, option: str | None = None) -> str:
     """``value``, an output option's (``option``: ``-o``, ``--diff``, …; None: a default
     name made from the scene file's), if every writer can write under it: the one rule of
     mimarble/runtime/files.py (:func:`~mimarble.runtime.files.output_name_problem`: not empty, no NUL, UTF-8)."""
@@ -83,7 +83,7 @@ def _checked_name(value, option: str | None = None) -> str:
     return value
 
 
-def _check_folder(path) -> Path:
+def check_folder(path) -> Path:
     """``path``, if it can be written as a new file: the folder it goes in exists, and it
     is not a folder or a symbolic link (a rename would replace the link, not write where
     it points: name the file itself)."""
@@ -101,7 +101,8 @@ def _check_folder(path) -> Path:
     return path
 
 
-def _check_suffix(path: Path, suffixes, what: str) -> Path:
+def check_suffix(path: Path, suffixes, what: str) -> Path:
+    """``path`` if its suffix is one of ``suffixes`` (any case), else a UsageError naming them."""
     from mimarble.runtime.image_formats import formats_sentence
     if path.suffix.lower() not in suffixes:
         raise UsageError(f"{path}: unsupported {what} format {path.suffix or '(none)'!r}; "
@@ -109,7 +110,7 @@ def _check_suffix(path: Path, suffixes, what: str) -> Path:
     return path
 
 
-def _quality(args, out: Path) -> int | None:
+def chosen_quality(args, out: Path) -> int | None:
     """``--quality``: an integer in 1..100, for a .jpg or .jpeg output only."""
     from mimarble.runtime.image_formats import JPEG_FORMATS, formats_sentence, quality_problem
     quality = getattr(args, "quality", None)
@@ -124,7 +125,7 @@ def _quality(args, out: Path) -> int | None:
     return quality
 
 
-def _crop(args, scene):
+def chosen_crop(args, scene):
     """``--crop X0 Y0 X1 Y1``, checked against the image's size (after --width/--height)."""
     from mimarble.mitsuba.rendering.crop import crop_problem, crop_words
     crop = getattr(args, "crop", None)
@@ -136,28 +137,30 @@ def _crop(args, scene):
     return tuple(crop)
 
 
-def _output_path(args, default_suffix=".png") -> Path:
+def output_path(args, default_suffix=".png") -> Path:
+    """The image file to write: ``-o``, else the scene's stem with ``default_suffix``; its
+    name, format and folder checked (a UsageError for a folder, a format or a name)."""
     from mimarble.runtime.image_formats import IMAGE_FORMATS
-    out = Path(_checked_name(args.output, "-o") if args.output is not None
-               else _checked_name(Path(_scene_path(args.scene)).stem + default_suffix))
+    out = Path(checked_name(args.output, "-o") if args.output is not None
+               else checked_name(Path(scene_path(args.scene)).stem + default_suffix))
     try:
         folder = out.is_dir() and not out.is_symlink()
     except OSError:
-        folder = False            # said by _check_folder
+        folder = False            # said by check_folder
     if folder:
         raise UsageError(f"{out}: is a folder; name the image file, e.g. "
                          f"{out / (Path(args.scene).stem + default_suffix)}")
-    return _check_folder(_check_suffix(out, IMAGE_FORMATS, "image"))
+    return check_folder(check_suffix(out, IMAGE_FORMATS, "image"))
 
 
-def _load_scene(args):
+def load_scene(args):
     """The scene file, with ``--width``/``--height`` applied, and warnings for an empty scene."""
     import warnings
 
     from mimarble import scene as scene_language
     from mimarble.scene import LIMITS
     from mimarble.scene.edits import with_image_size
-    scene = scene_language.load(_scene_path(args.scene))
+    scene = scene_language.load(scene_path(args.scene))
     lo, hi = LIMITS["image_size"]
     size = {}
     for option in ("width", "height"):
@@ -185,7 +188,8 @@ def _load_scene(args):
     return scene
 
 
-def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
+def check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
+    """``spp`` if it is at least 1 and, in whitted mode, a perfect square (n×n grid)."""
     from mimarble.scene.model import samples_per_axis
     if spp < 1:
         raise UsageError(f"{option} {spp}: must be at least 1")
@@ -198,7 +202,9 @@ def _check_spp(spp: int, whitted: bool = True, option: str = "--spp") -> int:
     return spp
 
 
-def _spp(args, scene) -> int:
+def chosen_spp(args, scene) -> int:
+    """The render's samples per pixel: ``--spp``, else the scene's ``samples``, checked for
+    the mode, the image's sample limit and (with ``--adaptive``) the adaptive options."""
     from mimarble.scene.rules import spp_problem
     from mimarble.scene.model import samples_per_axis
     spp = scene.image.samples if args.spp is None else args.spp
@@ -211,30 +217,32 @@ def _spp(args, scene) -> int:
             raise UsageError(f"{where}: samples {spp}: whitted mode (and the reference tracer) "
                              f"sample an n×n grid, so it must be a perfect square (1, 4, 9, 16, …); "
                              f"path mode takes any count (--mode path), or override it with --spp")
-    _check_spp(spp, whitted)
+    check_spp(spp, whitted)
     problem = spp_problem(spp, scene.image.width, scene.image.height)
     if problem:
         raise UsageError(f"--{problem}")
     if getattr(args, "adaptive", None) is not None:
         from mimarble.scene.rules import adaptive_problem
-        problem = adaptive_problem(args.adaptive, _max_spp(args, spp), spp,
+        problem = adaptive_problem(args.adaptive, chosen_max_spp(args, spp), spp,
                                    scene.image.width, scene.image.height)
         if problem:
             raise UsageError(problem.replace("max_spp=", "--max-spp "))
     return spp
 
 
-def _max_spp(args, spp: int) -> int:
+def chosen_max_spp(args, spp: int) -> int:
     """An adaptive render's most samples per pixel: ``--max-spp``, else the default
     (``scene.rules.default_max_spp``: mimarble.render's rule)."""
     from mimarble.scene.rules import default_max_spp
     return default_max_spp(spp, args.max_spp)
 
 
-def _write(out: Path, image, eight_bit: bool = False, quality: int | None = None,
-           origin=(0, 0)) -> None:
+def write_output(out: Path, image, eight_bit: bool = False, quality: int | None = None,
+                 origin=(0, 0)) -> None:
+    """Write ``image`` to ``out`` (8-bit RGB, or the format its suffix names); a failure as a
+    UsageError naming the file."""
     from mimarble.mitsuba.rendering.image_output import write_image, write_rgb8
-    _check_folder(out)
+    check_folder(out)
     try:
         if eight_bit:
             write_rgb8(out, image)
@@ -244,18 +252,18 @@ def _write(out: Path, image, eight_bit: bool = False, quality: int | None = None
         raise UsageError(f"{out}: could not write the image: {e}") from None
 
 
-def _adaptive_words(args, spp: int) -> str:
+def adaptive_words(args, spp: int) -> str:
     """How an adaptive render is described after its mode ('' for none)."""
     if args.adaptive is None:
         return ""
-    return f", adaptive {args.adaptive:g} up to {_max_spp(args, spp)} spp"
+    return f", adaptive {args.adaptive:g} up to {chosen_max_spp(args, spp)} spp"
 
 
-def _new_folder(path, option: str) -> Path:
+def new_folder(path, option: str) -> Path:
     """``path`` (the value of ``option``) as a folder to write into: one that exists, or a
     new one in a folder that exists (made by the caller; a missing parent is refused, as
     ``render -o`` refuses it), never a symbolic link that leads nowhere."""
-    folder = Path(_checked_name(path, option))
+    folder = Path(checked_name(path, option))
     try:
         if folder.is_symlink() and not folder.exists():
             raise UsageError(f"{folder}: is a symbolic link to {os.readlink(folder)}, which "
@@ -269,7 +277,7 @@ def _new_folder(path, option: str) -> Path:
     return folder
 
 
-def _check_adaptive_options(args) -> None:
+def check_adaptive_options(args) -> None:
     """``--adaptive`` needs whitted mode and no ``--edge-spp``; ``--max-spp`` needs it."""
     if args.adaptive is None:
         if args.max_spp is not None:
@@ -283,9 +291,9 @@ def _check_adaptive_options(args) -> None:
                          "--edge-spp, not both")
 
 
-def _check_whitted_options(args) -> None:
+def check_whitted_options(args) -> None:
     """``--edge-spp`` and a ``--filter`` other than none need whitted mode."""
-    _check_adaptive_options(args)
+    check_adaptive_options(args)
     if args.edge_spp and args.mode != "whitted":
         raise UsageError(f"--edge-spp needs whitted mode (its stratum centres), not --mode {args.mode}")
     if args.filter not in (None, "none") and args.mode != "whitted":

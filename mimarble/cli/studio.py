@@ -8,21 +8,21 @@ import sys
 import threading
 import warnings
 
-from mimarble.cli.shared import UsageError, _say, _scene_path, _start
+from mimarble.cli.shared import UsageError, say, scene_path, start_mitsuba
 
 
 def _studio(args) -> int:
     """Serve the studio until Ctrl-C: then one line, exit status 0, nothing left running."""
     from mimarble.runtime.extras import require_extra
     require_extra("studio")                    # one sentence naming the extra, exit 2
-    path = _scene_path(args.scene)
+    path = scene_path(args.scene)
     from mimarble import scene as scene_language
     scene_language.load(path)                  # a bad scene answers before Dr.Jit loads
     from mimarble.studio.server import is_loopback
     if not is_loopback(args.host):
         warnings.warn(f"--host {args.host}: the studio is reachable from other machines; "
                       f"whoever has its URL (token) can edit the scene and write files")
-    _start(args)
+    start_mitsuba(args)
     from mimarble.studio import StudioSession
     from mimarble.studio.server import StudioServer
     try:
@@ -38,9 +38,9 @@ def _studio(args) -> int:
             raise UsageError(f"cannot listen on {args.host}:{args.port}: "
                              f"{e.strerror or e}") from None
         try:
-            _say(f"mimarble studio: {path}")
-            _say(f"    {server.url}")
-            _say("open that URL (it holds the page's token); Ctrl-C stops the studio", flush=True)
+            say(f"mimarble studio: {path}")
+            say(f"    {server.url}")
+            say("open that URL (it holds the page's token); Ctrl-C stops the studio", flush=True)
             if not args.no_browser:
                 _open_browser(server.url)
             stop = threading.Event()
@@ -61,7 +61,7 @@ def _open_browser(url: str) -> None:
     ``webbrowser`` would start a text browser in this terminal, over the server's output."""
     if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                  or os.environ.get("WAYLAND_DISPLAY")):
-        _say("(no display: open the URL in a browser yourself)", flush=True)
+        say("(no display: open the URL in a browser yourself)", flush=True)
         return
     import webbrowser
     threading.Thread(target=webbrowser.open, args=(url,), daemon=True,

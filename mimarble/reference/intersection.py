@@ -16,15 +16,15 @@ import numpy as np
 from mimarble.contract import T_MIN_REL
 
 from .channels import channel_color, needs_uv, sphere_uv
-from .preparation import SLOTS, PreparedScene, _as_prepared, _normalize
-from .shapes import REFERENCE_SHAPES
+from .preparation import SLOTS, PreparedScene, as_prepared
+from .shapes import REFERENCE_SHAPES, normalize_rows
 from .vertex_normals import interpolated_normals
 
 
 # ---------------------------------------------------------------------------
 # Intersection
 
-def _roots(o, d, center, radius):
+def sphere_roots(o, d, center, radius):
     """Both roots t_near ≤ t_far of |o + t d − c| = r for unit d (NaN where none).
 
     Stable form: b = (o−c)·d, disc = r² − |(o−c) − b d|² (no cancellation in
@@ -52,7 +52,7 @@ def intersect_spheres(centers, radii, o, d, t_min):
     best_i = np.full(n, -1, dtype=np.int64)
     t_min = np.broadcast_to(np.asarray(t_min, dtype=np.float64), (n,))
     for s in range(len(radii)):
-        tn, tf = _roots(o, d, centers[s], radii[s])
+        tn, tf = sphere_roots(o, d, centers[s], radii[s])
         t = np.where(tn > t_min, tn, np.where(tf > t_min, tf, np.inf))   # NaN compares False
         closer = t < best_t
         best_t = np.where(closer, t, best_t)
@@ -75,7 +75,7 @@ def shadow_hit(centers, radii, o, d, t_max):
     for s in range(len(radii)):
         if live.size == 0:
             break
-        tn, tf = _roots(o[live], d[live], centers[s], radii[s])
+        tn, tf = sphere_roots(o[live], d[live], centers[s], radii[s])
         tm = t_max[live]
         hit_s = ((tn > 0.0) & (tn < tm)) | ((tf > 0.0) & (tf < tm))
         blocked[live[hit_s]] = True
@@ -198,7 +198,7 @@ def _closest_of_all(prep: PreparedScene, o, d, t_min, t, s) -> HitRecord:
     on = tri >= 0
     if on.any():
         corners = prep.meshes.positions[prep.meshes.triangles[tri[on]]]     # (k, 3, 3)
-        n[on] = _normalize(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
+        n[on] = normalize_rows(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]))
     v = -dd
     flip = np.einsum("ij,ij->i", n, v) < 0.0
     n[flip] = -n[flip]
@@ -287,7 +287,7 @@ def fill_channels(prep: PreparedScene, rec: HitRecord, needed: dict) -> HitRecor
 
 def hit(prep: PreparedScene, o, d) -> HitRecord:
     """Closest hit with every present channel's colour at every hit point."""
-    prep = _as_prepared(prep)
+    prep = as_prepared(prep)
     rec = closest_hit(prep, o, d)
     everywhere = np.ones(rec.index.size, dtype=bool)
     return fill_channels(prep, rec, {slot: everywhere for slot in SLOTS})

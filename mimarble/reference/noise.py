@@ -40,7 +40,8 @@ import numpy as np
 
 from mimarble.contract import MAX_OCTAVES, NOISE_BOUND
 
-__all__ = ["P", "G", "omega", "noise", "noise3", "fractal", "fractal3", "MAX_OCTAVES", "NOISE_BOUND"]
+__all__ = ["P", "G", "omega", "noise", "noise3", "fractal", "fractal3", "MAX_OCTAVES", "NOISE_BOUND",
+           "mod256"]
 
 # Ken Perlin's permutation of 0..255 (ImprovedNoise.java, 2002).
 P = np.array([
@@ -78,7 +79,7 @@ def omega(t):
     return np.where(a < 1.0, ((-6.0 * a + 15.0) * a - 10.0) * a * a * a + 1.0, 0.0)
 
 
-def _mod256(c):
+def mod256(c):
     """``c mod 256`` in 0..255 (int64) of float64 integers of any magnitude; exact."""
     r = np.fmod(c, 256.0)
     r = np.where(r < 0.0, r + 256.0, r)
@@ -96,7 +97,7 @@ def noise(x, y, z):
 
     xi, yi, zi = np.floor(x), np.floor(y), np.floor(z)
     fx, fy, fz = x - xi, y - yi, z - zi          # exact, in [0, 1)
-    X0, Y0, Z0 = _mod256(xi), _mod256(yi), _mod256(zi)
+    X0, Y0, Z0 = mod256(xi), mod256(yi), mod256(zi)
     X1, Y1, Z1 = (X0 + 1) & 255, (Y0 + 1) & 255, (Z0 + 1) & 255
 
     # Per-axis offsets to the two corners and their weights.

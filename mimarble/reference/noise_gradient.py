@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .noise import G, MAX_OCTAVES, P, _mod256, omega, noise
+from .noise import G, MAX_OCTAVES, P, mod256, omega, noise
 
 __all__ = ["omega_derivative", "noise_gradient", "fractal_gradient"]
 
@@ -34,9 +34,9 @@ def noise_gradient(x, y, z):
     shape = x.shape
     x, y, z = (c.ravel() for c in (x, y, z))
     xi, yi, zi = np.floor(x), np.floor(y), np.floor(z)
-    X = (_mod256(xi), (_mod256(xi) + 1) & 255)
-    Y = (_mod256(yi), (_mod256(yi) + 1) & 255)
-    Z = (_mod256(zi), (_mod256(zi) + 1) & 255)
+    X = (mod256(xi), (mod256(xi) + 1) & 255)
+    Y = (mod256(yi), (mod256(yi) + 1) & 255)
+    Z = (mod256(zi), (mod256(zi) + 1) & 255)
     d = [(x - xi, x - xi - 1.0), (y - yi, y - yi - 1.0), (z - zi, z - zi - 1.0)]
     w = [(omega(a), omega(b)) for a, b in d]
     dw = [(omega_derivative(a), omega_derivative(b)) for a, b in d]

@@ -29,7 +29,7 @@ from .channels import needs_uv
 from .environment import EnvironmentLookup
 from mimarble.meshes.arrays import read_mesh
 from .vertex_normals import angle_weighted_normals, placed_normals
-from .shapes import REFERENCE_SHAPES, _from_world, _normalize
+from .shapes import REFERENCE_SHAPES, from_world_rows, normalize_rows
 from .triangles import TriangleBVH
 
 #: The material components, in the order of the shading formula.
@@ -191,7 +191,7 @@ def _object_space(scene: Scene, channels: tuple) -> np.ndarray | None:
     object space."""
     if not any(in_object_space(ch) for ch in channels):
         return None
-    return _from_world([shape for _, shape in scene.shapes()])
+    return from_world_rows([shape for _, shape in scene.shapes()])
 
 
 def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
@@ -259,7 +259,8 @@ def prepare(scene: Scene, meshes: tuple | None = None) -> PreparedScene:
     )
 
 
-def _as_prepared(scene) -> PreparedScene:
+def as_prepared(scene) -> PreparedScene:
+    """``scene`` if it is a :class:`PreparedScene` already, else :func:`prepare` of it."""
     return scene if isinstance(scene, PreparedScene) else prepare(scene)
 
 
@@ -269,8 +270,8 @@ def _as_prepared(scene) -> PreparedScene:
 def camera_basis(camera, aspect: float):
     """(eye, f, r, u, tan_half, aspect) of the pinhole camera, float64."""
     eye = np.array(camera.eye, dtype=np.float64)
-    f = _normalize(np.array(camera.lookat, dtype=np.float64) - eye)
-    r = _normalize(np.cross(f, np.array(camera.up, dtype=np.float64)))
+    f = normalize_rows(np.array(camera.lookat, dtype=np.float64) - eye)
+    r = normalize_rows(np.cross(f, np.array(camera.up, dtype=np.float64)))
     u = np.cross(r, f)
     tan_half = math.tan(math.radians(camera.fov) / 2.0)
     return eye, f, r, u, tan_half, float(aspect)
@@ -285,7 +286,7 @@ def camera_rays(scene: Scene, x, y):
     x = np.asarray(x, dtype=np.float64).reshape(-1, 1)
     y = np.asarray(y, dtype=np.float64).reshape(-1, 1)
     d = f + ((2.0 * x - 1.0) * (tan_half * aspect)) * r + ((1.0 - 2.0 * y) * tan_half) * u
-    return eye, _normalize(d)
+    return eye, normalize_rows(d)
 
 
 def sample_positions(width: int, height: int, n: int, first_pixel: int = 0, stop_pixel: int | None = None):

@@ -43,14 +43,15 @@ import numpy as np
 from mimarble.contract import PREVIEW_MAX_DEPTH, T_MIN_REL
 
 from .channels import channel_color
-from .intersection import _roots as sphere_roots
-from .subsurface_reflectance import diffuse_fresnel_reflectance, spherical_albedo, spherical_albedo_seen
-from .volume import (CHUNK_PATHS, _checked, _cosine_about, _exit_lobe, _sky, fresnel_dielectric,
-                     nearer_lights, pixel_means)
+from .intersection import sphere_roots
+from .subsurface_reflectance import (diffuse_fresnel_reflectance, spherical_albedo,
+                                     spherical_albedo_seen)
+from .volume import (CHUNK_PATHS, checked_walk_arguments, cosine_about, exit_lobe, sky_radiance,
+                     fresnel_dielectric, nearer_lights, pixel_means)
 from .volume_lights import exit_lighting
-from .volume_scene import _Lights, _Spheres
+from .volume_scene import WalkLights, WalkSpheres
 
-__all__ = ["render_preview", "PREVIEW_MAX_DEPTH"]
+__all__ = ["render_preview"]
 
 
 def render_preview(scene, spp: int, seed: int = 0, *, max_depth: int = PREVIEW_MAX_DEPTH,
@@ -59,10 +60,10 @@ def render_preview(scene, spp: int, seed: int = 0, *, max_depth: int = PREVIEW_M
     (H, W, 3), linear, each pixel the mean of ``spp`` paths at uniform random positions in
     it. ``max_depth`` ≥ 1 as Mitsuba's ``path``; with ``variance=True`` returns
     ``(image, sample_variance)``, each pixel's unbiased variance of one sample."""
-    _checked(scene, spp, max_depth, None, chunk_paths)
-    spheres = _Spheres(scene)
-    lights = _Lights(scene)
-    sky = _sky(scene)
+    checked_walk_arguments(scene, spp, max_depth, None, chunk_paths)
+    spheres = WalkSpheres(scene)
+    lights = WalkLights(scene)
+    sky = sky_radiance(scene)
     rng = np.random.default_rng(seed)
     return pixel_means(scene, int(spp), rng, chunk_paths, variance,
                        lambda o, d: _paths(spheres, lights, sky, o, d, rng, int(max_depth)))
@@ -93,7 +94,7 @@ def _paths(spheres, lights, sky, o, d, rng, max_depth):
     sampled_lights = bool(lights.points or lights.spheres or lights.rectangles)
 
     def lobe(cos_l, k):
-        return _exit_lobe(cos_l, spheres.ior[k], exit_scale[k])
+        return exit_lobe(cos_l, spheres.ior[k], exit_scale[k])
 
     live = np.arange(n)
     while live.size:
@@ -128,7 +129,7 @@ def _paths(spheres, lights, sky, o, d, rng, max_depth):
         cos_i = np.clip(-np.einsum("ij,ij->i", dd[hit], normal), 0.0, 1.0)
         f_i, _ = fresnel_dielectric(cos_i, spheres.ior[s])
         mirror = rng.random(j.size) < f_i
-        lobe_dir = _cosine_about(rng, normal)
+        lobe_dir = cosine_about(rng, normal)
         albedo = np.zeros((j.size, 3))
         for k in np.unique(s):
             here = np.flatnonzero(s == k)

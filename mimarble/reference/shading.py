@@ -15,7 +15,8 @@ import numpy as np
 from mimarble.contract import EPS_REL
 
 from .intersection import HitRecord, fill_channels, occluded
-from .preparation import SLOTS, AreaSamples, PreparedScene, _normalize, area_sample_points
+from .preparation import SLOTS, AreaSamples, PreparedScene, area_sample_points
+from .shapes import normalize_rows
 
 
 # ---------------------------------------------------------------------------
@@ -56,7 +57,7 @@ def shade(prep: PreparedScene, rec: HitRecord, d: np.ndarray | None = None) -> n
                 any_visible |= sums[0]
             continue
         lp = prep.light_positions[li]
-        l_hat = _normalize(lp - p)
+        l_hat = normalize_rows(lp - p)
         ndotl = np.einsum("ij,ij->i", n, l_hat)
         front = np.nonzero(ndotl > 0.0)[0]
         visible = np.zeros(k, dtype=bool)
@@ -67,7 +68,7 @@ def shade(prep: PreparedScene, rec: HitRecord, d: np.ndarray | None = None) -> n
             visible[front[~blocked]] = True
         if not visible.any():
             continue
-        h_hat = _normalize(l_hat + v)
+        h_hat = normalize_rows(l_hat + v)
         ndoth = np.einsum("ij,ij->i", n, h_hat)
         lights.append((li, visible, ndotl, ndoth))
         any_visible |= visible
@@ -110,7 +111,7 @@ def _area_light(prep: PreparedScene, pattern: AreaSamples, p, n, v, p_shadow, sh
     diffuse_sum = np.zeros(k)
     specular_sum = np.zeros(k)
     for lp in area_sample_points(pattern, p):        # (k, 3) each
-        l_hat = _normalize(lp - p)
+        l_hat = normalize_rows(lp - p)
         ndotl = np.einsum("ij,ij->i", n, l_hat)
         front = np.nonzero(ndotl > 0.0)[0]
         if front.size == 0:
@@ -123,7 +124,7 @@ def _area_light(prep: PreparedScene, pattern: AreaSamples, p, n, v, p_shadow, sh
             continue
         seen[lit] = True
         diffuse_sum[lit] += ndotl[lit]
-        ndoth = np.einsum("ij,ij->i", n[lit], _normalize(l_hat[lit] + v[lit]))
+        ndoth = np.einsum("ij,ij->i", n[lit], normalize_rows(l_hat[lit] + v[lit]))
         specular_sum[lit] += np.maximum(0.0, ndoth) ** shin[lit]
     if not seen.any():
         return None

@@ -19,10 +19,11 @@ import numpy as np
 from mimarble.scene import geometry
 
 __all__ = ["ReferenceShape", "REFERENCE_SHAPES", "PlaneArrays", "BoxArrays", "intersect_planes",
-           "intersect_boxes"]
+           "intersect_boxes", "normalize_rows", "from_world_rows"]
 
 
-def _normalize(v):
+def normalize_rows(v):
+    """v/|v| along the last axis: each row of ``v`` (…, 3) scaled to unit length."""
     return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
@@ -47,7 +48,7 @@ class BoxArrays:
     from_world: np.ndarray         # (B, 3, 4)
 
 
-def _from_world(shapes) -> np.ndarray:
+def from_world_rows(shapes) -> np.ndarray:
     """object_to_world(shape)⁻¹ of each shape (:func:`mimarble.scene.geometry.object_to_world`),
     inverted in float64, as rows 3×4: (n, 3, 4)."""
     if not shapes:
@@ -60,7 +61,7 @@ def _plane_arrays(scene, planes) -> PlaneArrays:
     disks = [geometry.plane_disk(scene, plane) for plane in planes]
     normal = np.array([pl.normal for pl in planes], dtype=np.float64)
     return PlaneArrays(point=np.array([pl.point for pl in planes], dtype=np.float64),
-                       normal=_normalize(normal),
+                       normal=normalize_rows(normal),
                        centre=np.array([c for c, _ in disks], dtype=np.float64),
                        radius=np.array([r for _, r in disks], dtype=np.float64))
 
@@ -68,7 +69,7 @@ def _plane_arrays(scene, planes) -> PlaneArrays:
 def _box_arrays(scene, boxes) -> BoxArrays:
     return BoxArrays(lo=np.array([b.min for b in boxes], dtype=np.float64),
                      hi=np.array([b.max for b in boxes], dtype=np.float64),
-                     from_world=_from_world(boxes))
+                     from_world=from_world_rows(boxes))
 
 
 def intersect_planes(planes: PlaneArrays, o, d, t_lo, t_hi):
@@ -135,7 +136,7 @@ def _plane_normal(planes: PlaneArrays, k, extra, p):
 
 def _box_normal(boxes: BoxArrays, k, axis, p):
     # The face's object normal ±e_k to the world by (M⁻¹)ᵀ: row k of M⁻¹'s linear part.
-    return _normalize(boxes.from_world[k, axis, :3])
+    return normalize_rows(boxes.from_world[k, axis, :3])
 
 
 @dataclass(frozen=True)

@@ -67,9 +67,9 @@ from mimarble.scene.model import Scene, samples_per_axis
 from .channels import channel_color
 from .intersection import (HitRecord, closest_hit, fill_channels, hit, hit_uv, intersect_spheres,
                            object_points, occluded, shadow_hit)
-from .preparation import (SLOTS, AreaSamples, MeshArrays, PreparedScene, _as_prepared,
-                          area_sample_points, area_samples, camera_basis, camera_rays, prepare, read_meshes,
-                          sample_positions)
+from .preparation import (SLOTS, AreaSamples, MeshArrays, PreparedScene, as_prepared,
+                          area_sample_points, area_samples, camera_basis, camera_rays, prepare,
+                          read_meshes, sample_positions)
 from .shading import shade
 from .shapes import BoxArrays, PlaneArrays, intersect_boxes, intersect_planes
 
@@ -114,7 +114,7 @@ CHUNK_RAYS = 65536
 
 def trace(scene, o, d) -> np.ndarray:
     """Radiance along rays (o (3,) or (N, 3), unit d (N, 3)) -> (N, 3)."""
-    prep = _as_prepared(scene)
+    prep = as_prepared(scene)
     d = np.asarray(d, dtype=np.float64).reshape(-1, 3)
     return shade(prep, closest_hit(prep, o, d), d)
 

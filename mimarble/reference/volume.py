@@ -21,7 +21,7 @@ restricted to what translucent scenes need:
   components, at least 0; 1 without a density channel), albedo α(p) the albedo channel's
   RGB clamped to [0, 1], isotropic phase function. Sampled by **delta tracking** with the
   majorant σ̄ = bound(d)/``mean_free_path``, bound(d) an upper bound of the density
-  computed here by interval arithmetic on the channel (:func:`channel_interval`: a colour
+  computed here by interval arithmetic on the channel (:func:`~.volume_scene.channel_interval`: a colour
   is its value, a marble lies between its ramp colours' smallest and largest component,
   sums, products and mixes combine the intervals): a tentative collision at distance
   −ln(1 − u)/σ̄ is real with probability σ_t(p)/σ̄ (then the weight is multiplied by α(p)
@@ -37,7 +37,7 @@ restricted to what translucent scenes need:
   with an environment and area lights is refused, since its camera rays would see the
   lights); spherical and
   rectangular area lights as emitting shapes (black, they end the path) of the radiance
-  that path mode gives them (:func:`area_radiance`, the rule of
+  that path mode gives them (:func:`~.volume_scene.area_radiance`, the rule of
   ``mimarble.mitsuba.translate.lights.area_light_dict`` re-derived from the model): a sphere of
   radius R emits L = I·d²/R² (d the distance from its centre to the camera's look-at
   point), so that its radiant intensity π·R²·L is the path-mode point light's I·π·d²; a
@@ -66,25 +66,20 @@ restricted to what translucent scenes need:
   real medium collision increments depth (and its lighting is skipped once depth reaches
   max_depth), a non-null BSDF sample increments it, and an emitter met on a surface is
   counted at the depth the path has then.
-* :data:`MAX_DEPTH` = **1024** is this module's default and its recommendation for the
-  ``volpath`` of path mode. A marble's albedo is high (0.99–0.999) and its mean free path
-  short beside the object, so light leaves after hundreds of collisions. Measured on a
-  unit sphere (η 1.5, behind the former smooth dielectric boundary) under a white sky,
-  the mean of the pixels it covers (24², 64 spp):
-  albedo 0.99, mean free path 0.05: 0.628 at depth 64, 0.697 at 256, 0.699 at 1024 and
-  4096; albedo 0.999, mean free path 0.02: 0.665, 0.828, 0.888, 0.895 (± 0.003). So 64
-  loses 10–26 % of the light there, 1024 under 1 %; the tests' spheres (mean free path
+* :data:`MAX_DEPTH` = ``contract.VOLPATH_MAX_DEPTH`` is this module's default, path
+  mode's ``volpath``'s too. A marble's albedo is high (0.99–0.999) and its mean free path
+  short beside the object, so light leaves after hundreds of collisions: a low cap loses
+  light, the more the whiter the marble, while the tests' spheres (mean free path
   0.25–0.3, albedo ≤ 0.97) lose nothing at 64. The cost grows with the cap only where
-  light does travel that far: in the albedo 0.999 case this walk takes 2.8 s at 1024
-  against 0.7 s at 64, Mitsuba's volpath without roulette 5.6 s against 0.5 s per
-  256-spp render (24², llvm_ad_rgb, 2-core AMD EPYC).
+  light does travel that far. The light kept and the time at each cap:
+  docs/benchmarks.md, "Walk length and sampler against Cycles".
 * **Russian roulette** (unbiased): after a real event that leaves a path at depth
-  k > ``rr_depth`` (default :data:`ROULETTE_DEPTH` = 5, Mitsuba's ``rr_depth``), the path
+  k > ``rr_depth`` (default ``contract.ROULETTE_DEPTH`` = 5, Mitsuba's ``rr_depth``), the path
   survives with probability q = min(max_c β_c, q_max) (β its RGB weight) and its weight
   becomes β/q. With a finite ``max_depth`` q_max = 1: a roulette never lifts a weight's
   largest component above 1 (the exits' W ≤ 1/(1 − F̄) aside), so the variance stays
   bounded. With
-  ``max_depth`` −1, q_max = :data:`ROULETTE_MAX` = 0.95 (Mitsuba's), which ends every path
+  ``max_depth`` −1, q_max = ``contract.ROULETTE_MAX`` = 0.95 (Mitsuba's), which ends every path
   with probability 1 (in a part of a sphere of density 0 too) at the price of weights
   (α/0.95)^k that grow where the albedo α exceeds 0.95: in an optically thick, nearly
   white medium their variance is so large that an image converges very slowly. Mitsuba's
@@ -117,23 +112,22 @@ from mimarble.scene.rules import spp_problem
 
 from mimarble.contract import ROULETTE_DEPTH, ROULETTE_MAX, T_MIN_REL, VOLPATH_MAX_DEPTH
 
-from .intersection import _roots as sphere_roots    # both roots, the stable quadratic
+from .intersection import sphere_roots    # both roots, the stable quadratic
 from .environment import EnvironmentLookup
 from .preparation import camera_rays
 from .subsurface_reflectance import diffuse_fresnel_reflectance
-from .volume_lights import _basis, exit_lighting
-from .volume_scene import _Lights, _problem, _Spheres, area_radiance, channel_interval, density_bound
+from .volume_lights import orthonormal_basis, exit_lighting
+from .volume_scene import WalkLights, WalkSpheres, walk_problem
 
 __all__ = [
     "MAX_DEPTH",
-    "ROULETTE_DEPTH",
-    "ROULETTE_MAX",
     "CHUNK_PATHS",
     "render_translucent",
     "fresnel_dielectric",
-    "channel_interval",
-    "density_bound",
-    "area_radiance",
+    "checked_walk_arguments",
+    "sky_radiance",
+    "exit_lobe",
+    "cosine_about",
 ]
 
 #: Mitsuba volpath's ``max_depth`` for path mode, and this walk's default (module docstring).
@@ -162,14 +156,14 @@ def fresnel_dielectric(cos_i, eta):
     return f, np.where(total, 0.0, cos_t)
 
 
-def _exit_lobe(cos_l, eta, exit_scale):
+def exit_lobe(cos_l, eta, exit_scale):
     """The exit lobe's f·cos θ_l = (1 − F(cos θ_l))/((1 − F̄)π)·cos θ_l, 0 where cos θ_l ≤ 0
     (``exit_scale`` = 1/(1 − F̄))."""
     cos_l = np.clip(cos_l, 0.0, 1.0)
     return (1.0 - fresnel_dielectric(cos_l, eta)[0]) * exit_scale / math.pi * cos_l
 
 
-def _cosine_about(rng, n):
+def cosine_about(rng, n):
     """One direction per row of the unit normals n (k, 3), cosine-distributed about it
     (Malley: a uniform point of the unit disk lifted to the hemisphere)."""
     k = len(n)
@@ -177,7 +171,7 @@ def _cosine_about(rng, n):
     phi = 2.0 * math.pi * rng.random(k)
     x, y = radius * np.cos(phi), radius * np.sin(phi)
     z = np.sqrt(np.maximum(1.0 - x * x - y * y, 0.0))
-    t, b = _basis(n)
+    t, b = orthonormal_basis(n)
     return x[:, None] * t + y[:, None] * b + z[:, None] * n
 
 
@@ -192,7 +186,17 @@ def _uniform_sphere(rng, k):
 # ---------------------------------------------------------------------------
 # The walk
 
-def _checked(scene, spp, max_depth, rr_depth, chunk_paths):
+def checked_walk_arguments(scene, spp, max_depth, rr_depth, chunk_paths):
+    """Refuse arguments the walk cannot take, each in one sentence (TypeError, ValueError).
+
+    ============  =====================================================================
+    scene         a :class:`~mimarble.scene.Scene` the walk can render (:func:`walk_problem`)
+    spp           samples per pixel: an integer within the image's sample limit
+    max_depth     an integer ≥ 1, or −1 for no limit (then ``rr_depth`` must not be None)
+    rr_depth      Russian roulette's first depth, an integer ≥ 0, or None for none
+    chunk_paths   the paths of a batch, an integer ≥ 1
+    ============  =====================================================================
+    """
     if not isinstance(scene, Scene):
         raise TypeError(f"render_translucent: {scene!r:.80} is not a scene (mimarble.scene.Scene)")
     if isinstance(spp, bool) or not isinstance(spp, numbers.Integral):
@@ -215,7 +219,7 @@ def _checked(scene, spp, max_depth, rr_depth, chunk_paths):
             or chunk_paths < 1:
         raise ValueError(f"render_translucent: chunk_paths must be an integer ≥ 1, found "
                          f"{chunk_paths!r:.40}")
-    problem = _problem(scene)
+    problem = walk_problem(scene)
     if problem:
         raise ValueError(problem)
 
@@ -235,10 +239,10 @@ def render_translucent(scene: Scene, spp: int, seed: int = 0, *, max_depth: int 
     batch appends its paths' vertex counts (volpath's depth where each ended), in the
     order of their lanes (pixel by pixel, a pixel's samples together).
     """
-    _checked(scene, spp, max_depth, rr_depth, chunk_paths)
-    spheres = _Spheres(scene)
-    lights = _Lights(scene)
-    ambient = _sky(scene)
+    checked_walk_arguments(scene, spp, max_depth, rr_depth, chunk_paths)
+    spheres = WalkSpheres(scene)
+    lights = WalkLights(scene)
+    ambient = sky_radiance(scene)
     rng = np.random.default_rng(seed)
     depth_cap = math.inf if max_depth == -1 else int(max_depth)
     roulette = math.inf if rr_depth is None else int(rr_depth)
@@ -306,7 +310,7 @@ def nearer_lights(lights, oo, dd, scale, camera, best, which):
     return best, which, emitted
 
 
-def _sky(scene):
+def sky_radiance(scene):
     """What a path that leaves the scene meets: the ambient A (an RGB array), or the
     scene's environment's radiance along its direction (a function of (N, 3) unit
     directions)."""
@@ -377,7 +381,7 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 f, _ = fresnel_dielectric(cos_i, spheres.ior[s])
                 reflect = rng.random(hit.size) < f
                 new = np.where(reflect[:, None], dd[hit] + 2.0 * cos_i[:, None] * normal,
-                               _cosine_about(rng, -normal))
+                               cosine_about(rng, -normal))
                 o[j] = p
                 d[j] = new / np.linalg.norm(new, axis=1, keepdims=True)
                 medium[j] = np.where(reflect, -1, s)
@@ -408,14 +412,14 @@ def _walk(spheres, lights, ambient, o, d, rng, depth_cap, roulette, q_max, steps
                 outward /= np.linalg.norm(outward, axis=1, keepdims=True)
                 p = c[wall] + r[wall, None] * outward
                 # from inside: always out, cosine about n, weight W(μₒ) = (1 − F(μₒ))/(1 − F̄)
-                new = _cosine_about(rng, outward)
+                new = cosine_about(rng, outward)
                 f, _ = fresnel_dielectric(np.einsum("ij,ij->i", new, outward), spheres.ior[sw])
                 beta[j] *= ((1.0 - f) * exit_scale[sw])[:, None]
                 near = depth[j] + 1 < depth_cap          # volpath: no light at the last vertex
                 if sampled_lights and near.any():
                     value[j[near]] += beta[j[near]] * exit_lighting(
                         spheres, lights, p[near], outward[near], sw[near],
-                        lambda cos_l, k: _exit_lobe(cos_l, spheres.ior[k], exit_scale[k]), rng)
+                        lambda cos_l, k: exit_lobe(cos_l, spheres.ior[k], exit_scale[k]), rng)
                 exited[j] = True
                 o[j] = p
                 d[j] = new

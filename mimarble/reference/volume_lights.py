@@ -29,11 +29,11 @@ import numpy as np
 
 from mimarble.contract import T_MIN_REL
 
-from .intersection import _roots as sphere_roots    # both roots, the stable quadratic
+from .intersection import sphere_roots    # both roots, the stable quadratic
 
 
 def exit_lighting(spheres, lights, p, n, s, lobe, rng) -> np.ndarray:
-    """(k, 3): the light of every point and area light of ``lights`` (volume_scene._Lights)
+    """(k, 3): the light of every point and area light of ``lights`` (volume_scene.WalkLights)
     leaving the exit points p (k, 3) of spheres s (k,) with outward normals n, one sample a
     light (module docstring). ``lobe(cos θ_l, s)`` is the exit lobe's f·cos θ_l (0 where
     cos θ_l ≤ 0)."""
@@ -81,7 +81,7 @@ def _toward_sphere(rng, p, centre, radius):
     cos_t = 1.0 - one_minus_cos
     sin_t = np.sqrt(np.maximum(one_minus_cos * (2.0 - one_minus_cos), 0.0))
     phi = 2.0 * math.pi * rng.random(len(p))
-    t, b = _basis(axis)
+    t, b = orthonormal_basis(axis)
     ell = (sin_t * np.cos(phi))[:, None] * t + (sin_t * np.sin(phi))[:, None] * b \
         + cos_t[:, None] * axis
     near, _ = sphere_roots(p, ell, centre, radius)
@@ -90,7 +90,7 @@ def _toward_sphere(rng, p, centre, radius):
     return ell, near, 2.0 * math.pi * spread
 
 
-def _basis(n):
+def orthonormal_basis(n):
     """Two unit vectors completing each row of the unit normals n to an orthonormal frame
     (Duff et al.'s branchless construction)."""
     sign = np.where(n[:, 2] >= 0.0, 1.0, -1.0)

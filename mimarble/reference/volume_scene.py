@@ -32,7 +32,8 @@ from mimarble.scene.shapes import SHAPE_KINDS
 from .channels import channel_color
 from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scattering_albedo
 
-__all__ = ["channel_interval", "density_bound", "area_radiance", "point_intensity"]
+__all__ = ["channel_interval", "density_bound", "area_radiance", "point_intensity", "walk_problem",
+           "WalkSpheres", "WalkLights"]
 
 
 # ---------------------------------------------------------------------------
@@ -142,7 +143,7 @@ def _rectangle(light, lookat):
 # ---------------------------------------------------------------------------
 # Scene checks and arrays
 
-def _problem(scene: Scene) -> str | None:
+def walk_problem(scene: Scene) -> str | None:
     """Why the walk cannot render ``scene`` (one sentence), or None."""
     others = [kind.plural for kind in SHAPE_KINDS if kind.cls is not Sphere
               and getattr(scene, kind.plural)]
@@ -200,7 +201,7 @@ def _light_meets(light, c, r) -> bool:
     return False
 
 
-class _Spheres:
+class WalkSpheres:
     """The translucent spheres as arrays, with their media."""
 
     def __init__(self, scene: Scene):
@@ -243,7 +244,7 @@ class _Spheres:
         return ratio, albedo
 
 
-class _Lights:
+class WalkLights:
     """The lights as arrays: point lights (position, intensity: :func:`point_intensity`),
     area lights' spheres (centre, radius, radiance) and rectangles (centre, to_local,
     normal, radiance)."""

@@ -298,10 +298,10 @@ MITSUBA_AD_INTEGRATORS = ("prb_basic", "prb", "prbvolpath", "direct_projective",
 def skip_mitsuba_ad_integrators() -> bool:
     """Keep Mitsuba from building its differentiable integrators at the first ``set_variant``.
 
-    Setting an LLVM or CUDA variant (re)imports ``mitsuba.python.ad.integrators``,
-    whose modules rewrite ten ``@dr.syntax`` functions from their source: 0.16 s
-    of the 0.2 s ``set_variant`` takes, a fifth of a whole ``mimarble render``
-    process (AMD EPYC). The command line uses none of them (``whitted`` is
+    Setting an LLVM or CUDA variant (re)imports ``mitsuba.python.ad.integrators``, whose
+    modules rewrite ten ``@dr.syntax`` functions from their source: most of what
+    ``set_variant`` takes, a large part of a short command's process (docs/benchmarks.md,
+    "Figures moved out of the code"). The command line uses none of them (``whitted`` is
     mimarble's integrator, ``path`` Mitsuba's C++ one), so the command's process
     places empty modules under their names first: the package's ``__init__``
     then finds them imported and moves on. Only those integrators (``prb``,

@@ -6,8 +6,9 @@ the machine code on disk, keyed by the kernel's code and the LLVM target: in
 prunes the folder to ``$DRJIT_CACHE_MAXSIZE`` bytes (suffixes k, M, G; default
 1 GiB) at most once an hour; deleting the folder clears it, harmlessly.
 
-Compiling costs more than rendering: fig11a's kernel takes 0.45 s of LLVM on
-the AMD EPYC, its 500² 1-spp render 0.03 s. A scene compiles one kernel per
+Compiling costs more than rendering: fig11a's kernel takes an order of magnitude longer
+to compile than its 500² 1-spp render takes (docs/benchmarks.md, "Start-up: the whole
+process", and the AMD EPYC's tables). A scene compiles one kernel per
 structure (number of octaves, marble function, lights, …) and image size;
 every spp and every opaque parameter (period, distortion, colours, positions)
 reuses it. ``render_in_passes`` (mimarble/mitsuba/rendering/passes.py, pixel_tracer.py) passes the spp

@@ -3,12 +3,10 @@
 The noise is gathers (5 per octave: mimarble/texture/noise.py, ``corner_hashes``).
 LLVM's cost model for AMD Zen says vector gathers are slow and lowers each one
 to scalar loads, 8 per AVX2 vector; on Intel AVX-512 CPUs it emits
-``vpgatherdd``. Measured on a 2-core AMD EPYC (znver1 target, AVX2;
-docs/benchmarks.md): ``fractal3`` at 8 octaves 41 → 60 M
-octave-evals/s/core with ``+fast-gather``, fig11a 500² 4 spp 150 → 100 ms,
-fig11b 286 → 172 ms (the AMD EPYC of issue 12, znver3: 2.3× on the noise), the
-same values bit for bit. On Intel CPUs from Skylake on, LLVM already assumes fast gathers, so the
-feature changes nothing there. Hence the rule:
+``vpgatherdd``. Telling LLVM that gathers are fast (``+fast-gather``) makes the noise and
+the marble scenes markedly faster on the AMD EPYC, the same values bit for bit
+(docs/benchmarks.md, "AMD EPYC (AVX2): the other machine kind"). On Intel CPUs from Skylake
+on, LLVM already assumes fast gathers, so the feature changes nothing there. Hence the rule:
 
 * automatic (``MIMARBLE_LLVM_TARGET`` unset): on x86 with AVX2, add
   ``+fast-gather`` to the features Dr.Jit detected;

@@ -10,7 +10,8 @@ from typing import Union
 
 from mimarble import parameters as marble_parameters
 from . import rules, transforms
-from .nodes import AXES, RGB, Pos, Source, _number, _pos, _shown, _source, _store, _vector
+from .nodes import (AXES, RGB, Pos, Source, checked_number, pos_field, shown, source_field,
+                    store_checked, checked_vector)
 
 
 @dataclass(frozen=True)
@@ -20,10 +21,10 @@ class ColorChannel:
     signed term of an ``add``), and both renderers take them so."""
 
     rgb: RGB
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
-        _store(self, rgb=_vector(self.rgb, "color (a colour < r g b >)"))
+        store_checked(self, rgb=checked_vector(self.rgb, "color (a colour < r g b >)"))
 
 
 @dataclass(frozen=True)
@@ -65,8 +66,8 @@ class MarbleChannel(marble_parameters.MarbleParameters):
     each, no scale factor 0, and M invertible in single precision.
     """
 
-    pos: Pos | None = _pos()
-    source: Source | None = _source()
+    pos: Pos | None = pos_field()
+    source: Source | None = source_field()
     transform: tuple = field(default=(), kw_only=True)
     space: str = field(default="world", kw_only=True)
 
@@ -74,8 +75,8 @@ class MarbleChannel(marble_parameters.MarbleParameters):
         super().__post_init__()
         if self.space not in SPACES:
             raise ValueError(f"a marble's space is {' or '.join(SPACES)}, found "
-                             f"{_shown(self.space)}")
-        _store(self, transform=_transform_steps(self.transform, "MarbleChannel"))
+                             f"{shown(self.space)}")
+        store_checked(self, transform=transform_steps(self.transform, "MarbleChannel"))
 
     @property
     def axis_index(self) -> int:
@@ -93,28 +94,28 @@ class MarbleChannel(marble_parameters.MarbleParameters):
 SPACES: tuple[str, ...] = ("world", "object")
 
 
-def _transform_steps(steps, owner: str) -> tuple:
+def transform_steps(steps, owner: str) -> tuple:
     """A transform's steps (a marble's, a box's, a mesh's: ``owner``), checked and stored
     as ``(kind, (x, y, z))`` tuples."""
     if isinstance(steps, (str, bytes)) or not hasattr(steps, "__iter__"):
         raise TypeError(f"{owner}: transform must be a sequence of (step, < x y z >), "
-                        f"found {_shown(steps)}")
+                        f"found {shown(steps)}")
     out = []
     for step in steps:
         try:
             kind, vector = step
         except (TypeError, ValueError):
             raise TypeError(f"{owner}: a transform step is (kind, < x y z >), found "
-                            f"{_shown(step)}") from None
+                            f"{shown(step)}") from None
         if kind not in transforms.STEPS:
             raise ValueError(f"{owner}: a transform step is translate, rotate or scale, "
-                             f"found {_shown(kind)}")
+                             f"found {shown(kind)}")
         if kind == "scale" and isinstance(vector, numbers.Real):
             vector = (vector,) * 3
-        vector = _vector(vector, f"transform {kind}")
+        vector = checked_vector(vector, f"transform {kind}")
         problem = transforms.step_problem(kind, vector)
         if problem:
-            raise ValueError(f"{problem}, found {_shown(vector)}")
+            raise ValueError(f"{problem}, found {shown(vector)}")
         out.append((kind, vector))
     problem = transforms.matrix_problem(transforms.compose(out))
     if problem:
@@ -137,7 +138,7 @@ class ImageChannel:
 
     file: str
     path: str | None = None
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         if not isinstance(self.file, str) or not self.file:
@@ -188,7 +189,7 @@ class _Operation:
     """Two or more channels combined componentwise (``keyword`` names it)."""
 
     operands: tuple
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
     keyword = ""
 
     def __post_init__(self) -> None:
@@ -218,14 +219,14 @@ class Mix:
     a: object
     b: object
     weight: object
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         _check_operands("mix", (self.a, self.b))
         if isinstance(self.weight, bool) or not isinstance(self.weight, CHANNEL_TYPES + (int, float)):
             raise TypeError(f"mix: weight={self.weight!r} must be a channel or a number")
         if isinstance(self.weight, (int, float)):
-            object.__setattr__(self, "weight", _number(self.weight, "mix: weight"))
+            object.__setattr__(self, "weight", checked_number(self.weight, "mix: weight"))
         _nest(self)
 
     @property

@@ -100,9 +100,9 @@ def environment_file_problem(path: str) -> str | None:
     """Why ``path`` cannot be an environment image (None: it can). The answer is kept
     per version of the file (its size, modification and change times, inode, device):
     ``to_mitsuba`` checks the file again for every scene it translates — each sweep frame,
-    each edit in the studio — and a Radiance HDR's check walks every scanline (0.13 s of
-    every ``to_mitsuba`` for a 2048×1024 sky: docs/benchmarks.md), which an unchanged
-    file need not repeat."""
+    each edit in the studio — and a Radiance HDR's check walks every scanline (docs/
+    benchmarks.md, "Environment files": a large sky's walk against the check kept), which
+    an unchanged file need not repeat."""
     try:
         st = os.stat(path)
     except (OSError, ValueError):   # not there, or no path: the check says why, uncached

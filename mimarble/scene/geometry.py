@@ -28,7 +28,8 @@ import math
 from mimarble.scene import transforms
 
 __all__ = ["PLANE_REACH", "plane_frame", "object_to_world", "plane_disk", "sphere_bounds",
-           "box_corners", "mesh_corners", "apply", "apply_linear"]
+           "box_corners", "mesh_corners", "apply", "apply_linear", "frame_matrix",
+           "bounding_sphere"]
 
 #: A plane's rendered radius in units of the scene's extent around it (:func:`plane_disk`).
 PLANE_REACH = 1e4
@@ -70,7 +71,7 @@ def plane_frame(normal):
     return tangent, n, bitangent
 
 
-def _placed(columns, origin) -> Matrix:
+def frame_matrix(columns, origin) -> Matrix:
     """The 4×4 matrix (rows) whose first three columns are ``columns`` and whose
     translation is ``origin``."""
     return tuple(tuple(columns[j][i] for j in range(3)) + (float(origin[i]),)
@@ -118,7 +119,7 @@ def mesh_corners(mesh):
     return [apply(m, (x, y, z)) for x in (x0, x1) for y in (y0, y1) for z in (z0, z1)]
 
 
-def _around(corners):
+def bounding_sphere(corners):
     """(centre, radius): the sphere about the corners' mean through the farthest one."""
     centre = tuple(sum(c[i] for c in corners) / len(corners) for i in range(3))
     return centre, max(math.dist(centre, c) for c in corners)

@@ -45,9 +45,9 @@ _COUNTED = ("light", *(kind.keyword for kind in SHAPE_KINDS), "texture")
 def _parser_cache_file(grammar: str) -> str | bool:
     """Where Lark keeps the built parser between processes, or False for no cache.
 
-    Building the LALR tables takes ~0.15 s, three times the rest of a scene
-    error's answer; Lark's cache keeps them as a pickle checked against the
-    grammar's hash. The file lives in the user's own cache folder
+    Building the LALR tables takes several times the rest of a scene error's answer
+    (docs/benchmarks.md, "Figures moved out of the code"); Lark's cache keeps them as a
+    pickle checked against the grammar's hash. The file lives in the user's own cache folder
     (:func:`mimarble.runtime.files.cache_folder`), not in a shared temporary folder where
     another user could plant one.
     """

@@ -41,11 +41,13 @@ from dataclasses import dataclass, field
 
 from . import rules
 from .channels import (CHANNEL_TYPES, EXPRESSIONS, SPACES, Add, Channel, ColorChannel, ImageChannel,
-                       MarbleChannel, Mix, Multiply, depth, in_object_space, replace_marbles, size, walk)
+                       MarbleChannel, Mix, Multiply, depth, in_object_space, replace_marbles, size,
+                       walk)
 from .limits import MAX_IMAGE_SAMPLES
-from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis, FrozenMap, MarbleFunction,
-                    Pos, Source, Vec3, _colour, _instances, _integer, _number, _pos, _refuse,
-                    _shown, _source, _store, _vector)
+from .nodes import (AXES, FIG5_RAMP, MARBLE_FILTERS, MARBLE_FUNCTIONS, RGB, Axis, FrozenMap,
+                    MarbleFunction, Pos, Source, Vec3, checked_colour, checked_instances,
+                    checked_integer, checked_number, pos_field, refuse, shown, source_field,
+                    store_checked, checked_vector)
 from .shapes import MESH_FORMATS, SHAPE_KINDS, SHAPE_TYPES, Box, Mesh, Plane, Sphere
 from .transforms import compose
 
@@ -121,19 +123,19 @@ class Image:
     height: int = 500
     samples: int = 1
     background: RGB = (0.0, 0.0, 0.0)
-    pos: Pos | None = _pos()
-    source: Source | None = _source()
+    pos: Pos | None = pos_field()
+    source: Source | None = source_field()
 
     def __post_init__(self) -> None:
         lo, hi = rules.IMAGE_SIZE
-        width = _integer(self.width, "width", lo, hi)
-        height = _integer(self.height, "height", lo, hi)
-        samples = _integer(self.samples, "samples", 1, MAX_IMAGE_SAMPLES)
+        width = checked_integer(self.width, "width", lo, hi)
+        height = checked_integer(self.height, "height", lo, hi)
+        samples = checked_integer(self.samples, "samples", 1, MAX_IMAGE_SAMPLES)
         problem = rules.image_samples_problem(width, height, samples)
         if problem:
             raise ValueError(problem)
-        _store(self, width=width, height=height, samples=samples,
-               background=_colour(self.background, "background"))
+        store_checked(self, width=width, height=height, samples=samples,
+               background=checked_colour(self.background, "background"))
 
     @property
     def samples_per_axis(self) -> int:
@@ -158,17 +160,17 @@ class Camera:
     lookat: Vec3 = (0.0, 0.0, 0.0)
     up: Vec3 = (0.0, 1.0, 0.0)
     fov: float = 30.0
-    pos: Pos | None = _pos()
-    source: Source | None = _source()
+    pos: Pos | None = pos_field()
+    source: Source | None = source_field()
 
     def __post_init__(self) -> None:
-        eye, lookat, up = (_vector(getattr(self, name), name) for name in ("eye", "lookat", "up"))
-        fov = _number(self.fov, "fov")
-        _refuse(rules.fov_problem(fov), self.fov)
+        eye, lookat, up = (checked_vector(getattr(self, name), name) for name in ("eye", "lookat", "up"))
+        fov = checked_number(self.fov, "fov")
+        refuse(rules.fov_problem(fov), self.fov)
         for problem in (rules.view_problem(eye, lookat), rules.up_problem(eye, lookat, up)):
             if problem:
                 raise ValueError(problem)
-        _store(self, eye=eye, lookat=lookat, up=up, fov=fov)
+        store_checked(self, eye=eye, lookat=lookat, up=up, fov=fov)
 
 
 #: An area light's samples when its block says none (a 4×4 grid).
@@ -177,10 +179,10 @@ AREA_SAMPLES = 16
 
 def _light_samples(value) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"samples must be an integer, found {_shown(value)}")
+        raise TypeError(f"samples must be an integer, found {shown(value)}")
     if not isinstance(value, numbers.Integral) and not math.isfinite(value):
-        raise ValueError(f"samples must be an integer, found {_shown(value)}")
-    _refuse(rules.light_samples_problem(value), value)
+        raise ValueError(f"samples must be an integer, found {shown(value)}")
+    refuse(rules.light_samples_problem(value), value)
     return int(value)
 
 
@@ -193,14 +195,14 @@ class RectangleArea:
     axis1: Vec3
     axis2: Vec3
     samples: int = AREA_SAMPLES
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
-        axis1, axis2 = _vector(self.axis1, "axis1"), _vector(self.axis2, "axis2")
+        axis1, axis2 = checked_vector(self.axis1, "axis1"), checked_vector(self.axis2, "axis2")
         problem = rules.area_axes_problem(axis1, axis2)
         if problem:
             raise ValueError(problem)
-        _store(self, axis1=axis1, axis2=axis2, samples=_light_samples(self.samples))
+        store_checked(self, axis1=axis1, axis2=axis2, samples=_light_samples(self.samples))
 
 
 @dataclass(frozen=True)
@@ -211,12 +213,12 @@ class SphereArea:
 
     radius: float
     samples: int = AREA_SAMPLES
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
-        radius = _number(self.radius, "radius")
-        _refuse(rules.area_radius_problem(radius), self.radius)
-        _store(self, radius=radius, samples=_light_samples(self.samples))
+        radius = checked_number(self.radius, "radius")
+        refuse(rules.area_radius_problem(radius), self.radius)
+        store_checked(self, radius=radius, samples=_light_samples(self.samples))
 
 
 @dataclass(frozen=True)
@@ -229,15 +231,15 @@ class Light:
     position: Vec3
     color: RGB = (1.0, 1.0, 1.0)
     area: RectangleArea | SphereArea | None = None
-    pos: Pos | None = _pos()
-    source: Source | None = _source()
+    pos: Pos | None = pos_field()
+    source: Source | None = source_field()
 
     def __post_init__(self) -> None:
         if self.area is not None and not isinstance(self.area, (RectangleArea, SphereArea)):
             raise TypeError(f"a light's area must be a RectangleArea, a SphereArea or None, "
-                            f"found {_shown(self.area)}")
-        _store(self, position=_vector(self.position, "position"),
-               color=_colour(self.color, "light color"))
+                            f"found {shown(self.area)}")
+        store_checked(self, position=checked_vector(self.position, "position"),
+               color=checked_colour(self.color, "light color"))
 
     @property
     def samples(self) -> int:
@@ -266,21 +268,21 @@ class Environment:
     intensity: float = 1.0
     rotate: Vec3 = (0.0, 0.0, 0.0)
     path: str | None = None
-    pos: Pos | None = _pos()
-    source: Source | None = _source()
+    pos: Pos | None = pos_field()
+    source: Source | None = source_field()
 
     def __post_init__(self) -> None:
         if self.file is not None and (not isinstance(self.file, str) or not self.file):
-            raise ValueError(f"Environment: file={_shown(self.file)} must be a non-empty path")
-        rotate = _vector(self.rotate, "rotate")
+            raise ValueError(f"Environment: file={shown(self.file)} must be a non-empty path")
+        rotate = checked_vector(self.rotate, "rotate")
         problem = rules.environment_problem(self.file is not None, self.color is not None,
                                             any(rotate))
         if problem:
             raise ValueError(problem)
-        intensity = _number(self.intensity, "intensity")
-        _refuse(rules.intensity_problem(intensity), self.intensity)
-        color = None if self.color is None else _colour(self.color, "environment color")
-        _store(self, intensity=intensity, rotate=rotate, color=color)
+        intensity = checked_number(self.intensity, "intensity")
+        refuse(rules.intensity_problem(intensity), self.intensity)
+        color = None if self.color is None else checked_colour(self.color, "environment color")
+        store_checked(self, intensity=intensity, rotate=rotate, color=color)
 
     @property
     def location(self) -> str | None:
@@ -317,7 +319,7 @@ class Subsurface:
     ior: float = 1.5
     density: Channel | None = None
     reflectance: Channel | None = None
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         if (self.albedo is None) == (self.reflectance is None):
@@ -327,15 +329,15 @@ class Subsurface:
         for name in ("albedo", "reflectance", "density"):
             channel = getattr(self, name)
             if channel is not None and not isinstance(channel, CHANNEL_TYPES):
-                raise TypeError(f"a subsurface's {name} must be a channel, found {_shown(channel)}")
+                raise TypeError(f"a subsurface's {name} must be a channel, found {shown(channel)}")
             if channel is not None and any(isinstance(c, ImageChannel) for c in walk(channel)):
                 raise ValueError(f"a subsurface's {name} cannot hold an image map: a volume "
                                  f"has no (u, v)")
-        mfp = _number(self.mean_free_path, "mean_free_path")
-        _refuse(rules.mean_free_path_problem(mfp), self.mean_free_path)
-        ior = _number(self.ior, "ior")
-        _refuse(rules.ior_problem(ior), self.ior)
-        _store(self, mean_free_path=mfp, ior=ior)
+        mfp = checked_number(self.mean_free_path, "mean_free_path")
+        refuse(rules.mean_free_path_problem(mfp), self.mean_free_path)
+        ior = checked_number(self.ior, "ior")
+        refuse(rules.ior_problem(ior), self.ior)
+        store_checked(self, mean_free_path=mfp, ior=ior)
 
     def channels(self) -> dict:
         """The channels present, by name (albedo or reflectance, density)."""
@@ -363,11 +365,11 @@ class Material:
     specular: Channel | None = None
     shininess: float = 32.0
     subsurface: Subsurface | None = None
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str):
-            raise TypeError(f"a material name must be a string, found {_shown(self.name)}")
+            raise TypeError(f"a material name must be a string, found {shown(self.name)}")
         problem = rules.material_name_problem(self.name)
         if problem:
             raise ValueError(problem)
@@ -375,13 +377,13 @@ class Material:
             channel = getattr(self, component)
             if channel is not None and not isinstance(channel, CHANNEL_TYPES):
                 raise TypeError(f'{component} of material "{rules.shortened(self.name)}" must '
-                                f"be a channel or None, found {_shown(channel)}")
+                                f"be a channel or None, found {shown(channel)}")
         if self.subsurface is not None and not isinstance(self.subsurface, Subsurface):
             raise TypeError(f'the subsurface of material "{rules.shortened(self.name)}" must be '
-                            f"a Subsurface or None, found {_shown(self.subsurface)}")
-        shininess = _number(self.shininess, "shininess")
-        _refuse(rules.shininess_problem(shininess), self.shininess)
-        _store(self, shininess=shininess)
+                            f"a Subsurface or None, found {shown(self.subsurface)}")
+        shininess = checked_number(self.shininess, "shininess")
+        refuse(rules.shininess_problem(shininess), self.shininess)
+        store_checked(self, shininess=shininess)
 
     def channels(self) -> dict[str, Channel]:
         """The components that are present, by name (ambient, diffuse, specular)."""
@@ -424,16 +426,16 @@ class Scene:
         if not isinstance(self.materials, FrozenMap):
             if not isinstance(self.materials, Mapping):
                 raise TypeError(f"materials must map names to materials, found "
-                                f"{_shown(self.materials)}")
+                                f"{shown(self.materials)}")
             object.__setattr__(self, "materials", FrozenMap(self.materials))
         if not isinstance(self.image, Image):
-            raise TypeError(f"image must be an Image, found {_shown(self.image)}")
+            raise TypeError(f"image must be an Image, found {shown(self.image)}")
         if not isinstance(self.camera, Camera):
-            raise TypeError(f"camera must be a Camera, found {_shown(self.camera)}")
+            raise TypeError(f"camera must be a Camera, found {shown(self.camera)}")
         if not isinstance(self.textures, FrozenMap):
             if not isinstance(self.textures, Mapping):
                 raise TypeError(f"textures must map names to channels, found "
-                                f"{_shown(self.textures)}")
+                                f"{shown(self.textures)}")
             object.__setattr__(self, "textures", FrozenMap(self.textures))
         for name, channel in self.textures.items():
             problem = rules.material_name_problem(name) if isinstance(name, str) else \
@@ -442,12 +444,12 @@ class Scene:
                 raise ValueError(problem.replace("material", "texture"))
             if not isinstance(channel, CHANNEL_TYPES):
                 raise TypeError(f'texture "{rules.shortened(name)}" must be a channel, found '
-                                f"{_shown(channel)}")
+                                f"{shown(channel)}")
         if self.environment is not None and not isinstance(self.environment, Environment):
             raise TypeError(f"environment must be an Environment or None, found "
-                            f"{_shown(self.environment)}")
-        lights = _instances(self.lights, Light, "lights")
-        of = {kind.plural: _instances(getattr(self, kind.plural), kind.cls, kind.plural)
+                            f"{shown(self.environment)}")
+        lights = checked_instances(self.lights, Light, "lights")
+        of = {kind.plural: checked_instances(getattr(self, kind.plural), kind.cls, kind.plural)
               for kind in SHAPE_KINDS}
         for problem in (rules.count_problem("light", len(lights)),
                         *(kind.count_problem(len(of[kind.plural])) for kind in SHAPE_KINDS),
@@ -457,7 +459,7 @@ class Scene:
         for name, material in self.materials.items():
             if not isinstance(material, Material):
                 raise TypeError(f"materials must hold Material objects, found "
-                                f"{_shown(material)}")
+                                f"{shown(material)}")
             if name != material.name:
                 raise ValueError(f'materials: the name "{rules.shortened(name)}" holds '
                                  f'material "{rules.shortened(material.name)}"')
@@ -471,7 +473,7 @@ class Scene:
                     light.position, light.area.radius, self.camera.eye, self.camera.lookat)
                 if problem:
                     raise ValueError(problem)
-        _store(self, ambient=_colour(self.ambient, "ambient"), lights=lights, **of)
+        store_checked(self, ambient=checked_colour(self.ambient, "ambient"), lights=lights, **of)
 
     def shapes(self) -> tuple:
         """``(id, shape)`` of every shape: kind by kind (SHAPE_KINDS: spheres, planes,

@@ -38,7 +38,8 @@ class Pos(NamedTuple):
         return f"{self.line}:{self.column}"
 
 
-def _pos() -> Pos | None:
+def pos_field() -> Pos | None:
+    """A node's ``pos`` field: None by default, keyword only, no part of equality or repr."""
     return field(default=None, compare=False, repr=False, kw_only=True)  # type: ignore[return-value]
 
 
@@ -63,7 +64,8 @@ class Source:
     stops: tuple = ()
 
 
-def _source() -> Source | None:
+def source_field() -> Source | None:
+    """A node's ``source`` field (:class:`Source`): as :func:`pos_field`."""
     return field(default=None, compare=False, repr=False, kw_only=True)  # type: ignore[return-value]
 
 
@@ -102,73 +104,74 @@ class FrozenMap(Mapping):
 # ---------------------------------------------------------------------------
 # The constructors' checks: the parser's rules (rules.py), raised as ValueError/TypeError
 
-def _shown(value) -> str:
+def shown(value) -> str:
+    """``repr(value)`` as a message shows it, shortened by the parser's rule."""
     return rules.shortened(repr(value))
 
 
-def _refuse(problem: str | None, value) -> None:
+def refuse(problem: str | None, value) -> None:
     """A rule's problem as the parser words it, with the value found."""
     if problem:
-        raise ValueError(f"{problem}, found {_shown(value)}")
+        raise ValueError(f"{problem}, found {shown(value)}")
 
 
-def _number(value, what: str) -> float:
+def checked_number(value, what: str) -> float:
     """A real number (not a bool), finite and within float32's range, as a float."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{what} must be a number, found {_shown(value)}")
+        raise TypeError(f"{what} must be a number, found {shown(value)}")
     try:
         number = float(value)
     except OverflowError:
         number = math.copysign(math.inf, value)
     problem = rules.number_problem(number)
     if problem:
-        raise ValueError(f"{what}: number {_shown(value)} {problem}")
+        raise ValueError(f"{what}: number {shown(value)} {problem}")
     return number
 
 
-def _integer(value, what: str, lo: int, hi: int) -> int:
+def checked_integer(value, what: str, lo: int, hi: int) -> int:
     """An integral number in lo..hi, as an int."""
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise TypeError(f"{what} must be an integer, found {_shown(value)}")
+        raise TypeError(f"{what} must be an integer, found {shown(value)}")
     if not isinstance(value, numbers.Integral) and not math.isfinite(value):
-        raise ValueError(f"{what} must be an integer, found {_shown(value)}")
-    _refuse(rules.integer_problem(value, what, lo, hi), value)
+        raise ValueError(f"{what} must be an integer, found {shown(value)}")
+    refuse(rules.integer_problem(value, what, lo, hi), value)
     return int(value)
 
 
-def _vector(value, what: str) -> tuple[float, float, float]:
+def checked_vector(value, what: str) -> tuple[float, float, float]:
     """Three numbers, as a tuple of floats."""
     if isinstance(value, (str, bytes)):
-        raise TypeError(f"{what} must be 3 numbers, found {_shown(value)}")
+        raise TypeError(f"{what} must be 3 numbers, found {shown(value)}")
     try:
         items = tuple(value)
     except TypeError:
-        raise TypeError(f"{what} must be 3 numbers, found {_shown(value)}") from None
+        raise TypeError(f"{what} must be 3 numbers, found {shown(value)}") from None
     if len(items) != 3:
         raise ValueError(f"{what} needs 3 numbers, found {len(items)}")
-    return tuple(_number(x, what) for x in items)  # type: ignore[return-value]
+    return tuple(checked_number(x, what) for x in items)  # type: ignore[return-value]
 
 
-def _colour(value, what: str) -> tuple[float, float, float]:
+def checked_colour(value, what: str) -> tuple[float, float, float]:
     """A colour: three numbers, each ≥ 0."""
     given = tuple(value) if not isinstance(value, (str, bytes)) and hasattr(value, "__iter__") \
         else value
-    rgb = _vector(given, f"{what} (a colour < r g b >)")
+    rgb = checked_vector(given, f"{what} (a colour < r g b >)")
     for component, written in zip(rgb, given):
-        _refuse(rules.colour_problem(component, what), written)
+        refuse(rules.colour_problem(component, what), written)
     return rgb
 
 
-def _store(node, **values) -> None:
+def store_checked(node, **values) -> None:
     """Set the checked (normalised) values on a frozen node."""
     for name, value in values.items():
         object.__setattr__(node, name, value)
 
 
-def _instances(values, kind, what: str) -> tuple:
+def checked_instances(values, kind, what: str) -> tuple:
     """``values`` as a tuple, each an instance of ``kind``."""
     values = tuple(values)
     for value in values:
         if not isinstance(value, kind):
-            raise TypeError(f"{what} must hold {kind.__name__} objects, found {_shown(value)}")
+            raise TypeError(f"{what} must hold {kind.__name__} objects, found {shown(value)}")
     return values

@@ -19,9 +19,10 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from . import geometry, rules, transforms
-from .channels import _transform_steps
+from .channels import transform_steps
 from .limits import BY_KEY, Limit
-from .nodes import Pos, Vec3, _number, _pos, _refuse, _shown, _store, _vector
+from .nodes import (Pos, Vec3, checked_number, pos_field, refuse, shown, store_checked,
+                    checked_vector)
 
 
 @dataclass(frozen=True)
@@ -31,20 +32,20 @@ class Sphere:
     material: str
     center: Vec3 = (0.0, 0.0, 0.0)
     radius: float = 1.0
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         if not isinstance(self.material, str):
             raise TypeError(f"a sphere's material is a material's name, found "
-                            f"{_shown(self.material)}")
-        radius = _number(self.radius, "radius")
-        _refuse(rules.radius_problem(radius), self.radius)
-        _store(self, center=_vector(self.center, "center"), radius=radius)
+                            f"{shown(self.material)}")
+        radius = checked_number(self.radius, "radius")
+        refuse(rules.radius_problem(radius), self.radius)
+        store_checked(self, center=checked_vector(self.center, "center"), radius=radius)
 
     def object_to_world(self) -> geometry.Matrix:
         """The unit sphere at the origin, placed by translate(center)·scale(radius)."""
         r = self.radius
-        return geometry._placed(((r, 0.0, 0.0), (0.0, r, 0.0), (0.0, 0.0, r)), self.center)
+        return geometry.frame_matrix(((r, 0.0, 0.0), (0.0, r, 0.0), (0.0, 0.0, r)), self.center)
 
     def corners(self) -> list:
         """The corners of the cube around the sphere, in world space."""
@@ -58,7 +59,7 @@ class Sphere:
 def _material_name(shape) -> None:
     if not isinstance(shape.material, str):
         raise TypeError(f"a {type(shape).__name__.lower()}'s material is a material's name, "
-                        f"found {_shown(shape.material)}")
+                        f"found {shown(shape.material)}")
 
 
 @dataclass(frozen=True)
@@ -72,19 +73,19 @@ class Plane:
     material: str
     point: Vec3 = (0.0, 0.0, 0.0)
     normal: Vec3 = (0.0, 1.0, 0.0)
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         _material_name(self)
-        normal = _vector(self.normal, "normal")
+        normal = checked_vector(self.normal, "normal")
         problem = rules.normal_problem(normal)
         if problem:
-            raise ValueError(f"{problem}, found {_shown(self.normal)}")
-        _store(self, point=_vector(self.point, "point"), normal=normal)
+            raise ValueError(f"{problem}, found {shown(self.normal)}")
+        store_checked(self, point=checked_vector(self.point, "point"), normal=normal)
 
     def object_to_world(self) -> geometry.Matrix:
         """The plane y = 0, normal +y, placed by geometry.plane_frame then translate(point)."""
-        return geometry._placed(geometry.plane_frame(self.normal), self.point)
+        return geometry.frame_matrix(geometry.plane_frame(self.normal), self.point)
 
     def corners(self) -> None:
         return None                  # unbounded
@@ -104,15 +105,15 @@ class Box:
     min: Vec3 = (-1.0, -1.0, -1.0)
     max: Vec3 = (1.0, 1.0, 1.0)
     transform: tuple = ()
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
         _material_name(self)
-        lo, hi = _vector(self.min, "min"), _vector(self.max, "max")
+        lo, hi = checked_vector(self.min, "min"), checked_vector(self.max, "max")
         problem = rules.box_problem(lo, hi)
         if problem:
-            raise ValueError(f"{problem}, found min {_shown(lo)} max {_shown(hi)}")
-        _store(self, min=lo, max=hi, transform=_transform_steps(self.transform, "Box"))
+            raise ValueError(f"{problem}, found min {shown(lo)} max {shown(hi)}")
+        store_checked(self, min=lo, max=hi, transform=transform_steps(self.transform, "Box"))
 
     def object_to_world(self) -> geometry.Matrix:
         return transforms.compose(self.transform)
@@ -122,7 +123,7 @@ class Box:
 
     def bounds(self):
         """Around its eight world corners."""
-        return geometry._around(geometry.box_corners(self))
+        return geometry.bounding_sphere(geometry.box_corners(self))
 
 
 #: The mesh file formats, by file name ending.
@@ -150,7 +151,7 @@ class Mesh:
     file: str
     path: str | None = None
     transform: tuple = ()
-    pos: Pos | None = _pos()
+    pos: Pos | None = pos_field()
     digest: str | None = None
     smooth: bool | None = None
 
@@ -158,12 +159,12 @@ class Mesh:
         _material_name(self)
         if self.smooth is not None and not isinstance(self.smooth, bool):
             raise TypeError(f"a mesh's smooth is True, False or None (the file's normals "
-                            f"decide), found {_shown(self.smooth)}")
+                            f"decide), found {shown(self.smooth)}")
         if not isinstance(self.file, str) or not self.file:
             raise ValueError(f"Mesh: file={self.file!r:.60} must be a non-empty path")
         if not self.file.lower().endswith(MESH_FORMATS):
             raise ValueError(rules.mesh_format_problem(self.file))
-        _store(self, transform=_transform_steps(self.transform, "Mesh"))
+        store_checked(self, transform=transform_steps(self.transform, "Mesh"))
 
     def is_smooth(self, has_normals: bool) -> bool:
         """Whether the mesh is shaded smooth, its file having vertex normals or not
@@ -188,7 +189,7 @@ class Mesh:
         parser refuses such a scene)."""
         corners = geometry.mesh_corners(self)
         if corners is not None:
-            return geometry._around(corners)
+            return geometry.bounding_sphere(corners)
         m = transforms.compose(self.transform)
         return (m[0][3], m[1][3], m[2][3]), 0.0
 

@@ -18,7 +18,8 @@ import sys
 import types
 
 from .frames import Frame
-from .session import StudioError, StudioSession
+from .errors import StudioError
+from .session import StudioSession
 
 __all__ = ["StudioSession", "Frame", "StudioError"]
 

@@ -21,9 +21,8 @@ from mimarble.runtime.image_formats import JPEG_QUALITY
 
 #: How frames are encoded unless told otherwise: ``auto`` — JPEG (quality 95, 4:4:4)
 #: while a frame is not final, PNG (exact: the pixels ``mimarble render`` writes) once
-#: it is; or ``png``, ``jpeg`` always. Measured on fig11a at 512², AMD EPYC: the sRGB
-#: conversion 4.5 ms, then PNG (zlib 1) 12.6 ms and 237 kB, JPEG 1.4 ms and 152 kB
-#: (docs/benchmarks.md, "Studio").
+#: it is; or ``png``, ``jpeg`` always: JPEG encodes several times faster into a smaller
+#: frame (docs/benchmarks.md, "Studio engine", encoding alone).
 FRAME_FORMAT = "auto"
 MIME = {"png": "image/png", "jpeg": "image/jpeg"}
 

@@ -43,7 +43,7 @@ from starlette.routing import Route, WebSocketRoute
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from mimarble.studio import messages
-from mimarble.studio.session import StudioError
+from mimarble.studio.errors import StudioError
 from mimarble.studio.guard import LOOPBACK_NAMES, Guard, host_names, new_token
 
 #: The page's files, read from the package (the only files a request can get).

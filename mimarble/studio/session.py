@@ -21,12 +21,12 @@ Decisions (docs/design-decisions.md, "Marble studio engine (issue 41)"):
   that does not parse keeps the last good scene and frame and says the error at
   FILE:LINE:COL.
 * A packaged scene (opened by name) is never written: Save refuses, Save as writes a copy.
+
+Save and Save as (the edits written back into the file): mimarble/studio/saving.py.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import math
 import os
 import threading
 import time
@@ -36,11 +36,13 @@ from mimarble import scene as scene_language
 from mimarble.parameters import ParameterError
 from mimarble.runtime import packaged_scenes
 from mimarble.scene.edits import KeyPathError, with_image_size, with_value
-from mimarble.scene.rewrite import SaveRefused, read_scene_text, rewrite, save_atomic
+from mimarble.scene.rewrite import read_scene_text
 from .camera import orbited_eye, zoomed_fov
 from .compare import Comparison
 from .controls import HEIGHT, MODE, WIDTH, controls
+from .errors import StudioError, error_dict
 from .frames import FRAME_FORMAT, Frame
+from .saving import SceneSaving, file_facts
 from .worker import RenderThread, Request
 
 #: Seconds between two looks at the scene file's modification time.
@@ -56,22 +58,6 @@ VIEW_KEYS = ("mode", "image.width", "image.height")
 SNAPSHOT_WAIT_S = 10.0
 
 
-class StudioError(Exception):
-    """Something the studio cannot do now (save over a changed file, compare in path
-    mode, …): one sentence, for the page to show."""
-
-
-def error_dict(error: Exception) -> dict:
-    """A parse or render error as the page shows it: ``message`` (the whole text: for a
-    SceneError ``FILE:LINE:COL: message``, the line and its caret, the hint), ``where``,
-    ``file``, ``line``, ``column``, ``hint``."""
-    if isinstance(error, scene_language.SceneError):
-        return {"message": str(error), "where": error.location, "file": error.filename,
-                "line": error.line, "column": error.column, "hint": error.hint}
-    return {"message": str(error), "where": None, "file": None, "line": None,
-            "column": None, "hint": None}
-
-
 def default_mode(scene) -> str:
     """``path`` when a shape's material is translucent (whitted mode refuses it), else
     ``whitted``, the paper's."""
@@ -81,7 +67,7 @@ def default_mode(scene) -> str:
     return "path" if translucent else "whitted"
 
 
-class StudioSession:
+class StudioSession(SceneSaving):
     """One scene, edited live (module docstring).
 
     ============= ======================================================================
@@ -421,7 +407,7 @@ class StudioSession:
     def _read(self) -> tuple[str, tuple]:
         """(the file's text exactly, its facts) — SceneError as the parser says it."""
         scene_language.load(self.path)                   # every reading error in its words
-        facts = _facts(self.path)
+        facts = file_facts(self.path)
         try:
             return read_scene_text(self.path), facts
         except OSError as e:
@@ -435,85 +421,6 @@ class StudioSession:
         with self._lock:
             scene, mode = self._scene, self._mode
         return controls(scene, mode)
-
-    def save(self) -> str:
-        """Write the edits into the scene file, changing only their values' text
-        (``scene.rewrite``: comments, layout, order, every other byte kept), whole or not
-        at all; returns the text written. StudioError (one sentence, nothing written) for
-        a packaged scene (Save as writes a copy), a file that changed on disk since it was
-        loaded (:meth:`reload` first), or an edit the text cannot say. Edits made while it
-        saves are kept as unsaved edits."""
-        with self._save_lock:
-            with self._lock:
-                self._check_saveable()
-                path, before, edits = self.path, self._text, dict(self._edits)
-            text = _rewritten(before, edits, path)
-            base = scene_language.parse(text, filename=str(path), source=str(path))
-            with self._lock:
-                self._check_saveable()
-                self._write("save", path, text, before, expected=before)
-                self._saved(text, base, edits)
-        self._emit("state", self.state())
-        return text
-
-    def _write(self, action: str, path, text: str, before: str, expected) -> None:
-        """Write ``text`` to ``path`` atomically (``expected``: the text the file must
-        still hold, None for any), under the lock, unless the file was reloaded since
-        ``before`` was read; StudioError (nothing written) otherwise."""
-        if self._text is not before:
-            raise StudioError(f"{action}: the file was reloaded while it was being saved "
-                              f"(nothing was written)")
-        try:
-            save_atomic(path, text, expected)
-        except SaveRefused as e:
-            self._disk_changed = True
-            raise StudioError(f"{action}: {e}") from None
-        except OSError as e:
-            raise StudioError(f"{action}: {path}: {e.strerror or e}") from None
-
-    def _check_saveable(self) -> None:
-        if self.packaged:
-            raise StudioError(f"save: {self.path.name} is a packaged scene, not yours "
-                              f"to overwrite; use Save as to write a copy")
-        if self._disk_changed:
-            raise StudioError(f"save: {self.path} changed on disk since it was loaded; "
-                              f"reload it (nothing was written)")
-
-    def save_as(self, path) -> str:
-        """Write the scene as edited now to ``path`` (the file's text with the edits
-        written in, whole or not at all); the session then edits that file. Returns the
-        text written; StudioError for a name or folder that cannot be written, or a
-        folder where the scene's relative files (meshes, image maps) are not: nothing is
-        written then, and the session keeps its file."""
-        from mimarble.runtime.files import output_name_problem
-        problem = output_name_problem(path)
-        if problem:
-            raise StudioError(f"save as: {str(path)!r:.80}: {problem}")
-        with self._save_lock:
-            with self._lock:
-                before, edits = self._text, dict(self._edits)
-            text = _rewritten(before, edits, self.path)
-            try:      # read as it would be there: its meshes and image maps beside it
-                base = scene_language.parse(text, filename=str(path), source=str(path))
-            except scene_language.SceneError as e:
-                first = str(e).splitlines()[0]
-                raise StudioError(f"save as: the scene would not read at {path} ({first}); "
-                                  f"save it beside the files it names (nothing was "
-                                  f"written)") from None
-            with self._lock:
-                self._write("save as", path, text, before, expected=None)
-                self.path, self.packaged = Path(path), False
-                self._saved(text, base, edits)
-        self._emit("state", self.state())
-        return text
-
-    def _saved(self, text: str, base, saved: dict) -> None:
-        """The file now holds ``text`` (parsed: ``base``), with the edits ``saved``: it
-        is what the session was loaded from; edits made since stay unsaved."""
-        self._text, self._stat, self._base = text, _facts(self.path), base
-        self._edits = {key: value for key, value in self._edits.items()
-                       if key not in saved or saved[key] is not value}
-        self._disk_changed = False
 
     def _watch(self) -> None:
         while not self._watch_stop.wait(WATCH_SECONDS):
@@ -530,7 +437,7 @@ class StudioSession:
         with self._lock:
             # Looked at under the lock: a save between the look and the lock would make the
             # file's old facts look like an editor's change (Save then refused, or a reload).
-            facts = _facts(self.path)
+            facts = file_facts(self.path)
             if facts == self._stat or self._closed:
                 return None
             if self._edits:
@@ -556,7 +463,7 @@ class StudioSession:
             text, facts = self._read()
             base = scene_language.parse(text, filename=str(self.path), source=str(self.path))
         except scene_language.SceneError as error:
-            self._stat = _facts(self.path)
+            self._stat = file_facts(self.path)
             self._error = {**error_dict(error), "kind": "parse"}
             return {"reloaded": False, "error": self._error}
         scene = base
@@ -590,19 +497,3 @@ class StudioSession:
     def __exit__(self, *exc):
         self.close()
 
-
-def _rewritten(text: str, edits: dict, path: Path) -> str:
-    """``text`` with ``edits`` written in (StudioError: an edit it cannot say)."""
-    try:
-        return rewrite(text, edits, filename=str(path), source=str(path))
-    except (KeyPathError, scene_language.SceneError) as e:
-        raise StudioError(f"save: {e}") from None
-
-
-def _facts(path: Path) -> tuple | None:
-    """(size, modification time, change time, inode) of the file, None if it is gone."""
-    try:
-        found = os.stat(path)
-    except OSError:
-        return None
-    return (found.st_size, found.st_mtime_ns, found.st_ctime_ns, found.st_ino)

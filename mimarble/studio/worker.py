@@ -35,10 +35,13 @@ request never waits for a render or a compile. Its contract:
   instances holds what it held when it was recorded (``dr.freeze`` flattens every live
   instance of the domains it saw into the recording's key), so loading a new structure
   (octaves 8 → 9) makes every kept structure's recording stale. Right after the new
-  structure's first frame, the thread records the 1 spp pass of the other kept
-  structures again, the most recently shown first (:meth:`RenderThread._record_kept`;
-  a new edit stops it between two), so that going back to one (9 → 8) replays:
-  no load, no recording, no kernel compiled, and the page never says "compiling".
+  structure's first frame, the thread records the passes of the other kept structures
+  again — the 1 spp pass and the reduced passes each has shown — the most recently shown
+  first (:meth:`RenderThread._record_kept`; a new edit stops it between two), so that
+  going back to one (9 → 8) replays: no load, no recording, no kernel compiled, the page
+  never says "compiling", and the first reduced frame of a drag there is not slowed by
+  a recording. What the thread keeps of each loaded scene for this is one
+  :class:`KeptScene`.
 
 Failures of a render (a mode that cannot render the scene, Mitsuba's own errors) are
 published as the state's ``error``; the last good frame stays, and the session goes back
@@ -49,6 +52,7 @@ from __future__ import annotations
 
 import threading
 import time
+from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
 import numpy as np
@@ -56,15 +60,16 @@ import numpy as np
 from mimarble.runtime import environment
 from mimarble.mitsuba.rendering.loaded_scenes import LoadedScenes
 from mimarble.mitsuba.rendering.passes import (Target, samples_pass_key, trace_samples,
-                                               trace_sums, _traced_pass)
+                                               trace_sums, traced_pass)
 from mimarble.mitsuba.rendering.replay import enabled as replay_enabled, scene_facts
 from .frames import FRAME_FORMAT, Frame, encode
 from .histogram import Histograms
 
 dr, mi = environment.import_drjit_and_mitsuba()
 
-#: Most lanes (pixels × samples) of one refinement run: 2²¹, 8 spp at 512² — about 80 ms
-#: of fig11a on the AMD EPYC, the longest an edit waits behind refinement.
+#: Most lanes (pixels × samples) of one refinement run: 2²¹, 8 spp at 512² — the longest an
+#: edit waits behind refinement is one such run (docs/benchmarks.md, "Figures moved out of
+#: the code").
 RUN_LANES = 1 << 21
 #: Samples of the first refinement run: the scene's 4 spp (the paper scenes') in one run,
 #: a frame at 4, 8, 16, … spp for more (runs of 4, 4, 8, …; docs/benchmarks.md, "Studio").
@@ -87,6 +92,29 @@ class Request(NamedTuple):
     version: int
     scene: object
     mode: str
+
+
+@dataclass
+class KeptScene:
+    """What the render thread keeps of one loaded scene (one structure) to record its
+    passes again after another scene is loaded (module docstring, "Going back compiles
+    nothing"): a recording replays only while Dr.Jit's registry of instances is the one it
+    was made with, and a load changes it.
+
+    ========  ===========================================================================
+    target    the scene as last shown (a ``Target``): its passes are recorded again for it
+    facts     its ``scene_facts`` then: the passes' recording key and inputs
+    key       its 1 spp pass's recording key then (``samples_pass_key``)
+    strides   the strides of the reduced frames it has shown (2, 4)
+    current   the passes run since the last load: the 1 spp pass's key, a reduced pass's
+              :func:`_reduced_key`; their recordings replay, any other records anew
+    ========  ===========================================================================
+    """
+    target: Target
+    facts: object
+    key: tuple
+    strides: set = field(default_factory=set)
+    current: set = field(default_factory=set)
 
 
 class RenderThread(threading.Thread):
@@ -112,19 +140,19 @@ class RenderThread(threading.Thread):
         self.last_frame_s: float | None = None
         #: Seconds the last frame at stride 2 took (render and encode).
         self.last_reduced_s: float | None = None
-        self._reduced_seen: set = set()   # (scene key, stride, pixels) traced reduced
         self._stopping = False
         #: Versions rendered (their first frame), in order: what a test of dropping reads.
         self.rendered: list[int] = []
         #: (structure, mode) → seconds of its first render, for the benchmark.
         self.compile_seconds: dict = {}
-        self._loads = 0              # scenes loaded so far
-        self._recorded: dict = {}    # a 1 spp pass's key → self._loads when it last ran
-        #: A kept structure's 1 spp pass: its key → (Target, facts), the most recently
-        #: shown last; only structures whose scene :attr:`loaded` keeps, one key a scene
-        #: (the key of its state now: the one its recording may be made again for).
-        self._kept_passes: dict = {}
-        #: 1 spp passes recorded again after a load, in order (a test's check).
+        #: Scenes loaded so far (a test's check).
+        self.loads = 0
+        #: id of a loaded scene → its :class:`KeptScene`, the most recently shown last;
+        #: only scenes :attr:`loaded` keeps (each record holds its scene, so no id is reused
+        #: while it is here).
+        self._kept: dict[int, KeptScene] = {}
+        #: Passes recorded again after a load, in order: a 1 spp pass's key, a reduced
+        #: pass's :func:`_reduced_key` (a test's check).
         self.recorded_again: list = []
         #: Set while the thread waits for a state or for edits to pause and no state
         #: waits for it (:meth:`submit` clears it): nothing is in progress (a test's check).
@@ -212,22 +240,25 @@ class RenderThread(threading.Thread):
         first_key = samples_pass_key(facts.key, mode, pixels, 1)
         # A recording is made again when its key is new, or when the loaded scenes have
         # changed since it was made and _record_kept has not made it since (Dr.Jit checks
-        # the registry of instances it saw).
+        # the registry of instances it saw): a load makes every kept pass stale.
         if new_structure:
-            self._loads += 1
+            self.loads += 1
             self._forget_dropped()
+            for kept in self._kept.values():
+                kept.current.clear()
+        kept = self._kept.get(id(target.scene))
+        current = kept.current if kept is not None else set()
         compiling = new_structure or (replay_enabled() and (
-            first_key not in _traced_pass.frozen or self._recorded.get(first_key) != self._loads))
-        self._recorded[first_key] = self._loads
+            first_key not in traced_pass.frozen or first_key not in current))
+        current.add(first_key)
         if compiling and not new_structure:
             self.publish("status", {"compiling": True, "rendering": True})
         stride = 1 if compiling else self.stride(moving)
         first_reduced = False
-        if stride > 1:        # its pass's first time for this structure records it: untimed
-            first_reduced = (facts.key, stride, pixels) not in self._reduced_seen
-            if len(self._reduced_seen) >= 64:        # bounded: a long session's structures
-                self._reduced_seen.clear()
-            self._reduced_seen.add((facts.key, stride, pixels))
+        if stride > 1:        # a pass that records (not current) is not timed
+            reduced_key = _reduced_key(facts, stride, pixels)
+            first_reduced = reduced_key not in current
+            current.add(reduced_key)
             sums = _reduced(target, stride, facts)
         else:
             # The 1 spp frame: the pixel centre (whitted), or one sample seeded 0 (path).
@@ -243,13 +274,7 @@ class RenderThread(threading.Thread):
             self.last_frame_s, self.last_reduced_s = elapsed + encode_s, None
         elif stride == 2 and not first_reduced:
             self.last_reduced_s = elapsed + encode_s
-        # One pass a loaded scene: its key now. An in-place edit can change the key (the
-        # marble's octaves evaluated, whether it needs noise): an older key of this scene,
-        # recorded again from the scene as it is now, would hold the wrong kernels.
-        for key in [key for key, (kept, _) in self._kept_passes.items()
-                    if kept.scene is target.scene]:
-            del self._kept_passes[key]
-        self._kept_passes[first_key] = (target, facts)
+        self._keep(target, facts, first_key, stride, current)
         if histograms is None:          # after the frame is out, unless it is stale already
             # Let the threads that wait for the frame (a server's loop) take the GIL now,
             # not after the NumPy below (up to Python's switch interval, 5 ms, later).
@@ -260,10 +285,10 @@ class RenderThread(threading.Thread):
             self.publish("histograms", {"version": request.version,
                                         "histograms": list(histograms)})
         if new_structure:
-            self._record_kept(first_key)
+            self._record_kept()
         if not self._wait_idle():
             return
-        self._record_kept(first_key)    # any a newer edit cut short, now that edits pause
+        self._record_kept()             # any a newer edit cut short, now that edits pause
         if target_spp <= 1 and stride == 1:
             return
         if stride > 1:                  # the control stopped: the whole frame now
@@ -290,29 +315,52 @@ class RenderThread(threading.Thread):
                        histograms)
             run = max(1, min(done, RUN_LANES // pixels))
 
+    def _keep(self, target: Target, facts, key: tuple, stride: int, current: set) -> None:
+        """Keep the shown scene's :class:`KeptScene` as it is now, the most recently shown.
+        One record a loaded scene, for its state now: an in-place edit can change its
+        passes' keys (the marble's octaves evaluated, whether it needs noise), and an
+        older key, recorded again from the scene as it is now, would hold the wrong
+        kernels."""
+        kept = self._kept.pop(id(target.scene), None)
+        if kept is None:
+            kept = KeptScene(target, facts, key, current=current)
+        kept.target, kept.facts, kept.key = target, facts, key
+        if stride > 1:
+            kept.strides.add(stride)
+        if len(kept.current) > 1024:   # bounded: stale keys of many in-place edits
+            kept.current &= {key, *(_reduced_key(facts, s, target.width * target.height)
+                                    for s in kept.strides)}
+        self._kept[id(target.scene)] = kept
+
     def _forget_dropped(self) -> None:
-        """Let go of the passes of scenes :attr:`loaded` has dropped, before anything is
+        """Let go of the records of scenes :attr:`loaded` has dropped, before anything is
         recorded: a scene held here would stay in Dr.Jit's registry, in every recording."""
         live = {id(scene) for scene, _, _ in self.loaded.scenes.values()}
-        for key in list(self._kept_passes):
-            if id(self._kept_passes[key][0].scene) not in live:
-                del self._kept_passes[key]
+        for scene_id in [scene_id for scene_id in self._kept if scene_id not in live]:
+            del self._kept[scene_id]
 
-    def _record_kept(self, shown_key) -> None:
-        """Record again the 1 spp pass of every structure the loaded scenes keep, other than
-        ``shown_key``'s, whose recording predates the last load (module docstring): the
-        most recently shown first, until a new state comes. Their images are not shown."""
+    def _record_kept(self) -> None:
+        """Record again the passes of every kept scene whose recording predates the last
+        load (module docstring): its 1 spp pass, then the reduced passes it has shown; the
+        most recently shown scene first, until a new state comes. Their images are not
+        shown."""
         if not replay_enabled():
             return
-        for key in reversed(list(self._kept_passes)):
-            if self._newer():
-                return
-            if key == shown_key or self._recorded.get(key) == self._loads:
-                continue
-            target, facts = self._kept_passes[key]
-            trace_samples(target, 1, 0, 1, seed=0, key=facts)
-            self._recorded[key] = self._loads
-            self.recorded_again.append(key)
+        for kept in reversed(list(self._kept.values())):
+            pixels = kept.target.width * kept.target.height
+            passes = [(kept.key, 1)] + [(_reduced_key(kept.facts, stride, pixels), stride)
+                                        for stride in sorted(kept.strides)]
+            for key, stride in passes:
+                if key in kept.current:
+                    continue
+                if self._newer():
+                    return
+                if stride == 1:
+                    trace_samples(kept.target, 1, 0, 1, seed=0, key=kept.facts)
+                else:
+                    _reduced(kept.target, stride, kept.facts)
+                kept.current.add(key)
+                self.recorded_again.append(key)
 
     def _show(self, request: Request, sums: np.ndarray, spp: int, target_spp: int,
               seconds: float, histograms: tuple | None, stride: int = 1) -> float:
@@ -331,6 +379,12 @@ class RenderThread(threading.Thread):
                                     target_spp, request.mode, seconds * 1e3, encode_ms,
                                     histograms, pixels, stride))
         return encode_ms * 1e-3
+
+
+def _reduced_key(facts, stride: int, pixels: int) -> tuple:
+    """The studio's name of a reduced pass (:func:`_reduced`) of the scene whose
+    ``scene_facts`` are ``facts``, at ``stride``, in an image of ``pixels`` pixels."""
+    return ("reduced", facts.key, stride, pixels)
 
 
 def _reduced_size(height: int, width: int, stride: int) -> tuple[int, int]:

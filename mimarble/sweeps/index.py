@@ -40,7 +40,7 @@ _SAME = {"scene_digest": str, "settings": list, "spp": (int, type(None)), "compa
 _STATUSES = ("todo", "done", "failed")
 
 
-def _open_index(out_dir: Path, source, scene, settings, spp, compare, all_frames,
+def open_index(out_dir: Path, source, scene, settings, spp, compare, all_frames,
                 variant) -> dict:
     """The index in ``out_dir``: made, or read back for a resumed sweep of the same kind
     (the same scene — by content, sizes included —, settings, spp, comparison and
@@ -86,10 +86,10 @@ def _open_index(out_dir: Path, source, scene, settings, spp, compare, all_frames
                 entry["error"] = None
         if damaged:
             n, (first, why) = len(damaged), damaged[0]
-            warnings.warn(f"{path}: {_count(n, 'frame entry', 'frame entries')} of the sweep "
+            warnings.warn(f"{path}: {counted(n, 'frame entry', 'frame entries')} of the sweep "
                           f"index {'is' if n == 1 else 'are'} damaged (frame {first}: {why}); "
-                          f"rendering {_them(n)} again", stacklevel=3)
-    _write_index(out_dir, index)
+                          f"rendering {pronoun_for(n)} again", stacklevel=3)
+    write_index(out_dir, index)
     return index
 
 
@@ -159,14 +159,14 @@ def _entry_problem(stored, entry: dict, compare: bool) -> str | None:
     return None
 
 
-def _todo(all_frames, index, out_dir: Path, names) -> list:
+def frames_to_do(all_frames, index, out_dir: Path, names) -> list:
     """The frames not done: those the index does not say are, and those it says are whose
     image is not usable (:func:`image_problem`, from the header: cheap), said in a warning."""
     todo, damaged = [], []
     for frame in all_frames:
         entry = index["frames"][frame["index"]]
         if entry["status"] == "done":
-            problem = image_problem(out_dir / names[frame["index"]], _size(frame["scene"]))
+            problem = image_problem(out_dir / names[frame["index"]], image_size(frame["scene"]))
             if problem is None:
                 continue
             damaged.append((names[frame["index"]], problem))
@@ -176,9 +176,9 @@ def _todo(all_frames, index, out_dir: Path, names) -> list:
         todo.append(frame)
     if damaged:
         n, (name, why) = len(damaged), damaged[0]
-        warnings.warn(f"{out_dir}: {_count(n, 'done frame')} {'has' if n == 1 else 'have'} no "
+        warnings.warn(f"{out_dir}: {counted(n, 'done frame')} {'has' if n == 1 else 'have'} no "
                       f"usable image ({name}: {why}{', …' if n > 1 else ''}); rendering "
-                      f"{_them(n)} again", stacklevel=3)
+                      f"{pronoun_for(n)} again", stacklevel=3)
     return todo
 
 
@@ -213,7 +213,7 @@ def _unreadable(error: OSError) -> str:
     return f"cannot be read ({error.strerror or error})"
 
 
-def _write_index(out_dir: Path, index: dict, rendered=()) -> None:
+def write_index(out_dir: Path, index: dict, rendered=()) -> None:
     """``sweep.json``, whole, with this run's :func:`summary` so far (``rendered``: the
     frames this run has rendered)."""
     index["summary"] = summary(index, rendered)
@@ -238,12 +238,13 @@ def summary(index: dict, rendered=()) -> dict:
 def summary_sentence(index: dict) -> str:
     """``16 frames: 14 already done, 2 rendered now, 0 failed`` (``, 3 left`` if any)."""
     s = index.get("summary") or summary(index)
-    return (f"{_count(s['frames'], 'frame')}: {s['already_done']} already done, "
+    return (f"{counted(s['frames'], 'frame')}: {s['already_done']} already done, "
             f"{s['rendered_now']} rendered now, {s['failed']} failed"
             + (f", {s['left']} left" if s["left"] else ""))
 
 
-def _size(scene) -> tuple[int, int]:
+def image_size(scene) -> tuple[int, int]:
+    """(width, height) of the scene's image."""
     return scene.image.width, scene.image.height
 
 
@@ -260,11 +261,13 @@ def _json_type(value) -> str:
             float: "number", type(None): "null"}.get(type(value), type(value).__name__)
 
 
-def _count(n: int, one: str, many: str | None = None) -> str:
+def counted(n: int, one: str, many: str | None = None) -> str:
+    """``n`` and the noun: ``one`` for 1, else ``many`` (default ``one`` + "s")."""
     return f"{n} {one if n == 1 else many or one + 's'}"
 
 
-def _them(n: int) -> str:
+def pronoun_for(n: int) -> str:
+    """"it" for one thing, "them" for any other count."""
     return "it" if n == 1 else "them"
 
 
@@ -273,7 +276,7 @@ def _them(n: int) -> str:
 LOCK = ".sweep.lock"
 
 
-class _FolderLock:
+class FolderLock:
     """An exclusive ``flock`` on :data:`LOCK` in the sweep's folder, taken without waiting
     (a second sweep into the folder is refused in one sentence while the first runs) and
     released when the block is left, the file removed then. The system drops the lock when

@@ -38,7 +38,7 @@ every core: on 2 cores ``workers`` was slower at every size measured
 (docs/benchmarks.md, "Sweeps"). Ctrl-C stops the workers with the sweep.
 
 **One sweep at a time in a folder.** A sweep holds a lock on its folder while it runs
-(index.py, ``_FolderLock``: an ``flock`` the system drops when the process ends, by a
+(index.py, ``FolderLock``: an ``flock`` the system drops when the process ends, by a
 kill too): a second sweep into it is refused in one sentence before it reads or writes
 there.
 
@@ -76,8 +76,8 @@ from mimarble.scene.rules import shortened, spp_problem
 from mimarble.sweeps.cluster import check_scheduler, check_workers, dask_results
 from mimarble.sweeps.contact_sheet import CONTACT_SHEET, write_contact_sheet
 from mimarble.sweeps.frames import error_text, file_name, frames, render_frame
-from mimarble.sweeps.index import (INDEX_INTERVAL_S, _FolderLock, _count, _open_index, _size,
-                                   _them, _todo, _write_index)
+from mimarble.sweeps.index import (INDEX_INTERVAL_S, FolderLock, counted, open_index, image_size,
+                                   pronoun_for, frames_to_do, write_index)
 from mimarble.sweeps.settings import SweepError, settings_from
 
 
@@ -98,7 +98,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
     (mimarble/scene/python_numbers.py). Already done frames of the same sweep in
     ``out_dir`` are kept, not rendered again; a damaged index or image there is said in a
     warning and rendered again; a folder another sweep is writing into is refused
-    (index.py, ``_FolderLock``). ``worker_threads``: Dr.Jit threads per Dask worker (default: a
+    (index.py, ``FolderLock``). ``worker_threads``: Dr.Jit threads per Dask worker (default: a
     LocalCluster's share of this machine's cores; a scheduler's workers keep their own).
     Every limit (module docstring) and the folder's name (``files.output_name_problem``)
     are checked before anything is written.
@@ -136,7 +136,7 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
             except ValueError as e:
                 raise SweepError(f"the scene's samples: {e}; give --spp") from None
     else:                                # the sample limit, before anything is written
-        width, height = _size(scene)
+        width, height = image_size(scene)
         problem = spp_problem(spp, width, height)
         if problem:
             raise SweepError(problem)
@@ -156,15 +156,15 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
         raise SweepError(f"{out_dir}: cannot make the sweep's folder "
                          f"({e.strerror or e})") from None
     # One sweep at a time in a folder: a second one is refused while this one runs
-    # (_FolderLock: the lock dies with the process, so a killed sweep leaves none).
-    with _FolderLock(out_dir):
+    # (FolderLock: the lock dies with the process, so a killed sweep leaves none).
+    with FolderLock(out_dir):
         mimarble.start()
         variant = mimarble.mi.variant()
-        index = _open_index(out_dir, scene_or_path, scene, settings, spp, compare, all_frames,
+        index = open_index(out_dir, scene_or_path, scene, settings, spp, compare, all_frames,
                             variant)
         # The only names ever written or read in the folder: derived, never taken from the index.
         names = [file_name(f, settings) for f in all_frames]
-        todo = _todo(all_frames, index, out_dir, names)
+        todo = frames_to_do(all_frames, index, out_dir, names)
         finished = len(all_frames) - len(todo)
         if stop_after is not None:
             todo = todo[:stop_after]
@@ -191,19 +191,19 @@ def sweep(scene_or_path, settings, out_dir, spp: int | None = None, workers: int
                 break
             was_done = [k for k, e in enumerate(index["frames"]) if e["status"] == "done"]
             try:
-                write_contact_sheet(out_dir, index, size=_size(scene))
+                write_contact_sheet(out_dir, index, size=image_size(scene))
             except OSError as e:             # the frames are there; only their overview is not
                 warnings.warn(f"{out_dir / CONTACT_SHEET}: cannot write the contact sheet "
                               f"({e.strerror or e})", stacklevel=2)
             undecodable = [k for k in was_done if index["frames"][k]["status"] != "done"]
             if not undecodable:
                 break
-            _write_index(out_dir, index, rendered)
+            write_index(out_dir, index, rendered)
             if attempt == 0:
-                warnings.warn(f"{out_dir}: {_count(len(undecodable), 'frame image')} did not "
+                warnings.warn(f"{out_dir}: {counted(len(undecodable), 'frame image')} did not "
                               f"decode ({names[undecodable[0]]}"
                               f"{', …' if len(undecodable) > 1 else ''}); rendering "
-                              f"{_them(len(undecodable))} again", stacklevel=2)
+                              f"{pronoun_for(len(undecodable))} again", stacklevel=2)
                 _render([all_frames[k] for k in undecodable], options, index, out_dir, names,
                         workers, scheduler, lambda: None, rendered)
         return index
@@ -235,11 +235,11 @@ def _render(todo, options, index, out_dir: Path, names, workers, scheduler, one_
                 one_more()
                 pending = _record_written(pending, rendered)
                 if time.perf_counter() - last_index >= INDEX_INTERVAL_S:
-                    _write_index(out_dir, index, rendered)
+                    write_index(out_dir, index, rendered)
                     last_index = time.perf_counter()
         finally:
             _record_written(pending, rendered, wait=True)
-            _write_index(out_dir, index, rendered)
+            write_index(out_dir, index, rendered)
 
 
 def _write_frame(path, image) -> None:

@@ -374,13 +374,11 @@ def _smoothstep(a, b, x):
     return t * t * (3.0 - 2.0 * t)
 
 
-# Octaves kept past pbrt's Nyquist cut. Measured on fig11a (250², against a 64-spp
-# float64 reference): RMSE at 1 spp 0.030 with pbrt's cut, 0.020 with 1 more octave,
-# 0.0175 with 2 (plain supersampling: 0.018), 0.018 with 3; the cost of 32 octaves
-# stays that of 8 (docs/benchmarks.md). The marble's colour is a nonlinear function
-# of the phase, so octaves near the pixel size still shift the pixel's mean.
-# (Measured while footprints came out half their size, docs/design-decisions.md; with
-# true footprints margin 2 gives fig11a 256² 1-spp RMSE 0.0178, plain sampling 0.0184.)
+# Octaves kept past pbrt's Nyquist cut: two, the margin with the least 1-spp error on
+# fig11a against a float64 reference (pbrt's cut alone, one and three were worse; plain
+# supersampling about level). The marble's colour is a nonlinear function of the phase,
+# so octaves near the pixel size still shift the pixel's mean. The errors per margin:
+# docs/benchmarks.md, "Figures moved out of the code"; docs/design-decisions.md.
 BAND_LIMIT_MARGIN = 2
 
 

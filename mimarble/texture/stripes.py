@@ -28,6 +28,7 @@ import numpy as np
 
 from mimarble.contract import FLOAT32_INTEGER_LIMIT
 from mimarble.runtime import environment
+from mimarble.texture.sine_pi import cos_pi, sin_pi
 from .finite_arithmetic import finite_product, finite_sum
 
 dr, mi = environment.import_drjit_and_mitsuba()
@@ -105,7 +106,7 @@ class StripeShape:
             return 1.0 - dr.abs(1.0 - 2.0 * x)
         if self.form == "ramp":
             return x
-        s = dr.sin(dr.pi * x)
+        s = sin_pi(x)
         return s * s if self.form == "sin2" else s
 
     def integral(self, a, b):
@@ -113,12 +114,12 @@ class StripeShape:
         without cancellation as b → a (products of sines; a linear T is its value at the
         midpoint times the length)."""
         if self.form == "sin2":
-            return 0.5 * (b - a) - dr.cos(dr.pi * (a + b)) * dr.sin(dr.pi * (b - a)) * (0.5 / dr.pi)
+            return 0.5 * (b - a) - cos_pi(a + b) * sin_pi(b - a) * (0.5 / dr.pi)
         if self.form == "triangle":
             return (b - a) * (1.0 - dr.abs(1.0 - (a + b)))
         if self.form == "ramp":
             return (b - a) * (0.5 * (a + b))
-        return (2.0 / dr.pi) * dr.sin((0.5 * dr.pi) * (a + b)) * dr.sin((0.5 * dr.pi) * (b - a))
+        return (2.0 / dr.pi) * sin_pi(0.5 * (a + b)) * sin_pi(0.5 * (b - a))
 
 
 class StripeFunction:

@@ -104,7 +104,7 @@ def plugin_tag(plugin_name: str) -> str:
     """The XML tag of plugin ``plugin_name``: a mimarble plugin's declared kind (whose
     names are the tags), else Mitsuba's registered type of it; ExportError for neither."""
     from mimarble.mitsuba.plugins import registration as plugins
-    for kind, name, _ in plugins._plugins:      # (kind, name, class) of every declared one
+    for kind, name, _ in plugins.declared_plugins:      # (kind, name, class) of every declared one
         if name == plugin_name:
             return kind
     import mitsuba as mi

@@ -129,7 +129,8 @@ _KINDS = {
     "medium": ("Medium", "register_medium"),
     "phase": ("PhaseFunction", "register_phase"),
 }
-_plugins: list[tuple[str, str, type]] = []
+#: (kind, name, class) of every plugin declared with :func:`plugin`, in declaration order.
+declared_plugins: list[tuple[str, str, type]] = []
 _bound: dict[tuple[str, str], type] = {}
 
 
@@ -153,7 +154,7 @@ def plugin(kind: str, name: str):
     def declare(cls):
         namespace = {k: v for k, v in vars(cls).items() if k not in ("__dict__", "__weakref__")}
         declared = PluginClass(cls.__name__, cls.__bases__, {**namespace, "plugin_name": name})
-        _plugins.append((kind, name, declared))
+        declared_plugins.append((kind, name, declared))
         return declared
     return declare
 
@@ -163,7 +164,7 @@ def bound_class(name: str, variant: str | None = None) -> type:
     its methods, and those of the plain classes it derives from, on that base."""
     variant = variant or mi.variant()
     if (name, variant) not in _bound:
-        kind, _, methods = next(p for p in _plugins if p[1] == name)
+        kind, _, methods = next(p for p in declared_plugins if p[1] == name)
         base = getattr(mi, _KINDS[kind][0])
         namespace = {}
         for klass in reversed(methods.__mro__[:-1]):          # object's own: not copied
@@ -217,7 +218,7 @@ class RGBTexture:
 
 def register_all(variant: str | None = None) -> None:
     """Register every declared plugin for the current variant."""
-    for kind, name, _ in _plugins:
+    for kind, name, _ in declared_plugins:
         cls = bound_class(name, variant)
         getattr(mi, _KINDS[kind][1])(name, lambda props, cls=cls: cls(props))
 

@@ -53,6 +53,13 @@ _ULP = FLOAT32_EPSILON
 #: none), which let a light enclosed by a sphere of radius < 8.9e-4 of its distance
 #: light everything (16 dB); 2⁻²⁰ is still 4× the float32 error of that hit.
 SHADOW_END_REL = 2.0 ** -20
+#: Whether shadow rays in scenes with a large sphere check every sphere hit in float64
+#: (:func:`_occluded_checking_spheres`): None — on a CUDA GPU only, where Mitsuba's
+#: sphere hits are float32; True runs it on the CPU too (its tests).
+CHECK_SPHERE_HITS: bool | None = None
+#: At most this many spheres are tested in float64 by every shadow ray (each is code in
+#: the kernel); a scene with more keeps the CPU's test on a GPU too.
+CHECKED_SPHERES_MAX = 64
 
 
 def spheres_only(scene) -> bool:
@@ -104,13 +111,16 @@ class SphereTable:
     @classmethod
     def of(cls, scene, placements=None) -> "SphereTable":
         """The table of ``scene``: the one built before, unless a shape has moved or
-        changed size since — told by ``placements`` (the shapes' ``to_world``, as
+        changed size since, or :data:`CHECK_SPHERE_HITS` was set otherwise — told by ``placements`` (the shapes' ``to_world``, as
         ``mi.traverse`` holds them: the same variables as the table's copies), else by the
         shapes' bounding boxes (the scalar variant)."""
         if placements is not None:
             facts = tuple(tuple(dr.detail.collect_indices(p)) for p in placements)
         else:
             facts = tuple((tuple(s.bbox().min), tuple(s.bbox().max)) for s in scene.shapes())
+        # The switch decides checks_hits (the traced code): a table built under the other
+        # setting is stale, as one of moved shapes.
+        facts = (CHECK_SPHERE_HITS, facts)
         facts_then, table, held = cls._tables.pop(id(scene), (None, None, None))
         # A new scene may take a freed one's id. Its spheres' ``to_world`` are other
         # variables than the held copies (whose indices cannot be reused while held), so
@@ -144,15 +154,19 @@ class SphereTable:
     @property
     def structure(self) -> tuple:
         """What decides the code :func:`refine` and :func:`occluded` trace."""
-        return (getattr(self, "size", None), self.large)
+        return (getattr(self, "size", None), self.large, self.checks_hits,
+                self.sphere_ids if self.checks_hits else None, self.spheres_only)
 
     def __init__(self, scene):
         shapes = list(scene.shapes())
         self.geometry = [_sphere_geometry(s) for s in shapes]
         # Held only where the lookup needs them (the scalar variant): a table of a JIT
         # variant holds no shape, so a dropped scene's shapes leave Dr.Jit's registry, which
-        # every recorded pass walks (issue 43: 0.57 → 1.07 ms a replay after three scenes).
+        # every recorded pass walks (issue 43: a replay grew slower with each scene held;
+        # docs/benchmarks.md, "Figures moved out of the code").
         self.shapes = None if dr.is_jit_v(mi.Float) else shapes
+        self.sphere_ids = ()
+        self.spheres_only = all(g is not None for g in self.geometry)
         if dr.is_jit_v(mi.Float):
             # Every shape's id sizes the table (a hit's id indexes it, clamped to its end):
             # a plane or mesh whose id is past the last sphere's finds r = 0.
@@ -165,6 +179,7 @@ class SphereTable:
                     for column, value in zip(columns, (cx, cy, cz, r)):
                         column[shape_id] = value
             self.size = size
+            self.sphere_ids = tuple(i for i, g in zip(ids, self.geometry) if g is not None)
             self.columns = [mi.Float64(c) for c in columns]
             dr.make_opaque(*self.columns)     # evaluated, never a literal: recorded as inputs
         scales = [max(map(abs, g[0])) + g[1] for g in self.geometry if g is not None]
@@ -172,6 +187,18 @@ class SphereTable:
         # ε ≥ EPS_REL (max|c_k| + r > 419): then refine() works in float64 and occluded()
         # looks for false hits on the own sphere; below it both would change nothing.
         self.large = any(SHADOW_OFFSET_ULPS * _ULP * x > EPS_REL for x in scales)
+        # Where Mitsuba's sphere hits are float32 (OptiX): each checked in float64.
+        checks = CHECK_SPHERE_HITS if CHECK_SPHERE_HITS is not None else \
+            dr.is_jit_v(mi.Float) and dr.backend_v(mi.Float) == dr.JitBackend.CUDA
+        self.checks_hits = self.large and checks and \
+            len(self.sphere_ids) <= CHECKED_SPHERES_MAX
+
+    def entry(self, shape_id: int):
+        """(centre: Point3d, radius: Float64) of the sphere whose shape id is
+        ``shape_id`` (JIT variants), read from the table: an input of a recorded pass."""
+        index = mi.UInt32(shape_id)
+        cx, cy, cz, r = (dr.gather(mi.Float64, c, index) for c in self.columns)
+        return mi.Point3d(cx, cy, cz), r
 
     def lookup(self, shape):
         """(centre: Point3d, radius: Float64) per lane; radius 0 where no sphere was hit."""
@@ -194,8 +221,8 @@ def refine(table: SphereTable, ray, si, hit):
     Mitsuba hit a sphere (Mitsuba's own p and n elsewhere).
 
     Scenes without a large sphere keep Mitsuba's hit as it is: its error is then
-    below the shadow-ray offset, and the refinement would cost ~18 % of a render
-    (fig11a 500², 1 spp, 2-core AMD EPYC: 29.8 → 35.3 ms).
+    below the shadow-ray offset, and the refinement would cost a noticeable part of a
+    render (docs/benchmarks.md, "Figures moved out of the code").
     """
     if not table.large:
         return si.p, mi.Vector3f(si.n), mi.Bool(False) & hit
@@ -243,6 +270,8 @@ def occluded(scene, table: SphereTable, si, p, n_facing, on_sphere, target, acti
     ray = _ray_to(origin, target, si.time, si.wavelengths)
     if not table.large:
         return scene.ray_test(ray, active)
+    if table.checks_hits:
+        return _occluded_checking_spheres(scene, table, ray, active)
     first = scene.ray_intersect_preliminary(ray, active)
     blocked = mi.Bool(active) & first.is_valid()
     own = blocked & on_sphere & (first.shape == si.shape)
@@ -254,3 +283,59 @@ def occluded(scene, table: SphereTable, si, p, n_facing, on_sphere, target, acti
     skip = dr.minimum(delta / dr.maximum(dr.dot(n_facing, ray.d), 1e-3), 0.5 * ray.maxt)
     retry = mi.Ray3f(ray(skip), ray.d, ray.maxt - skip, ray.time, ray.wavelengths)
     return (blocked & ~own) | (own & scene.ray_test(retry, own))
+
+
+#: Hits on spheres, stepped past at most this many times a shadow ray in search of
+#: another shape (:func:`_occluded_checking_spheres`).
+CUDA_SPHERE_STEPS = 4
+
+
+def _crosses_sphere(ray, centre, radius):
+    """Whether ``ray`` crosses the sphere's surface within (0, maxt), in float64 (the
+    stable quadratic of :func:`refine`); False where radius is 0."""
+    o, d = mi.Point3d(ray.o), mi.Vector3d(ray.d)
+    oc = o - centre
+    a = dr.squared_norm(d)
+    b = dr.dot(oc, d)
+    distance = dr.norm(oc)
+    c = (distance - radius) * (distance + radius)
+    discriminant = b * b - a * c
+    q = -(b + dr.copysign(dr.sqrt(dr.maximum(discriminant, 0.0)), b))
+    q = dr.select(q == 0.0, -b, q)
+    t0 = q / a
+    t1 = dr.select(q != 0.0, c / q, t0)
+    maxt = mi.Float64(ray.maxt)
+    within = ((t0 > 0.0) & (t0 < maxt)) | ((t1 > 0.0) & (t1 < maxt))
+    return (radius > 0.0) & (discriminant >= 0.0) & within
+
+
+def _occluded_checking_spheres(scene, table: SphereTable, ray, active):
+    """The shadow test on a GPU, where Mitsuba's sphere is intersected by OptiX in float32
+    (mitsuba3 src/shapes/optix/sphere.cuh): its |o − c|² − r² loses ulp(r²), so a ray
+    leaving a large sphere, or passing near one, can report a hit on it far past the δ
+    the CPU's test allows for. Spheres are tested here instead, every one of the table
+    in float64 (:func:`_crosses_sphere`); other shapes as Mitsuba finds them, the ray
+    going on past each sphere it reports, up to :data:`CUDA_SPHERE_STEPS` times (an
+    occluder behind more sphere hits than that is missed); none in a scene of spheres."""
+    blocked = dr.zeros(mi.Bool, dr.width(ray.o))
+    for shape_id in table.sphere_ids:
+        centre, radius = table.entry(shape_id)
+        blocked |= _crosses_sphere(ray, centre, radius)
+    blocked &= active
+    if table.spheres_only:
+        return blocked
+    searching = mi.Bool(active) & ~blocked
+    start = dr.zeros(mi.Float, dr.width(ray.o))
+    for _ in range(CUDA_SPHERE_STEPS):
+        part = mi.Ray3f(ray(start), ray.d, ray.maxt - start, ray.time, ray.wavelengths)
+        first = scene.ray_intersect_preliminary(part, searching)
+        hit = searching & first.is_valid()
+        _, radius = table.lookup(first.shape)
+        blocked |= hit & (radius <= 0.0)
+        searching = hit & (radius > 0.0)
+        # Past the reported hit by the shadow-ray offset ε there: from the hit itself the
+        # next search would find the same sphere again at t ≈ 0, a step spent for nothing.
+        step = first.t + EPS_REL * (1.0 + _largest_component(part(first.t)))
+        start = dr.select(searching, start + step, start)
+        searching &= start < ray.maxt
+    return blocked

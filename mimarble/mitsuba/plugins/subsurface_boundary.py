@@ -63,7 +63,7 @@ class SubsurfaceBoundaryError(ValueError):
     """An invalid ``subsurface_boundary``; the message names the parameter."""
 
 
-def _ior(props, name: str, default: float, plugin_name: str = "subsurface_boundary",
+def ior_property(props, name: str, default: float, plugin_name: str = "subsurface_boundary",
          error=None) -> float:
     """A positive finite index of refraction ``name`` (``default`` when not given), else
     ``error`` (default :class:`SubsurfaceBoundaryError`) naming the plugin."""
@@ -96,8 +96,8 @@ class SubsurfaceBoundary:
 
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
-        self.int_ior = _ior(props, "int_ior", DEFAULT_INT_IOR)
-        self.ext_ior = _ior(props, "ext_ior", DEFAULT_EXT_IOR)
+        self.int_ior = ior_property(props, "int_ior", DEFAULT_INT_IOR)
+        self.ext_ior = ior_property(props, "ext_ior", DEFAULT_EXT_IOR)
         self.eta = self.int_ior / self.ext_ior
         self.mean_reflectance = diffuse_fresnel_reflectance(self.eta)
         # W(μₒ) = (1 − F(μₒ))·exit_scale: F̄ < 1 for every finite η > 0

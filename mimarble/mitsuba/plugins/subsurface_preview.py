@@ -60,7 +60,7 @@ from __future__ import annotations
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import describe, plugin, recording_key
 from mimarble.mitsuba.plugins.subsurface_boundary import (DEFAULT_EXT_IOR, DEFAULT_INT_IOR,
-                                                          SubsurfaceBoundaryError, _ior,
+                                                          SubsurfaceBoundaryError, ior_property,
                                                           fresnel_from_outside, mirror_probability)
 from mimarble.mitsuba.plugins.subsurface_reflectance import (diffuse_fresnel_reflectance,
                                                              spherical_albedo,
@@ -87,9 +87,9 @@ class SubsurfacePreview:
                 "(single-scattering), " + ("not both" if given else "one of them"))
         self.kind = given[0]
         self.texture = props.get_texture(self.kind)
-        self.int_ior = _ior(props, "int_ior", DEFAULT_INT_IOR, "subsurface_preview",
+        self.int_ior = ior_property(props, "int_ior", DEFAULT_INT_IOR, "subsurface_preview",
                             SubsurfacePreviewError)
-        self.ext_ior = _ior(props, "ext_ior", DEFAULT_EXT_IOR, "subsurface_preview",
+        self.ext_ior = ior_property(props, "ext_ior", DEFAULT_EXT_IOR, "subsurface_preview",
                             SubsurfacePreviewError)
         self.eta = self.int_ior / self.ext_ior
         self.mean_reflectance = diffuse_fresnel_reflectance(self.eta)

@@ -191,11 +191,13 @@ class Whitted:
         where mimarble first holds the scene (``mimarble.render`` of a loaded ``mi.Scene``,
         before anything is traced) and again when :meth:`sample` is traced (under
         ``mi.render`` the sentence is the cause of Dr.Jit's ``drjit.custom`` error)."""
-        Whitted._materials(scene)
-        Whitted._lights(scene)
+        Whitted.scene_materials(scene)
+        Whitted.scene_lights(scene)
 
     @staticmethod
-    def _materials(scene):
+    def scene_materials(scene):
+        """The BSDF of each of ``scene``'s shapes, in order; ValueError unless each is a
+        ``channel_material`` (the only material the Whitted sum shades)."""
         materials = [shape.bsdf() for shape in scene.shapes()]
         for shape, material in zip(scene.shapes(), materials):
             if not isinstance(material, ChannelMaterial):
@@ -205,7 +207,9 @@ class Whitted:
         return materials
 
     @staticmethod
-    def _lights(scene):
+    def scene_lights(scene):
+        """``scene``'s emitters but the environment; ValueError unless each is a point light
+        or a ``stratified_area`` (the lights whose sum the Whitted model takes)."""
         # The environment (Mitsuba holds at most one) is the background, not a light.
         lights = [light for light in scene.emitters() if not light.is_environment()]
         for light in lights:
@@ -246,7 +250,7 @@ class Whitted:
     def prepare_doubts(scene) -> None:
         """Every channel material of ``scene`` makes what its marbles' second estimates
         read, before :meth:`shade` with ``doubts`` is traced."""
-        for material in Whitted._materials(scene):
+        for material in Whitted.scene_materials(scene):
             material.prepare_alternates()
 
     def shade(self, scene, ray, active=True, doubts: bool = False):
@@ -258,10 +262,10 @@ class Whitted:
         estimate of how wrong a sample of them can be (``Marble.eval_and_alternate``),
         carried through the same lights. 0 for a miss."""
         # Static facts about the scene decide which code is traced at all.
-        materials = self._materials(scene)
+        materials = self.scene_materials(scene)
         any_specular = any(m.has_channel("specular") for m in materials)
         footprints = any(m.needs_differentials() for m in materials)
-        lights = self._lights(scene)
+        lights = self.scene_lights(scene)
         # Lights add kd·(n·l) + ks·(n·h)^s: nothing where no material has either. (Traced
         # anyway, a lone ambient-only material made Dr.Jit 1.5 emit invalid LLVM IR — "does
         # not dominate all uses" — and abort the process.)
@@ -287,7 +291,7 @@ class Whitted:
             one, none = (lambda si, on: materials[0].channels(si, on)), _no_channels
         if len({id(m) for m in materials}) == 1 and dr.is_jit_v(mi.Float):
             # One material: no symbolic call, and a symbolic `if` that lets packets of
-            # missed rays skip the texture (measured: 9.5 → 7.8 ms for fig11a at 1 spp).
+            # missed rays skip the texture (docs/benchmarks.md, "What made it fast").
             channels = dr.if_stmt((si, hit), hit, one, lambda si, on: none(si))
         elif footprints or doubts:
             channels = self._channels(si, ray, hit, doubts)

@@ -15,8 +15,17 @@ sooner on every scene measured). A ``max_spp`` off the ladder is a last level of
 grid, which replaces the pixel's samples. Only the pixels a round refined are candidates
 in the next. Deterministic, like the rest of whitted mode.
 
-**What a pixel is at the end.** At 9^k·m² samples a pixel holds the stratum centres of
-the plain render's grid, one per stratum, summed as a plain render sums them (in float32
+**The jump to 16.** 9 and 81 straddle 16: where every pixel of an object needs about 16
+samples (fine veins) the ladder takes many to 81. So the first round sends a pixel whose
+estimate says the 3m grid will not do and the 4m grid will (:data:`JUMP`) straight to
+the 4m grid, 16m² stratum centres that replace its m² (the 4m grid does not hold the
+pixel's centre); from there it goes on as the ladder does from 16m² (the 12m grid keeps
+the 4m one's centres; under ``max_spp`` 81, the 9×9 grid, replacing: :func:`jump_ladder`).
+The rounds then trace one pass per group of pixels at the same step of the same ladder.
+
+**What a pixel is at the end.** At 9^k·m² or 16·9^k·m² samples (and at ``max_spp``) a
+pixel holds the stratum centres of the plain render's grid, one per stratum, summed as a
+plain render sums them (in float32
 with compensation, the partial sums added in float64), so for point-sampled marbles its
 mean is the plain render's at that spp up to the rounding of that sum's order (a float32
 ulp at most; none in the tests). At 3·9^k·m² it holds, in each of the 9^k·m² strata of
@@ -29,8 +38,10 @@ samples a pixel keeps from a coarser grid keep their wider footprints
 
 Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample counts,
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
-(``dr.compress``); only its length comes back to size the passes. The lists are in Morton
-order (:func:`morton_order`), so that a pass's neighbouring lanes are neighbouring pixels.
+(``dr.compress``); only its length comes back to size the passes. The scatters into the
+pixels' arrays are queued together and run as one kernel (:meth:`PixelState.add`). The
+lists are in Morton order (:func:`morton_order`), so that a pass's neighbouring lanes are
+neighbouring pixels.
 The first pass is the plain kernel, and a pixel's doubt is read from its image (the
 second difference, :func:`refine`), except in scenes with a
 prefiltered marble, where the first pass traces the marbles' doubts
@@ -121,6 +132,19 @@ CURVATURE_WEIGHT = 0.125
 #: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
 #: cheaper per sample (module docstring).
 THIRDS = False
+#: The first round's jump: a pixel of m² samples whose estimate E over its bar
+#: ``threshold``·m³ is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m² samples,
+#: replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n² law of the
+#: estimate, n² samples pass their bar once E·m²/n² ≤ threshold·n³, i.e. (n/m)⁵ ≥ E/bar
+#: (the 5 is 2 + BAR_POWER): the band is the pixels that the 3m grid would leave over
+#: their bar and the 4m grid would not, 3⁵ < E/bar ≤ 4⁵. Such a pixel ends at 17 samples
+#: traced where the ladder takes it to 81 (docs/design-decisions.md, "Adaptive samples:
+#: the jump to 16 and fewer kernels"). None: no jump.
+JUMP = (3.0 ** 5, 4.0 ** 5)
+#: Fewer pixels than this that the band sends to 16m² go to 9m² with the others: a pass
+#: has fixed costs (a replay's host work, its small kernels: about a millisecond, what
+#: ~20 000 lanes of a sphere cost), which a few pixels' gain does not pay.
+JUMP_LEAST = 1024
 
 
 class AdaptiveRender(NamedTuple):
@@ -128,8 +152,8 @@ class AdaptiveRender(NamedTuple):
     it; ``samples`` (H, W), each pixel's samples at the end; ``traced``, every sample
     traced for a pixel (the samples a round replaces included: the cost; not the few a
     pass over a pixel list pads itself with,
-    :func:`~mimarble.mitsuba.rendering.passes.padded_count`); ``rounds``, the passes over
-    pixel lists after the first pass."""
+    :func:`~mimarble.mitsuba.rendering.passes.padded_count`); ``rounds``, the rounds
+    after the first pass (a round is a pass over each group's pixel list)."""
     image: np.ndarray
     samples: np.ndarray
     traced: int
@@ -174,6 +198,18 @@ def ladder(spp: int, max_spp: int) -> list[Level]:
             levels.append(Level(3 * m * m, 3 * m, m, 2, 0))
         levels.append(Level(max_spp, most))
     return levels
+
+
+def jump_ladder(spp: int, max_spp: int) -> list[Level] | None:
+    """The levels of a pixel the first round sends from ``spp`` = m² straight to the 4m
+    grid (16m² samples, a level that replaces, :data:`JUMP`), and on from there as
+    :func:`ladder` goes (the 12m grid keeps the 4m one's centres, as any odd refinement
+    does; else ``max_spp``'s own grid, replacing). None when 16m² is above ``max_spp``
+    or :data:`JUMP` is None."""
+    m = samples_per_axis(spp)
+    if JUMP is None or 16 * m * m > max_spp:
+        return None
+    return [Level(spp, m), Level(16 * m * m, 4 * m)] + ladder(16 * m * m, max_spp)[1:]
 
 
 def sample_levels(spp: int, max_spp: int) -> list[int]:
@@ -228,17 +264,20 @@ class PixelState:
 
     def clear(self, pixels) -> None:
         """Forget what ``pixels`` (UInt32 local indices) hold: a level that replaces them."""
+        self._settle()
         for name, value in (("sums", 0.0), ("doubt_sums", 0.0), ("samples", 0), ("doubted", 0),
                             ("first", 0xFFFFFFFF), ("last", 0), ("low", dr.inf),
                             ("high", -dr.inf)):
             array = getattr(self, name)
             dr.scatter(array, type(array)(value), pixels)
+        self._settle()
 
     def add(self, traced, pixels, active, samples: int) -> None:
         """Add a pass's :class:`~mimarble.mitsuba.rendering.passes.PassSums` ``traced`` at
         ``pixels`` (its lanes' local indices) where ``active`` (the padding is not), of
         ``samples`` samples a pixel: sums and counts added, extremes kept. Gathered,
         combined and scattered (a pixel is once in a pass): no atomic scatter."""
+        self._settle()             # the arrays evaluated before the scatters are queued
         add, least, most = (lambda a, b: a + b), dr.minimum, dr.maximum
         parts = [("sums", add, traced.sums)]
         if traced.doubt_sums is not None:
@@ -251,6 +290,15 @@ class PixelState:
             array = getattr(self, name)
             dr.scatter(array, combine(dr.gather(type(array), array, pixels, active), value),
                        pixels, active)
+        self._settle()
+
+    NAMES = ("sums", "samples", "first", "last", "doubt_sums", "doubted", "low", "high")
+
+    def _settle(self) -> None:
+        """Evaluate every array: the scatters queued into them run as one kernel. (A
+        scatter into an array not yet evaluated — a literal ``dr.zeros``, a lazy gather —
+        evaluates it first, which runs the scatters queued so far: a kernel per array.)"""
+        dr.eval(*(getattr(self, name) for name in self.NAMES))
 
     def take(self, traced, samples: int) -> None:
         """What a first pass over every pixel in order (one pass, ``traced``) found: its
@@ -282,7 +330,7 @@ def _neighbours(pixels, width: int, height: int):
 
 
 def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
-           height: int, doubt_from_image: bool = False):
+           height: int, doubt_from_image: bool = False, jump: tuple | None = None):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
     estimated error is above ``threshold`` · axis^:data:`BAR_POWER` (module docstring), in
     their order:
@@ -295,7 +343,10 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     :data:`CURVATURE_WEIGHT`. For a smooth image it is (3/8)·h²·|f_xx + f_yy| to leading
     order, 9× the midpoint rule's error of a 1-spp pixel, h²·|f_xx + f_yy|/24; where veins
     finer than a pixel alias, neighbours disagree at random and it is large. Held as the
-    doubt of one sample, it falls as 1/n² as the kernel's doubt does."""
+    doubt of one sample, it falls as 1/n² as the kernel's doubt does.
+
+    ``jump`` (lo, hi): two lists, in their order — the pixels over the bar whose E / bar is
+    not in (lo, hi], and those whose is (:data:`JUMP`)."""
     least = most = None
     low_mean = high_mean = total = None
     for around in _neighbours(pixels, width, height):
@@ -325,14 +376,21 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
         doubt = dr.gather(mi.Float64, state.doubt_sums, pixels) / mi.Float64(dr.maximum(doubted, 1))
     errors = estimated_errors(axis, doubt, mi.Float64(spread), mi.Float64(contrast),
                               on_silhouette)
-    keep = errors > dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
-    return dr.gather(mi.UInt32, pixels, dr.compress(keep))
+    bar = dr.opaque(mi.Float64, threshold * axis ** BAR_POWER)
+    keep = errors > bar
+    if jump is None:
+        return dr.gather(mi.UInt32, pixels, dr.compress(keep))
+    jumps = keep & (errors > bar * jump[0]) & (errors <= bar * jump[1])
+    stays = keep & ~jumps
+    dr.eval(stays, jumps)             # one kernel for both lists (else each compress's own)
+    return (dr.gather(mi.UInt32, pixels, dr.compress(stays)),
+            dr.gather(mi.UInt32, pixels, dr.compress(jumps)))
 
 
 def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                     max_spp: int = DEFAULT_MAX_SPP, progress=False, crop=None,
-                    pass_samples: int | None = None, rounds: int | None = None
-                    ) -> AdaptiveRender:
+                    pass_samples: int | None = None, rounds: int | None = None,
+                    jump: str = "estimate") -> AdaptiveRender:
     """Render a loaded whitted scene (JIT variants) adaptively: a first pass of ``spp``
     stratum centres, then rounds that refine every pixel whose estimated error is above
     ``threshold`` (linear colour units) up to ``max_spp`` (module docstring).
@@ -343,7 +401,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     pixels only, so they can be refined otherwise than in the whole image. ``progress``:
     as ``mimarble.render`` takes it (the total grows with each round). ``rounds``: stop
     after that many rounds (the benchmark's oracle, mimarble/bench/oracle.py, takes every
-    pixel to each level with a threshold below 0)."""
+    pixel to each level with a threshold below 0). ``jump``: which pixels the first round
+    sends to 16m² samples (:func:`jump_ladder`) — ``"estimate"`` those whose estimate says
+    so (:data:`JUMP`), ``"never"``, or ``"always"`` (every pixel it refines)."""
     if not isinstance(mitsuba_scene.integrator(), Whitted):
         raise ValueError(f"render_adaptive: the scene's integrator is "
                          f"{type(mitsuba_scene.integrator()).__name__}; adaptive sampling "
@@ -360,46 +420,72 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     done = report(progress, "render")
     traced, total = 0, count * spp
     done(0, total + 1)                         # open until the last round has said its size
-    levels = ladder(spp, max_spp)
-    if rounds is not None:
-        levels = levels[:rounds + 1]
-    pixels, listed = dr.arange(mi.UInt32, count), count  # the first pass: row by row
+    main, jumped = ladder(spp, max_spp), jump_ladder(spp, max_spp)
+    if jump == "never" or (jump == "always" and jumped is None):
+        jumped = None
+    # Each group: the pixels (local indices, a Dr.Jit list) at the same step of the same
+    # ladder, traced in one pass a round. The first pass: every pixel, row by row.
+    groups = [(main, 0, dr.arange(mi.UInt32, count), count)]
     taken = 0
-    for number, level in enumerate(levels):
-        last = number + 1 == len(levels)   # no estimates: nothing reads them after it
-        if number > 0 and not level.parent:
-            state.clear(pixels)
-        whole = number == 0 and window.whole
-        for part in trace_sums(target, level.grid ** 2, None if whole else _global(window, pixels),
-                               listed, with_estimates=not last, doubts=doubts and number == 0,
-                               parent_axis=level.parent, per_cell=level.per_cell,
-                               cell_offset=level.offset, pass_samples=pass_samples, key=facts):
-            lanes = dr.width(part.sums)
-            if whole and part.count == count == lanes and part.samples == level.spp:
-                state.take(part, level.spp)          # the whole image in one pass
-            else:
-                at = dr.arange(mi.UInt32, lanes)
-                active = at < dr.opaque(mi.UInt32, part.count)
-                state.add(part, dr.gather(mi.UInt32, pixels,
-                                          at + dr.opaque(mi.UInt32, part.start), active),
-                          active, part.samples)
-            done(traced + (part.start + part.count) * level.traced, total + 1)
-        dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
-        traced += listed * level.traced
-        taken += number > 0
-        if last:
+    while groups:
+        for levels, number, pixels, listed in groups:
+            level = levels[number]
+            last = number + 1 == len(levels) or rounds == taken   # no estimates after it
+            if number > 0 and not level.parent:
+                state.clear(pixels)
+            whole = number == 0 and window.whole
+            for part in trace_sums(target, level.grid ** 2,
+                                   None if whole else _global(window, pixels), listed,
+                                   with_estimates=not last, doubts=doubts and number == 0,
+                                   parent_axis=level.parent, per_cell=level.per_cell,
+                                   cell_offset=level.offset, pass_samples=pass_samples,
+                                   key=facts):
+                lanes = dr.width(part.sums)
+                if whole and part.count == count == lanes and part.samples == level.spp:
+                    state.take(part, level.spp)          # the whole image in one pass
+                else:
+                    at = dr.arange(mi.UInt32, lanes)
+                    active = at < dr.opaque(mi.UInt32, part.count)
+                    state.add(part, dr.gather(mi.UInt32, pixels,
+                                              at + dr.opaque(mi.UInt32, part.start), active),
+                              active, part.samples)
+                done(traced + (part.start + part.count) * level.traced, total + 1)
+            dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
+            traced += listed * level.traced
+        if rounds == taken:
             break
         means = state.means()
-        # The first round's candidates: every pixel (local indices) in Morton order, made
-        # only when a round follows.
-        candidates = mi.UInt32(morton_order(width, height)) if number == 0 else pixels
-        pixels = refine(state, means, candidates, math.sqrt(level.spp), threshold, width,
-                        height, doubt_from_image=number == 0 and not doubts)
-        dr.eval(pixels)
-        listed = dr.width(pixels)
-        if listed == 0:
-            break
-        total = traced + listed * levels[number + 1].traced
+        dr.eval(means)                 # its three colours in one kernel, not one a gather
+        following = []
+        for levels, number, pixels, listed in groups:
+            if number + 1 == len(levels):
+                continue
+            axis = math.sqrt(levels[number].spp)
+            if number == 0:
+                # The first round's candidates: every pixel (local indices) in Morton
+                # order, made only when a round follows.
+                candidates = mi.UInt32(morton_order(width, height))
+                split = jumped is not None and jump == "estimate"
+                found = refine(state, means, candidates, axis, threshold, width, height,
+                               doubt_from_image=not doubts, jump=JUMP if split else None)
+                if split:
+                    dr.eval(*found)
+                    if dr.width(found[1]) < JUMP_LEAST:   # not worth a pass of its own
+                        following.append((levels, 1, _joined(*found)))
+                    else:
+                        following += [(levels, 1, found[0]), (jumped, 1, found[1])]
+                else:
+                    following.append((levels if jumped is None else jumped, 1, found))
+            else:
+                following.append((levels, number + 1,
+                                  refine(state, means, pixels, axis, threshold, width,
+                                         height)))
+        dr.eval(*(pixels for _, _, pixels in following))
+        groups = [(levels, number, pixels, dr.width(pixels))
+                  for levels, number, pixels in following if dr.width(pixels)]
+        total = traced + sum(listed * levels[number].traced
+                             for levels, number, _, listed in groups)
+        taken += bool(groups)
     done(traced, traced)
     image = state.means()
     image = dr.ravel(image, order="F").numpy().reshape(height, width, 3)
@@ -419,9 +505,15 @@ def traces_doubts(mitsuba_scene) -> bool:
     if DOUBT_KERNEL:
         return True
     return any(isinstance(getattr(texture, "pixel_filter", None), Prefilter)
-               for material in Whitted._materials(mitsuba_scene)
+               for material in Whitted.scene_materials(mitsuba_scene)
                for name in CHANNELS
                for texture in textures_within(getattr(material, name)))
+
+
+def _joined(first, second):
+    """Two UInt32 lists, one after the other (Dr.Jit's ``concat`` refuses an empty one)."""
+    return first if dr.width(second) == 0 else second if dr.width(first) == 0 else \
+        dr.concat((first, second))
 
 
 def _global(window: Window, pixels):

@@ -135,8 +135,8 @@ def write_jpeg(path, pixels: np.ndarray, quality: int = JPEG_QUALITY) -> None:
 
 
 #: zlib level of the PNGs written: 1, the fastest (OpenCV's default too). Mitsuba's
-#: default 5 made writing fig11a's 500² PNG 48 ms against 19 ms for a file 17 % larger
-#: (193 → 226 kB; the dither leaves little to compress), on the AMD EPYC.
+#: default 5 took more than twice as long for a file only a little smaller (the dither
+#: leaves little to compress; docs/benchmarks.md, "Figures moved out of the code").
 PNG_COMPRESSION = 1
 
 

@@ -33,8 +33,9 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Loaded scenes kept (least recently used dropped first). Few: every replay of a
 #: recorded pass traverses every live instance of the variant's plugins (Dr.Jit walks its
-#: registry for the virtual calls it may record), about 0.16 ms per kept paper scene on
-#: the AMD EPYC — so a scene a render no longer uses should not stay alive.
+#: registry for the virtual calls it may record), a cost per kept scene (docs/benchmarks.md,
+#: "Whole call against its kernels") — so a scene a render no longer uses should not stay
+#: alive.
 SCENES = 2
 
 

@@ -419,7 +419,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     return radiance, first, last, estimates
 
 
-_traced_pass = Recorded(_trace_pass)
+#: :func:`_trace_pass` recorded once per kernel key and replayed (:class:`Recorded`).
+traced_pass = Recorded(_trace_pass)
 
 
 def compensated_block_sum(values, block: int, opaque_block=None):
@@ -475,7 +476,7 @@ def _pass_function(scene):
     Dr.Jit's registry another loaded scene's ("record(): error encountered while
     recording a frozen function" after a scene that had them). Its image is the
     background, or its shapes unlit: nothing worth a recording."""
-    return _traced_pass if scene.shapes() and scene.emitters() else _trace_pass
+    return traced_pass if scene.shapes() and scene.emitters() else _trace_pass
 
 
 def _accumulate(so_far, traced):

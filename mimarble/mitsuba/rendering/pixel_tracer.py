@@ -59,9 +59,9 @@ def nested_stratum(new, parent_axis: int, per_cell: int, cell_offset, parity):
     sample an adaptive round adds to a pixel whose samples lie on that grid: each cell of
     the m grid holds its centre and its first ``cell_offset`` (opaque) other strata
     (:data:`CELL_ORDER`), and gets ``per_cell`` more. ``parent_axis`` and ``per_cell`` are
-    Python numbers, literals of the kernel: a division by an opaque integer is a scalar
-    loop in a vector kernel (it made a round's lanes 1.6× dearer), by a literal a
-    multiplication.
+    Python numbers, literals of the kernel: a division by an opaque integer is a scalar loop
+    in a vector kernel (it made a round's lanes markedly dearer: docs/benchmarks.md,
+    "Figures moved out of the code"), by a literal a multiplication.
 
     The centre of stratum (i, j) of the m grid, ((i + ½)/m, (j + ½)/m), is the centre of
     stratum (3i + 1, 3j + 1) of the 3m grid — an odd refinement keeps every old centre.

@@ -317,7 +317,7 @@ def render_in_passes(mitsuba_scene, spp: int, mode: str = "whitted", progress=Fa
     The numbers that vary between renders of one scene structure are opaque
     (pass offsets, samples per pixel, image width and height), so a scene
     compiles one kernel for every spp: a new user's renders at 1, 4 and
-    16 spp cost one compilation (0.45 s for fig11a on the AMD EPYC), not three,
+    16 spp cost one compilation (docs/benchmarks.md, "Start-up"), not three,
     as they did through ``mi.render``, whose sampler and sample indexing take
     the spp as a constant. JIT variants therefore always render here, also in
     one pass. A new image size still compiles a new kernel (measured: 16², 24²,

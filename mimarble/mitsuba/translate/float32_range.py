@@ -11,7 +11,7 @@ from mimarble.scene.rules import cross
 
 from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 
-from .shapes import _box_distance
+from .shapes import box_distance
 
 
 class Float32RangeWarning(UserWarning):
@@ -93,7 +93,7 @@ def _corner_problems(scene: model.Scene, shape) -> tuple[list, list]:
     if corners is None:                 # a mesh file unread: its transform's origin
         corners = [shape.bounds()[0]]
     extent = max(map(_largest, corners))
-    distance = _box_distance(scene.camera.eye, corners) if len(corners) == 8 else 0.0
+    distance = box_distance(scene.camera.eye, corners) if len(corners) == 8 else 0.0
     problem = _reach_problem(_where(scene, shape), kind_of(shape).keyword, extent,
                              extent, _FLOAT32_ERROR_SCALE * extent,
                              distance if distance > 0 else None)

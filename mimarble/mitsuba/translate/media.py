@@ -81,10 +81,10 @@ def roulette_phase(scene: model.Scene) -> dict:
     Russian roulette (``modes.roulette_depth``: some albedo may pass 0.95), else nothing
     (Mitsuba's ``isotropic``). The phase function ends a walk at each scattering with
     probability 1 − max α, keeping weights ≤ 1 (mimarble/mitsuba/plugins/roulette_phase.py):
-    without it a white walk runs to the boundary or the depth cap. Measured
-    (docs/benchmarks.md, "Russian roulette on white marble"): at albedo 0.98831 2.6× the
-    efficiency of no roulette, at 0.9995 the same; below 0.95 volpath's own roulette is the
-    better (0.8: 1.4×), which the scene keeps there."""
+    without it a white walk runs to the boundary or the depth cap. Near albedo 1 it is more
+    efficient than no roulette, or as efficient; below 0.95 volpath's own roulette is the
+    better, which the scene keeps there (docs/benchmarks.md, "Russian roulette on white
+    marble")."""
     if roulette_depth(translucent_materials(scene)) == VOLPATH_RR_DEPTH:
         return {"phase": {"type": "roulette_isotropic"}}
     return {}

@@ -109,11 +109,10 @@ def roulette_depth(translucent: tuple) -> int:
     components' bound (``error_budget.channel_bound``, clamped to 1 as the medium clamps)
     passes it, or a subsurface without an albedo channel — else Mitsuba's default
     :data:`ROULETTE_DEPTH`. volpath's roulette survives a path with min(max β, 0.95): its
-    weights grow as (α/0.95)ᵏ above that albedo, a few huge fireflies in white marble,
-    while below it the roulette is the faster at equal noise (docs/benchmarks.md, "Russian
-    roulette on white marble": 4.1–14× the efficiency without it at albedo 0.9995,
-    2.5–8.5× with it at 0.95 and below). Where it is off, the media's phase function ends
-    walks by their albedo (``media.roulette_phase``)."""
+    weights grow as (α/0.95)ᵏ above that albedo, a few huge fireflies in white marble, while
+    below it the roulette is the faster at equal noise (the efficiencies of both:
+    docs/benchmarks.md, "Russian roulette on white marble"). Where it is off, the media's
+    phase function ends walks by their albedo (``media.roulette_phase``)."""
     for material in translucent:
         albedo = getattr(material.subsurface, "albedo", None)
         if albedo is None or min(error_budget.channel_bound(albedo), 1.0) > ROULETTE_MAX:

@@ -4,7 +4,7 @@ the shapes (shapes.py) with a translucent material's medium (media.py), the ligh
 (lights.py).
 
 What code, tests and docs imported from this module before it was split is importable
-from it still: ``__all__``, and the private ``_sensor`` (here) and ``_transform``.
+from it still: ``__all__``, and the private ``_sensor`` (here) and ``mitsuba_transform``.
 """
 
 from __future__ import annotations
@@ -26,9 +26,10 @@ from .lights import (AREA_LIGHT_POINT_SIZE, RECTANGLE_LIGHT_SHORTEST_EDGE, ambie
 from .materials import CALCITE_IOR, surface_bsdf
 from .media import medium_dict, subsurface_boundary, translucent_materials
 from .modes import MODES, ModeError, integrator_and_sampler, refuse_translucent
-from .shapes import (_facing_out, _product, _transform, clip_planes, cube_to_world, is_smooth,
-                     disk_to_world, in_object_space, is_two_sided, shape_dict)
-from .textures import _marble_gains, _texture_id, _unused, marble_tolerance, texture_dict
+from .shapes import (facing_out, matrix_product, mitsuba_transform, clip_planes, cube_to_world,
+                     is_smooth, disk_to_world, in_object_space, is_two_sided, shape_dict)
+from .textures import (scene_marble_gains, named_texture_id, unused_texture, marble_tolerance,
+                       texture_dict)
 
 __all__ = ["AREA_LIGHT_POINT_SIZE", "CALCITE_IOR", "Float32RangeWarning", "LOAD_DICT_KEYS",
            "MODES", "ModeError", "RECTANGLE_LIGHT_SHORTEST_EDGE", "VOLPATH_MAX_DEPTH",
@@ -116,7 +117,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
     for name, channel in scene.textures.items():
         names.setdefault(channel, name)
 
-    gains = _marble_gains(scene)
+    gains = scene_marble_gains(scene)
 
     def ref(channel, placement=None):
         """A reference to the channel's texture, declared once for equal channels (an
@@ -137,12 +138,12 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             texture = texture_dict(channel, budget, operand=lambda inner: ref(inner, placement))
             if placement is not None and marble:
                 # v = scale·(S·M)⁻¹·p: the shape's object space S, then the pattern's own M.
-                texture["to_world"] = _transform(_product(placement[1], channel.to_world))
+                texture["to_world"] = mitsuba_transform(matrix_product(placement[1], channel.to_world))
             if channel not in bases:      # one name for the channel, placed or not
-                bases[channel] = _unused(_texture_id(named) if named is not None
+                bases[channel] = unused_texture(named_texture_id(named) if named is not None
                                          else f"texture_{len(bases)}", taken)
             textures[key] = bases[channel] if placement is None else \
-                _unused(f"{bases[channel]}_{placement[0]}", taken)
+                unused_texture(f"{bases[channel]}_{placement[0]}", taken)
             out[textures[key]] = texture
         return {"type": "ref", "id": textures[key]}
 
@@ -207,7 +208,7 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
         out[shape_id]["bsdf"] = bsdf
         if interior is not None:
             out[shape_id]["interior"] = interior
-            _facing_out(out[shape_id], shape)
+            facing_out(out[shape_id], shape)
 
     lighting = "path" if mode == "preview" else mode      # the preview is lit as path mode
     for k, light in enumerate(scene.lights):

@@ -30,12 +30,12 @@ from mimarble.scene.shapes import SHAPE_KINDS, kind_of
 in_object_space = model.in_object_space
 
 
-def _product(a, b):
+def matrix_product(a, b):
     """The 4×4 product a·b, in double precision (rows)."""
     return (np.asarray(a, dtype=np.float64) @ np.asarray(b, dtype=np.float64)).tolist()
 
 
-def _transform(matrix):
+def mitsuba_transform(matrix):
     """A double-precision 4×4 (rows) as Mitsuba's transform: its entries rounded once to
     float32, and their inverse computed in double precision and rounded once — as Mitsuba's
     XML parser makes a ``<matrix>`` (src/core/parser.cpp), so an exported scene renders
@@ -51,7 +51,7 @@ def _transform(matrix):
 _NEAREST_HIT_REL = T_MIN_REL
 
 
-def _box_distance(point, corners) -> float:
+def box_distance(point, corners) -> float:
     """The distance from ``point`` to the axis-aligned box around ``corners`` (0 inside)."""
     gaps = [max(min(c[i] for c in corners) - point[i], 0.0, point[i] - max(c[i] for c in corners))
             for i in range(3)]
@@ -74,7 +74,7 @@ def _corner_reach(scene: model.Scene, shape) -> tuple[float, float]:
     farthest corner."""
     eye = scene.camera.eye
     corners = shape.corners()
-    return _box_distance(eye, corners), max(math.dist(c, eye) for c in corners)
+    return box_distance(eye, corners), max(math.dist(c, eye) for c in corners)
 
 
 def _shape_reach(scene: model.Scene) -> tuple[list[float], list[float]]:
@@ -153,7 +153,7 @@ def cube_to_world(box: model.Box):
     centre = [(lo + hi) / 2 for lo, hi in zip(box.min, box.max)]
     half = [(hi - lo) / 2 for lo, hi in zip(box.min, box.max)]
     placed = [[half[i] if j == i else 0.0 for j in range(3)] + [centre[i]] for i in range(3)]
-    return _product(geometry.object_to_world(box), placed + [[0.0, 0.0, 0.0, 1.0]])
+    return matrix_product(geometry.object_to_world(box), placed + [[0.0, 0.0, 0.0, 1.0]])
 
 
 def shape_dict(scene: model.Scene, shape) -> dict:
@@ -181,17 +181,17 @@ def _sphere_dict(scene: model.Scene, sphere) -> dict:
 
 
 def _disk_dict(scene: model.Scene, plane) -> dict:
-    return {"type": "disk", "to_world": _transform(disk_to_world(scene, plane))}
+    return {"type": "disk", "to_world": mitsuba_transform(disk_to_world(scene, plane))}
 
 
 def _cube_dict(scene: model.Scene, box) -> dict:
-    return {"type": "cube", "to_world": _transform(cube_to_world(box))}
+    return {"type": "cube", "to_world": mitsuba_transform(cube_to_world(box))}
 
 
 def _file_mesh_dict(scene: model.Scene, shape) -> dict:
     kind = os.path.splitext(shape.file)[1].lower()[1:]
     return {"type": kind, "filename": shape.location,
-            "to_world": _transform(geometry.object_to_world(shape)),
+            "to_world": mitsuba_transform(geometry.object_to_world(shape)),
             "face_normals": not is_smooth(shape), "flip_tex_coords": kind == "obj"}
 
 
@@ -204,7 +204,7 @@ def is_smooth(shape) -> bool:
     return shape.is_smooth(mesh_facts(shape.location).has_normals)
 
 
-def _facing_out(shape_out: dict, shape) -> None:
+def facing_out(shape_out: dict, shape) -> None:
     """A translucent box's or mesh's normals facing out of it under a transform that
     mirrors (det < 0). Mitsuba enters a shape's ``interior`` when a ray crosses against its
     geometric normal, the cross product of a triangle's edges — which a mirror turns
@@ -222,7 +222,7 @@ def _facing_out(shape_out: dict, shape) -> None:
 def _mirror_cube(shape_out: dict, box) -> None:
     mirror = [[-1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0],
               [0.0, 0.0, 0.0, 1.0]]
-    shape_out["to_world"] = _transform(_product(cube_to_world(box), mirror))
+    shape_out["to_world"] = mitsuba_transform(matrix_product(cube_to_world(box), mirror))
 
 
 def _flip_normals(shape_out: dict, mesh) -> None:
@@ -238,7 +238,7 @@ class MitsubaShape:
     the eye (:func:`clip_planes`), None where unknown before Mitsuba loads it (a mesh's
     file; by default a bounded kind's eight world corners); ``mirrored`` (shape dict, shape):
     what turns a translucent shape's normals back out under a mirroring transform
-    (:func:`_facing_out`), None where they face out whatever the placement."""
+    (:func:`facing_out`), None where they face out whatever the placement."""
 
     shape_dict: Callable
     two_sided: bool = True

@@ -74,7 +74,7 @@ def marble_tolerance(scene: model.Scene, channel: model.MarbleChannel,
         / max(gain, 1.0)
 
 
-def _marble_gains(scene: model.Scene) -> dict:
+def scene_marble_gains(scene: model.Scene) -> dict:
     """Each marble's largest expression gain over the channels it is in."""
     gains: dict = {}
     for material in scene.materials.values():
@@ -86,15 +86,15 @@ def _marble_gains(scene: model.Scene) -> dict:
     return gains
 
 
-def _texture_id(name: str) -> str:
+def named_texture_id(name: str) -> str:
     """A named texture's id: its name with every run of characters other than ASCII
-    letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), at
-    most 64 characters, starting with a letter (else after ``texture_``)."""
+    letters, digits and ``_`` made one ``_`` (``"white veins"`` → ``white_veins``), its
+    first 64 characters, starting with a letter (else after ``texture_``)."""
     text = re.sub(r"[^A-Za-z0-9_]+", "_", name).strip("_")[:64]
     return text if text[:1].isalpha() else f"texture_{text}".rstrip("_")
 
 
-def _unused(candidate: str, taken: set) -> str:
+def unused_texture(candidate: str, taken: set) -> str:
     """``candidate``, or ``candidate_2``, ``_3``, … the first not in ``taken`` (then taken)."""
     found, k = candidate, 2
     while found in taken:
