@@ -91,9 +91,8 @@ def translucent_sampler(spp: int) -> dict:
     light sample at an exit, each scattering's distance and direction — is stratified
     across the pixel's samples, a per-pixel permutation of spp jittered strata (of a
     multi-jittered grid for 2-D draws), and still unbiased (each sample alone is uniform).
-    Measured (docs/benchmarks.md, "A stratified walk against Cycles"): on the Cycles twin's
-    sphere 0.57× (160², 16 spp) and 0.35× (500², 64 spp) the noise of ``independent``,
-    on fig11a-translucent 0.92×; opaque scenes keep ``independent`` (images unchanged)."""
+    What it does to the noise is measured in docs/benchmarks.md, "A stratified walk against
+    Cycles". Opaque scenes keep ``independent`` (their images unchanged)."""
     rows = max(int(spp ** 0.5), 1)
     while rows > 1 and rows * rows > spp:      # ⌊√spp⌋ (a float root may round up)
         rows -= 1
