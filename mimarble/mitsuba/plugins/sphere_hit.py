@@ -216,6 +216,25 @@ def _largest_component(v):
     return dr.maximum(dr.maximum(dr.abs(v.x), dr.abs(v.y)), dr.abs(v.z))
 
 
+def sphere_roots64(o, d, centre, radius):
+    """(discriminant, t0, t1) of |o + t·d − c|² = r² in float64, by the numerically stable
+    quadratic: q = −(b + sign(b)·√max(disc, 0)), t0 = q/a, t1 = c/q (t0 where q = 0), with
+    |o − c|² − r² as (|o − c| − r)(|o − c| + r), no cancellation of two large squares. A
+    negative discriminant (no real root) is returned as it is; the roots are then those
+    of the tangent ray."""
+    oc = o - centre
+    a = dr.squared_norm(d)
+    b = dr.dot(oc, d)
+    distance = dr.norm(oc)
+    c = (distance - radius) * (distance + radius)
+    discriminant = b * b - a * c
+    q = -(b + dr.copysign(dr.sqrt(dr.maximum(discriminant, 0.0)), b))
+    q = dr.select(q == 0.0, -b, q)
+    t0 = q / a
+    t1 = dr.select(q != 0.0, c / q, t0)
+    return discriminant, t0, t1
+
+
 def refine(table: SphereTable, ray, si, hit):
     """(p, n, on_sphere): the hit point and outward normal, refined in float64 where
     Mitsuba hit a sphere (Mitsuba's own p and n elsewhere).
@@ -229,17 +248,7 @@ def refine(table: SphereTable, ray, si, hit):
     centre, radius = table.lookup(si.shape)
     on_sphere = hit & (radius > 0)
     o, d = mi.Point3d(ray.o), mi.Vector3d(ray.d)
-    oc = o - centre
-    a = dr.squared_norm(d)
-    b = dr.dot(oc, d)
-    # |o − c|² − r² as (|o − c| − r)(|o − c| + r): no cancellation of two large squares.
-    distance = dr.norm(oc)
-    c = (distance - radius) * (distance + radius)
-    discriminant = dr.maximum(b * b - a * c, 0.0)        # a grazing hit Mitsuba found: tangent
-    q = -(b + dr.copysign(dr.sqrt(discriminant), b))
-    q = dr.select(q == 0.0, -b, q)
-    t0 = q / a
-    t1 = dr.select(q != 0.0, c / q, t0)
+    _, t0, t1 = sphere_roots64(o, d, centre, radius)   # a grazing hit Mitsuba found: tangent
     t_mitsuba = mi.Float64(si.t)
     t = dr.select(dr.abs(t0 - t_mitsuba) <= dr.abs(t1 - t_mitsuba), t0, t1)
     p64 = o + d * t
@@ -291,19 +300,9 @@ CUDA_SPHERE_STEPS = 4
 
 
 def _crosses_sphere(ray, centre, radius):
-    """Whether ``ray`` crosses the sphere's surface within (0, maxt), in float64 (the
-    stable quadratic of :func:`refine`); False where radius is 0."""
-    o, d = mi.Point3d(ray.o), mi.Vector3d(ray.d)
-    oc = o - centre
-    a = dr.squared_norm(d)
-    b = dr.dot(oc, d)
-    distance = dr.norm(oc)
-    c = (distance - radius) * (distance + radius)
-    discriminant = b * b - a * c
-    q = -(b + dr.copysign(dr.sqrt(dr.maximum(discriminant, 0.0)), b))
-    q = dr.select(q == 0.0, -b, q)
-    t0 = q / a
-    t1 = dr.select(q != 0.0, c / q, t0)
+    """Whether ``ray`` crosses the sphere's surface within (0, maxt), in float64
+    (:func:`sphere_roots64`); False where radius is 0."""
+    discriminant, t0, t1 = sphere_roots64(mi.Point3d(ray.o), mi.Vector3d(ray.d), centre, radius)
     maxt = mi.Float64(ray.maxt)
     within = ((t0 > 0.0) & (t0 < maxt)) | ((t1 > 0.0) & (t1 < maxt))
     return (radius > 0.0) & (discriminant >= 0.0) & within
