@@ -351,3 +351,25 @@ def test_the_recording_call_gives_the_bits_of_its_replays_and_of_a_fresh_trace(l
     assert calls[0][1] and not calls[-1][1]          # a recording call, then replays
     for image, _ in calls:
         np.testing.assert_array_equal(image, fresh)
+
+
+def test_a_path_mode_replay_traces_its_samples_once(llvm):
+    # The pass's sampler is an input of the recording; a pass that advanced it in place left
+    # Dr.Jit to write its state back after the recorded kernel — a second kernel that traced
+    # every path again (and a second recording, the state's layout having changed).
+    path = mi.load_dict(mimarble.to_mitsuba(scene_language.parse(SCENE.replace("FILTER", "none")),
+                                            mode="path"))
+    lanes = 24 * 20 * 4
+    dr.set_flag(dr.JitFlag.KernelHistory, True)     # before recording: flags key recordings
+    try:
+        render_in_passes(path, 4, "path", seed=0)
+        before = passes.traced_pass.recordings
+        dr.kernel_history()
+        for seed in (1, 2):
+            render_in_passes(path, 4, "path", seed=seed)
+        kernels = [k for k in dr.kernel_history()
+                   if k["type"] == dr.KernelType.JIT and k["size"] == lanes]
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, False)
+    assert len(kernels) == 2
+    assert passes.traced_pass.recordings == before

@@ -365,7 +365,7 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     pixel, never per sample (a consumer GPU runs it at 1/32–1/64 of float32's rate), with
     a rounding far below float32's, as the float64 sums it replaced.
     """
-    tracer = PixelTracer(scene, mode, sampler)
+    tracer = PixelTracer(scene, mode, None if sampler is None else sampler.clone())
     lane = dr.arange(mi.UInt32, lanes)
     pixel = numbers.first_pixel + lane // numbers.samples if subset is None else \
         dr.gather(mi.UInt32, subset, lane // numbers.samples)
