@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from mimarble.scene import geometry
+from mimarble.scene.band_limit import band_limited
 from mimarble.scene.model import (
     Add,
     ColorChannel,
@@ -206,7 +207,8 @@ class WalkSpheres:
 
     def __init__(self, scene: Scene):
         spheres = scene.spheres
-        subs = [scene.materials[s.material].subsurface for s in spheres]
+        # Band-limited to each mean free path as path mode's walk (mimarble/scene/band_limit.py).
+        subs = [band_limited(scene.materials[s.material].subsurface) for s in spheres]
         self.centers = np.array([s.center for s in spheres], dtype=np.float64).reshape(-1, 3)
         self.radii = np.array([s.radius for s in spheres], dtype=np.float64)
         self.ior = np.array([s.ior for s in subs], dtype=np.float64)

@@ -260,14 +260,19 @@ def in_object_space(channel) -> bool:
 
 def replace_marbles(channel, **changes):
     """The channel with ``changes`` applied to every marble inside it."""
+    return map_marbles(channel, lambda marble: replace(marble, **changes))
+
+
+def map_marbles(channel, change):
+    """The channel with every marble m inside it replaced by ``change(m)``."""
     if isinstance(channel, MarbleChannel):
-        return replace(channel, **changes)
+        return change(channel)
     if isinstance(channel, Mix):
         weight = channel.weight if isinstance(channel.weight, float) else \
-            replace_marbles(channel.weight, **changes)
-        return replace(channel, a=replace_marbles(channel.a, **changes),
-                       b=replace_marbles(channel.b, **changes), weight=weight)
+            map_marbles(channel.weight, change)
+        return replace(channel, a=map_marbles(channel.a, change),
+                       b=map_marbles(channel.b, change), weight=weight)
     if isinstance(channel, EXPRESSIONS):
-        return replace(channel, operands=tuple(replace_marbles(c, **changes)
+        return replace(channel, operands=tuple(map_marbles(c, change)
                                                for c in channel.operands))
     return channel

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from mimarble.contract import FLT_MAX, VOLPATH_RR_DEPTH
 from mimarble.scene import model
+from mimarble.scene.band_limit import band_limited
 from mimarble.texture import error_budget
 
 from .modes import ModeError, roulette_depth
@@ -53,8 +54,11 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
     (``sample_emitters`` false: the paths that leave find them; unbiased, and up to half the
     render time saved). A majorant past
     float32's range is refused (ModeError at the ``subsurface`` keyword): Mitsuba's
-    arithmetic is single precision."""
+    arithmetic is single precision. The colour channel's marbles are band-limited to the
+    mean free path (``band_limited``: octaves finer than it left out, as the reference walk
+    does)."""
     ref = texture_dict if ref is None else ref
+    subsurface = band_limited(subsurface)
     density = subsurface.density
     scale = 1.0 / subsurface.mean_free_path
     bound = 1.0 if density is None else max(0.0, error_budget.mean_bound(density))
