@@ -24,7 +24,8 @@ from .float32_range import Float32RangeWarning, float32_range_problems
 from .lights import (AREA_LIGHT_POINT_SIZE, RECTANGLE_LIGHT_SHORTEST_EDGE, ambient_dict,
                      area_light_dict, environment_dict, point_light_dict)
 from .materials import CALCITE_IOR, surface_bsdf
-from .media import medium_dict, subsurface_boundary, translucent_materials
+from .media import (constant_sky_weight, medium_dict, subsurface_boundary,
+    translucent_materials)
 from .modes import MODES, ModeError, integrator_and_sampler, refuse_translucent
 from .shapes import (facing_out, matrix_product, mitsuba_transform, clip_planes, cube_to_world,
                      is_smooth, disk_to_world, in_object_space, is_two_sided, shape_dict)
@@ -219,7 +220,9 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
 
     ambient = ambient_dict(scene, lighting)
     if ambient is not None:
-        out["ambient"] = ambient
+        out["ambient"] = {**ambient, **constant_sky_weight(scene, mode)}
     if scene.environment is not None:
         out["environment"] = environment_dict(scene.environment)
+        if out["environment"]["type"] == "constant":
+            out["environment"].update(constant_sky_weight(scene, mode))
     return out
