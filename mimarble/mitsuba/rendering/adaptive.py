@@ -128,6 +128,10 @@ SPREAD_SAMPLES = 3
 #: (:func:`refine`, weighed by ``CURVATURE_WEIGHT``).
 DOUBT_KERNEL = False
 CURVATURE_WEIGHT = 0.125
+#: The image's doubt of a pixel (:func:`refine`) is the larger of its second difference / 8
+#: and this share of its largest step to a neighbour's mean (docs/design-decisions.md,
+#: "Adaptive samples: the neighbour's step"). 0: the second difference alone.
+DEVIATION_SHARE = 0.25
 #: Whether the ladder goes a third of the way (3m² samples) before each 9m² (issue 43's
 #: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
 #: cheaper per sample (module docstring).
@@ -349,6 +353,8 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     not in (lo, hi], and those whose is (:data:`JUMP`)."""
     least = most = None
     low_mean = high_mean = total = None
+    centre = dr.gather(mi.Color3f, means, pixels) if doubt_from_image else None
+    deviation = None                 # the largest |neighbour − pixel| (doubt_from_image)
     for around in _neighbours(pixels, width, height):
         first = dr.gather(mi.UInt32, state.first, around)
         last = dr.gather(mi.UInt32, state.last, around)
@@ -359,9 +365,16 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
             least, most = dr.minimum(least, first), dr.maximum(most, last)
             low_mean, high_mean = dr.minimum(low_mean, mean), dr.maximum(high_mean, mean)
             total = total + mean
+        if centre is not None:
+            away = dr.abs(mean - centre)
+            deviation = away if deviation is None else dr.maximum(deviation, away)
     if doubt_from_image:
-        second = largest_component(dr.abs(total - 9.0 * dr.gather(mi.Color3f, means, pixels)))
-        image_doubt = mi.Float64(second) * (0.125 * CURVATURE_WEIGHT / DOUBT_WEIGHT)
+        # The pixel's curvature (its second difference / 8) or, where larger, a share of
+        # its largest step to a neighbour: the step sees a vein that crosses the pixel
+        # and one neighbour, which the sum over all eight can cancel (DEVIATION_SHARE).
+        second = dr.maximum(0.125 * largest_component(dr.abs(total - 9.0 * centre)),
+                            DEVIATION_SHARE * largest_component(deviation))
+        image_doubt = mi.Float64(second) * (CURVATURE_WEIGHT / DOUBT_WEIGHT)
         state.doubt_sums = dr.zeros(mi.Float64, state.count)
         dr.scatter(state.doubt_sums, image_doubt, pixels)        # kept for the rounds
         state.doubted = dr.full(mi.UInt32, 1, state.count)
