@@ -290,10 +290,13 @@ class PixelState:
         if traced.first is not None:
             parts += [("first", least, traced.first), ("last", most, traced.last),
                       ("low", least, traced.low), ("high", most, traced.high)]
-        for name, combine, value in parts:
-            array = getattr(self, name)
-            dr.scatter(array, combine(dr.gather(type(array), array, pixels, active), value),
-                       pixels, active)
+        # The combined values evaluated (one kernel) before the scatters: a scatter into an
+        # array that a pending gather still reads copies the whole array first.
+        combined = [combine(dr.gather(type(getattr(self, name)), getattr(self, name), pixels,
+                                      active), value) for name, combine, value in parts]
+        dr.eval(*combined)
+        for (name, _, _), value in zip(parts, combined):
+            dr.scatter(getattr(self, name), value, pixels, active)
         self._settle()
 
     NAMES = ("sums", "samples", "first", "last", "doubt_sums", "doubted", "low", "high")
