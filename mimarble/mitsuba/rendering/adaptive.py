@@ -60,9 +60,11 @@ three colours):
     E = max(E, SPREAD_WEIGHT · spread / n²)                         n² ≥ SPREAD_SAMPLES
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
-``doubt`` is either the first image's second difference at the pixel (the pixel
-against its 3×3 neighbourhood's mean: large where the image is curved or a vein finer
-than the pixel aliases) or, in scenes with a prefiltered marble, the mean over the
+``doubt`` is either read from the first image — the pixel's second difference (the
+pixel against its 3×3 neighbourhood's mean: large where the image is curved or a vein
+finer than the pixel aliases) or, where larger, :data:`DEVIATION_SHARE` of its largest
+step to a neighbour (a vein across the pixel and one neighbour, which the sum over all
+eight can cancel) — or, in scenes with a prefiltered marble, the mean over the
 pixel's first-pass samples of whitted's doubt (``Whitted.shade``; the rounds do not
 trace it):
 the marbles' own estimate of how wrong one sample of them can be there — |the filter's
@@ -346,7 +348,8 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     ``doubt_from_image`` (after a first pass without the doubt kernel, ``pixels`` every
     pixel): each pixel's doubt is first set from the image, in the same kernel — the
     second difference |Σ₃ₓ₃ mean − 9·mean| / 8 (the pixel against its 8 neighbours' mean,
-    the largest colour), scaled so that the estimate weighs it by
+    the largest colour) or, where larger, :data:`DEVIATION_SHARE` · max |neighbour's mean −
+    mean| (the largest colour), scaled so that the estimate weighs it by
     :data:`CURVATURE_WEIGHT`. For a smooth image it is (3/8)·h²·|f_xx + f_yy| to leading
     order, 9× the midpoint rule's error of a 1-spp pixel, h²·|f_xx + f_yy|/24; where veins
     finer than a pixel alias, neighbours disagree at random and it is large. Held as the
