@@ -6,7 +6,7 @@ Samples do not depend on the machine's load. 256², against the float64 referenc
 (cached); adaptive at thresholds 0.005·2^−2k, k < 12, first pass 1 spp, at most 81; the
 oracle over the ladder's levels (mimarble/bench/oracle.py). The estimate's weights and the
 bar's power can be tried from the environment: SW, DW, CW (SPREAD_, DOUBT_, CONTRAST_WEIGHT),
-BAR (BAR_POWER), KW (CURVATURE_WEIGHT), JUMP (lo,hi or none: adaptive.JUMP); DK=1 traces the first pass's doubt kernel
+BAR (BAR_POWER), KW (CURVATURE_WEIGHT), DS (DEVIATION_SHARE), JUMP (lo,hi or none: adaptive.JUMP); DK=1 traces the first pass's doubt kernel
 (DK=0, the default: ``traces_doubts`` decides — the image's second difference unless a
 marble is prefiltered); ORACLE=0 leaves the oracle out.
 """
@@ -24,7 +24,7 @@ from mimarble.bench.modes import ADAPTIVE_THRESHOLDS
 from mimarble.runtime import files
 dr, mi = mimarble.dr, mimarble.mi
 filt = os.environ.get("FILT", "none")
-for k, name in (("SW", "SPREAD_WEIGHT"), ("DW", "DOUBT_WEIGHT"), ("CW", "CONTRAST_WEIGHT"), ("BAR", "BAR_POWER"), ("KW", "CURVATURE_WEIGHT")):
+for k, name in (("SW", "SPREAD_WEIGHT"), ("DW", "DOUBT_WEIGHT"), ("CW", "CONTRAST_WEIGHT"), ("BAR", "BAR_POWER"), ("KW", "CURVATURE_WEIGHT"), ("DS", "DEVIATION_SHARE")):
     if k in os.environ: setattr(adaptive, name, float(os.environ[k]))
 if "JUMP" in os.environ:     # JUMP=lo,hi the first round's band of E / bar sent to 16; JUMP=none: no jump
     adaptive.JUMP = None if os.environ["JUMP"] == "none" else tuple(map(float, os.environ["JUMP"].split(",")))
@@ -48,4 +48,4 @@ for path in sys.argv[1:]:
     if ORACLE: o64 = oracle_samples(images, truth, costs, t64)
     a16, a64 = value_at_crossing(runs, t16, "mean_spp"), value_at_crossing(runs, t64, "mean_spp")
     f = lambda x: "—" if x is None else f"{x:.1f}"
-    print(f"{Path(path).stem} {filt} SW={adaptive.SPREAD_WEIGHT} DW={adaptive.DOUBT_WEIGHT} CW={adaptive.CONTRAST_WEIGHT} BAR={adaptive.BAR_POWER} DK={int(adaptive.DOUBT_KERNEL)} JUMP={adaptive.JUMP} KW={adaptive.CURVATURE_WEIGHT}: to plain16 ({t16:.5f}) adaptive {f(a16)} oracle {f(o16)}; to plain64 ({t64:.5f}) adaptive {f(a64)} oracle {f(o64)}; last {runs[-1]['mean_spp']:.1f} spp {runs[-1]['rmse']:.5f}")
+    print(f"{Path(path).stem} {filt} SW={adaptive.SPREAD_WEIGHT} DW={adaptive.DOUBT_WEIGHT} CW={adaptive.CONTRAST_WEIGHT} BAR={adaptive.BAR_POWER} DK={int(adaptive.DOUBT_KERNEL)} JUMP={adaptive.JUMP} KW={adaptive.CURVATURE_WEIGHT} DS={adaptive.DEVIATION_SHARE}: to plain16 ({t16:.5f}) adaptive {f(a16)} oracle {f(o16)}; to plain64 ({t64:.5f}) adaptive {f(a64)} oracle {f(o64)}; last {runs[-1]['mean_spp']:.1f} spp {runs[-1]['rmse']:.5f}")

@@ -1,6 +1,6 @@
 """Time to plain 16 and 64 spp's RMSE, adaptive against plain, interleaved, in one process.
 
-    ./go python scripts/adaptive_time_to_rmse.py SCENE …    # MAXSPP=64 for issue 24's code; DK=1 doubt kernel; JUMP=none no jump to 16
+    ./go python scripts/adaptive_time_to_rmse.py SCENE …    # MAXSPP=64 for issue 24's code; DK=1 doubt kernel; JUMP=none no jump to 16; DS=0 no neighbour's step
 
 For each target: the thresholds 0.005·2^−k until a render reaches plain N spp's RMSE, then
 plain N spp and the two bracketing thresholds timed in turn (medians of 7, each after a
@@ -25,6 +25,8 @@ if "BAR" in os.environ:
     adaptive.BAR_POWER = float(os.environ["BAR"])
 if "JUMP" in os.environ:    # JUMP=lo,hi: the first round's band (adaptive.JUMP); none: no jump
     adaptive.JUMP = None if os.environ["JUMP"] == "none" else tuple(map(float, os.environ["JUMP"].split(",")))
+if "DS" in os.environ:      # DS=0: the image's doubt from the second difference alone
+    adaptive.DEVIATION_SHARE = float(os.environ["DS"])
 if "THIRDS" in os.environ:
     adaptive.THIRDS = os.environ["THIRDS"] == "1"
 for path in sys.argv[1:]:

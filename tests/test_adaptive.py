@@ -256,31 +256,41 @@ def test_adaptive_numbers_are_checked():
     assert adaptive_problem(np.float32(0.01), np.int64(16), 1, 10, 10) is None
 
 
-def _second_difference(image):
-    """The test's own second difference of a plain 1-spp image (float64): each pixel's
-    3×3 neighbourhood, clipped at the border (the edge row or column again), summed, less
-    9 times the pixel, over 8; the largest colour."""
+def _image_doubt(image, share):
+    """The test's own doubt of a plain 1-spp image (float64), per pixel: its second
+    difference — the 3×3 neighbourhood, clipped at the border (the edge row or column
+    again), summed, less 9 times the pixel, over 8 — or, where larger, ``share`` times
+    its largest absolute step to a neighbour; each the largest over the colours. Also
+    whether the step's term is the larger anywhere (else a test of it proves nothing)."""
     padded = np.pad(np.asarray(image, np.float64), ((1, 1), (1, 1), (0, 0)), mode="edge")
     h, w = image.shape[:2]
-    total = sum(padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
-                for dy in (-1, 0, 1) for dx in (-1, 0, 1))
-    return np.abs(total - 9.0 * image).max(axis=2) / 8.0
+    around = [padded[1 + dy:1 + dy + h, 1 + dx:1 + dx + w]
+              for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
+    second = np.abs(sum(around) - 9.0 * image).max(axis=2) / 8.0
+    step = share * np.max([np.abs(a - image).max(axis=2) for a in around], axis=0)
+    return np.maximum(second, step), bool((step > second).any())
 
 
-@pytest.mark.parametrize("width, height", [(23, 17), (1, 1), (2, 5)])
-def test_the_first_round_refines_where_the_images_second_difference_says(llvm, monkeypatch,
-                                                                         width, height):
+@pytest.mark.parametrize("width, height, share", [(23, 17, 0.0), (23, 17, 0.25), (1, 1, 0.25),
+                                                  (2, 5, 0.25)])
+def test_the_first_round_refines_where_the_images_doubt_says(llvm, monkeypatch, width, height,
+                                                             share):
     """After a plain first pass (a point-sampled marble: no doubt kernel) a pixel's doubt
-    is the first image's second difference (``refine``), weighed by CURVATURE_WEIGHT:
-    E = CURVATURE_WEIGHT · second at 1 sample (second: |Σ₃ₓ₃ − 9·pixel| / 8). With the
-    silhouette's term off, the pixels the first round takes to 9 are those whose E, from
-    the test's own second difference of a plain 1-spp render, is above the threshold
-    (odd sizes, and images of one pixel or one column: the clipped borders)."""
+    is read from the first image (``refine``), weighed by CURVATURE_WEIGHT:
+    E = CURVATURE_WEIGHT · max(second, DEVIATION_SHARE · step) at 1 sample (second:
+    |Σ₃ₓ₃ − 9·pixel| / 8; step: the largest |neighbour − pixel|). With the silhouette's
+    term off, the pixels the first round takes to 9 are those whose E, from the test's
+    own doubt of a plain 1-spp render, is above the threshold (odd sizes, and images of
+    one pixel or one column: the clipped borders; share 0: the second difference alone)."""
     monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
+    monkeypatch.setattr(adaptive, "DEVIATION_SHARE", share)
     scene = with_image_size(small(size=max(width, height)), width, height)
     m = loaded(scene)
     assert not adaptive.traces_doubts(m)
-    errors = adaptive.CURVATURE_WEIGHT * _second_difference(render_in_passes(m, 1))
+    doubt, step_counts = _image_doubt(render_in_passes(m, 1), share)
+    errors = adaptive.CURVATURE_WEIGHT * doubt
+    if share and errors.size > 10:
+        assert step_counts
     for threshold in np.quantile(errors, [0.3, 0.7]) if errors.size > 1 else [0.0]:
         result = adaptive.render_adaptive(m, 1, float(threshold), 9, rounds=1)
         refined = result.samples == 9
@@ -296,12 +306,13 @@ def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeyp
     """With max_spp 16 a pixel the first round refines goes to 16 samples (the 4×4 grid)
     when its E over the bar is in JUMP's band (3⁵, 4⁵] — the 3×3 grid would leave it over
     the bar at 9 under the estimate's 1/n² law, the 4×4 one would not — and to 9 when it
-    is above the band or below it; E from the test's own second difference of a plain
-    1-spp render (silhouettes off)."""
+    is above the band or below it; E from the test's own doubt of a plain 1-spp render
+    (silhouettes off)."""
     monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
     monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)      # a 40² image: few jump
     m = loaded(small(size=40, period=6.0))
-    errors = adaptive.CURVATURE_WEIGHT * _second_difference(render_in_passes(m, 1))
+    doubt, _ = _image_doubt(render_in_passes(m, 1), adaptive.DEVIATION_SHARE)
+    errors = adaptive.CURVATURE_WEIGHT * doubt
     low, high = adaptive.JUMP
     assert (low, high) == (3.0 ** 5, 4.0 ** 5)
     # A threshold that puts the band across the errors' spread: every kind present.

@@ -481,7 +481,7 @@ def test_edge_samples_and_adaptive_rounds_on_shapes_are_plain_renders(llvm, tmp_
     assert 0 < edges.mean() < 0.5
     np.testing.assert_array_equal(both[edges], sixteen[edges])
     np.testing.assert_array_equal(both[~edges], once[~edges])
-    result = adaptive.render_adaptive(loaded, 1, 0.002, 16)     # levels 1, 9, 16
+    result = adaptive.render_adaptive(loaded, 1, 0.02, 16)      # levels 1, 9, 16
     assert len(np.unique(result.samples)) > 1
     # A filtered pixel at 3 or 9 keeps its 1-spp centre with that pass's wider footprint
     # (tests/test_adaptive.py); the first pass and a level that replaces are plain renders.

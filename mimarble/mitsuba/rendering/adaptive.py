@@ -60,9 +60,11 @@ three colours):
     E = max(E, SPREAD_WEIGHT · spread / n²)                         n² ≥ SPREAD_SAMPLES
     E = max(E, CONTRAST_WEIGHT · contrast / n^1.5)                  on a silhouette
 
-``doubt`` is either the first image's second difference at the pixel (the pixel
-against its 3×3 neighbourhood's mean: large where the image is curved or a vein finer
-than the pixel aliases) or, in scenes with a prefiltered marble, the mean over the
+``doubt`` is either read from the first image — the pixel's second difference (the
+pixel against its 3×3 neighbourhood's mean: large where the image is curved or a vein
+finer than the pixel aliases) or, where larger, :data:`DEVIATION_SHARE` of its largest
+step to a neighbour (a vein across the pixel and one neighbour, which the sum over all
+eight can cancel) — or, in scenes with a prefiltered marble, the mean over the
 pixel's first-pass samples of whitted's doubt (``Whitted.shade``; the rounds do not
 trace it):
 the marbles' own estimate of how wrong one sample of them can be there — |the filter's
@@ -128,6 +130,10 @@ SPREAD_SAMPLES = 3
 #: (:func:`refine`, weighed by ``CURVATURE_WEIGHT``).
 DOUBT_KERNEL = False
 CURVATURE_WEIGHT = 0.125
+#: The image's doubt of a pixel (:func:`refine`) is the larger of its second difference / 8
+#: and this share of its largest step to a neighbour's mean (docs/design-decisions.md,
+#: "Adaptive samples: the neighbour's step"). 0: the second difference alone.
+DEVIATION_SHARE = 0.25
 #: Whether the ladder goes a third of the way (3m² samples) before each 9m² (issue 43's
 #: first ladder, 1, 3, 9, 27, 81), or straight to 9m² (1, 9, 81): fewer rounds, each
 #: cheaper per sample (module docstring).
@@ -286,10 +292,13 @@ class PixelState:
         if traced.first is not None:
             parts += [("first", least, traced.first), ("last", most, traced.last),
                       ("low", least, traced.low), ("high", most, traced.high)]
-        for name, combine, value in parts:
-            array = getattr(self, name)
-            dr.scatter(array, combine(dr.gather(type(array), array, pixels, active), value),
-                       pixels, active)
+        # The combined values evaluated (one kernel) before the scatters: a scatter into an
+        # array that a pending gather still reads copies the whole array first.
+        combined = [combine(dr.gather(type(getattr(self, name)), getattr(self, name), pixels,
+                                      active), value) for name, combine, value in parts]
+        dr.eval(*combined)
+        for (name, _, _), value in zip(parts, combined):
+            dr.scatter(getattr(self, name), value, pixels, active)
         self._settle()
 
     NAMES = ("sums", "samples", "first", "last", "doubt_sums", "doubted", "low", "high")
@@ -339,7 +348,8 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     ``doubt_from_image`` (after a first pass without the doubt kernel, ``pixels`` every
     pixel): each pixel's doubt is first set from the image, in the same kernel — the
     second difference |Σ₃ₓ₃ mean − 9·mean| / 8 (the pixel against its 8 neighbours' mean,
-    the largest colour), scaled so that the estimate weighs it by
+    the largest colour) or, where larger, :data:`DEVIATION_SHARE` · max |neighbour's mean −
+    mean| (the largest colour), scaled so that the estimate weighs it by
     :data:`CURVATURE_WEIGHT`. For a smooth image it is (3/8)·h²·|f_xx + f_yy| to leading
     order, 9× the midpoint rule's error of a 1-spp pixel, h²·|f_xx + f_yy|/24; where veins
     finer than a pixel alias, neighbours disagree at random and it is large. Held as the
@@ -349,6 +359,8 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     not in (lo, hi], and those whose is (:data:`JUMP`)."""
     least = most = None
     low_mean = high_mean = total = None
+    centre = dr.gather(mi.Color3f, means, pixels) if doubt_from_image else None
+    deviation = None                 # the largest |neighbour − pixel| (doubt_from_image)
     for around in _neighbours(pixels, width, height):
         first = dr.gather(mi.UInt32, state.first, around)
         last = dr.gather(mi.UInt32, state.last, around)
@@ -359,9 +371,16 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
             least, most = dr.minimum(least, first), dr.maximum(most, last)
             low_mean, high_mean = dr.minimum(low_mean, mean), dr.maximum(high_mean, mean)
             total = total + mean
+        if centre is not None:
+            away = dr.abs(mean - centre)
+            deviation = away if deviation is None else dr.maximum(deviation, away)
     if doubt_from_image:
-        second = largest_component(dr.abs(total - 9.0 * dr.gather(mi.Color3f, means, pixels)))
-        image_doubt = mi.Float64(second) * (0.125 * CURVATURE_WEIGHT / DOUBT_WEIGHT)
+        # The pixel's curvature (its second difference / 8) or, where larger, a share of
+        # its largest step to a neighbour: the step sees a vein that crosses the pixel
+        # and one neighbour, which the sum over all eight can cancel (DEVIATION_SHARE).
+        second = dr.maximum(0.125 * largest_component(dr.abs(total - 9.0 * centre)),
+                            DEVIATION_SHARE * largest_component(deviation))
+        image_doubt = mi.Float64(second) * (CURVATURE_WEIGHT / DOUBT_WEIGHT)
         state.doubt_sums = dr.zeros(mi.Float64, state.count)
         dr.scatter(state.doubt_sums, image_doubt, pixels)        # kept for the rounds
         state.doubted = dr.full(mi.UInt32, 1, state.count)
