@@ -18,8 +18,9 @@ media.py) and the float64 reference walk (mimarble/reference/volume_scene.py) ap
 each evaluating the marble with its own code, so that their agreement tests still hold.
 
 Left as they are: a subsurface with a ``density`` (its local mean free path ℓ/d is shorter
-than ℓ where d > 1), and ``space object`` marbles (their stretch depends on the shape, and
-one medium serves every shape of its material). The fast preview (the walk's limit
+than ℓ where d > 1), and ``space object`` marbles (their stretch in the world depends on
+each shape's placement, which the translator gives a medium of its own and this rule, given
+the subsurface alone, does not see). The fast preview (the walk's limit
 ℓ → 0) and surfaces keep every octave. Standard library only (the scene package).
 """
 

@@ -25,7 +25,7 @@ from .lights import (AREA_LIGHT_POINT_SIZE, RECTANGLE_LIGHT_SHORTEST_EDGE, ambie
                      area_light_dict, environment_dict, point_light_dict)
 from .materials import CALCITE_IOR, surface_bsdf
 from .media import (constant_sky_weight, medium_dict, subsurface_boundary,
-    translucent_materials)
+                    translucent_materials)
 from .modes import MODES, ModeError, integrator_and_sampler, refuse_translucent
 from .shapes import (facing_out, matrix_product, mitsuba_transform, clip_planes, cube_to_world,
                      is_smooth, disk_to_world, in_object_space, is_two_sided, shape_dict)
