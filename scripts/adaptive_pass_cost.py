@@ -1,6 +1,7 @@
 """Where the time of an adaptive render's passes goes (issue 43): kernels, replays, the rest.
 
-    ./go python scripts/adaptive_pass_cost.py [SCENE …] [--size 256] [--threshold 6e-4] [--rounds 9]
+    ./go python scripts/adaptive_pass_cost.py [SCENE …] [--size 256] [--threshold 6e-4]
+                                              [--rounds 9]
 
 For each scene (default fig11a and veins-p4-d8-s4), point-sampled, a plain 1-spp render and
 an adaptive one (first pass 1 spp, at most 81) are taken in turn ``--rounds`` times after a

@@ -78,9 +78,9 @@ class ChannelMaterial:
         slot = self._slots[number]
         return None if slot is None else self._textures[slot]
 
-    ambient = property(lambda self: self._channel(0), doc="The ambient channel ka (a texture, or None).")
-    diffuse = property(lambda self: self._channel(1), doc="The diffuse channel kd (a texture, or None).")
-    specular = property(lambda self: self._channel(2), doc="The specular channel ks (a texture, or None).")
+    ambient = property(lambda self: self._channel(0), doc="ka: a texture, or None.")
+    diffuse = property(lambda self: self._channel(1), doc="kd: a texture, or None.")
+    specular = property(lambda self: self._channel(2), doc="ks: a texture, or None.")
 
     # -- what the whitted integrator calls --------------------------------------
 

@@ -359,7 +359,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     ``key`` (the scene's key from :func:`~mimarble.mitsuba.rendering.replay.scene_facts`, with the
     mode, the widths and the switches) selects the recording. One kernel computes every lane, the same for every
     spp, then Dr.Jit's block reductions (``block_sum``, ``block_reduce``) make the values
-    per pixel, and a last kernel their means. The samples stay in float32 and are summed
+    per pixel — with estimates, the sum's loop finds the extremes too (one kernel,
+    :func:`compensated_block_sum`'s ``extremes_of``) — and a last kernel their means. The samples stay in float32 and are summed
     with Neumaier's compensation (:func:`compensated_block_sum`), their pair (sum,
     compensation) added and divided per pixel in float64: float64 arithmetic once per
     pixel, never per sample (a consumer GPU runs it at 1/32–1/64 of float32's rate), with
