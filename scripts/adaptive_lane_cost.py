@@ -24,10 +24,10 @@ against plain 16 on the same pixels is what the round adds; plain 16 on them aga
 """
 from __future__ import annotations
 
-import argparse
-import os
 import statistics
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -35,8 +35,10 @@ import mimarble
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering import adaptive, passes
 from mimarble.mitsuba.rendering.render import render_in_passes
-from mimarble.runtime.machine import machine_facts
 from mimarble.scene.edits import resized
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from adaptive_pass_cost import run_command_line  # noqa: E402  (the sibling script)
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -116,22 +118,5 @@ def measure(path: str, size: int, threshold: float, rounds: int) -> None:
               f"image's)  whole pass {whole:6.1f} ns a lane")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("scenes", nargs="*", default=["scenes/fig11a.scene",
-                                                      "scenes/fine-veins/veins-p4-d8-s4.scene"])
-    parser.add_argument("--size", type=int, default=256)
-    parser.add_argument("--threshold", type=float, default=6e-4)
-    parser.add_argument("--rounds", type=int, default=9)
-    args = parser.parse_args()
-    dr.set_flag(dr.JitFlag.KernelHistory, True)   # before the first recording: part of its key
-    facts = machine_facts()
-    print(f"{facts.get('processor', '?')} ({facts.get('llvm_target', {}).get('cpu', '?')}); "
-          f"load {os.getloadavg()}; medians of {args.rounds}")
-    for path in args.scenes:
-        measure(path, args.size, args.threshold, args.rounds)
-    print(f"load after {os.getloadavg()}")
-
-
 if __name__ == "__main__":
-    main()
+    run_command_line(__doc__.splitlines()[0], measure)

@@ -194,16 +194,19 @@ def measure(path: str, size: int, threshold: float, rounds: int) -> None:
     print(f"  rest             {med['adaptive profiled'] - accounted:7.2f} ms")
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def run_command_line(description: str, measure) -> None:
+    """The command line of this script and of adaptive_lane_cost.py: ``SCENE …``, ``--size``,
+    ``--threshold``, ``--rounds``; Dr.Jit's kernel history on before the first render (JIT
+    flags are part of a recording's key); ``measure(path, size, threshold, rounds)`` for each
+    scene, between the CPU and the load."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("scenes", nargs="*", default=["scenes/fig11a.scene",
                                                       "scenes/fine-veins/veins-p4-d8-s4.scene"])
     parser.add_argument("--size", type=int, default=256)
     parser.add_argument("--threshold", type=float, default=6e-4)
     parser.add_argument("--rounds", type=int, default=9)
     args = parser.parse_args()
-    dr.set_flag(dr.JitFlag.KernelHistory, True)   # before the first recording: part of its key
-    _instrument()
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
     facts = machine_facts()
     print(f"{facts.get('processor', '?')} ({facts.get('llvm_target', {}).get('cpu', '?')}); "
           f"load {os.getloadavg()}; medians of {args.rounds}")
@@ -213,4 +216,5 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    _instrument()
+    run_command_line(__doc__.splitlines()[0], measure)
