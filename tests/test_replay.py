@@ -373,3 +373,53 @@ def test_a_path_mode_replay_traces_its_samples_once(llvm):
         dr.set_flag(dr.JitFlag.KernelHistory, False)
     assert len(kernels) == 2
     assert passes.traced_pass.recordings == before
+
+
+SHARED = """
+image    { width 24 height 20 samples 1 background < 0.1 0.1 0.2 > }
+camera   { eye < 0 0 9 > lookat < 0 0 0 > up < 0 1 0 > fov 40 }
+ambient  < 0.2 0.2 0.2 >
+light    { position < 10 10 10 > color < 1 1 1 > }
+texture "stone" { marble { scale 1 period 1.3 distortion 3 octaves 4
+                            ramp { < 1 0 0 > < 1 0.5 0 > < 1 1 0.5 > } } }
+material "paper" { ambient { texture "stone" } diffuse { texture "stone" }
+                   specular { color < 0.3 0.3 0.3 > } }
+sphere { center < 0 0 0 > radius 2 material "paper" }
+"""
+
+
+def walked(value) -> list:
+    """The Dr.Jit variables a replay's walk of ``value`` (a Python plugin) visits, in order."""
+    indices = []
+    dr.detail.traverse_py_cb_ro(value, lambda index, *_: indices.append(index))
+    return indices
+
+
+def test_a_replay_walks_a_marble_of_two_channels_once_without_its_editable_copies(llvm):
+    """A recorded pass walks its inputs at every replay: the paper's marble bound to ambient
+    and diffuse is one object, walked once; the values ``mi.traverse`` edits are walked
+    where the kernel reads them, not again in the texture's ``editable`` table; its
+    ``to_world`` (read on the host only) is not walked."""
+    scene = mi.load_dict(mimarble.to_mitsuba(scene_language.parse(SHARED)))
+    material = scene.shapes()[0].bsdf()
+    marble = material.diffuse
+    assert material.ambient is marble and material.specular is not None
+    shininess = walked(material)[-2:]           # the shininess, which the kernel reads as exponent
+    assert walked(material) == walked(marble) + shininess
+    ours = set(walked(marble))
+    for name in ("scale", "period", "distortion", "ramp"):
+        assert set(dr.detail.collect_indices(marble.editable[name])) <= ours, name
+    assert not set(dr.detail.collect_indices(marble.mapping.to_world)) & ours
+    assert len(walked(marble)) < 40              # 97 when the editable table was walked
+
+
+def test_an_edit_of_a_marble_of_two_channels_replays_what_a_fresh_trace_renders(llvm,
+                                                                                 monkeypatch):
+    scene = mi.load_dict(mimarble.to_mitsuba(scene_language.parse(SHARED)))
+    before = recorded(scene)
+    key = next(k for k in mi.traverse(scene).keys() if k.endswith("distortion"))
+    edit(scene, **{key.replace(".", "__"): 1.5})
+    recorded(scene)
+    edit(scene, **{key.replace(".", "__"): 0.75})
+    assert_replay_is_fresh(scene, monkeypatch, recorded_again=False)
+    assert not np.array_equal(before, render_in_passes(scene, 1))

@@ -222,6 +222,28 @@ def test_compensated_sums_of_huge_and_non_finite_samples_are_the_float64_sums(ll
                 assert got == pytest.approx(expected, rel=1e-12, abs=0.0), (run, got)
 
 
+@pytest.mark.parametrize("block", [2, 8, 72])
+def test_compensated_sums_find_each_runs_extremes_with_the_sum_unchanged(llvm, block):
+    """``extremes_of`` (an adaptive round's shapes and colours): each run's least and largest
+    value of every array, as NumPy finds them, and the sum bit for bit the one without."""
+    from mimarble.mitsuba.rendering.passes import compensated_block_sum
+    rng = np.random.default_rng(block)
+    runs = 300
+    values = rng.standard_normal((runs, 3, block)).astype(np.float32)
+    shapes = rng.integers(0, 5, (runs, block)).astype(np.uint32)
+    colour = mi.Color3f(*(mi.Float(values[:, c].ravel()) for c in range(3)))
+    opaque = dr.opaque(mi.UInt32, block)
+    alone = compensated_block_sum(colour, block, opaque)
+    total, ((least, most), (low, high)) = compensated_block_sum(
+        colour, block, opaque, extremes_of=(mi.UInt32(shapes.ravel()), colour))
+    for c in range(3):
+        assert np.array_equal(np.array(total[c]), np.array(alone[c]))
+        assert np.array_equal(np.array(low[c]), values[:, c].min(axis=1))
+        assert np.array_equal(np.array(high[c]), values[:, c].max(axis=1))
+    assert np.array_equal(np.array(least), shapes.min(axis=1))
+    assert np.array_equal(np.array(most), shapes.max(axis=1))
+
+
 def test_the_kernel_that_traces_the_samples_computes_in_float32(llvm):
     """The pass's widest kernel (every sample) holds no float64 operation (before: each
     sample's radiance was converted to float64 for the sums there)."""

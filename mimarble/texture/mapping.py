@@ -45,11 +45,14 @@ class TexturePoint(NamedTuple):
 class TextureMapping:
     """p ↦ v = scale · to_world⁻¹ · p, for points, footprints and gradients.
 
-    ``DRJIT_STRUCT``: its transforms and scale are seen by Dr.Jit's traversal
-    (``dr.freeze``) through the texture; to_world⁻¹ is opaque, so a recording takes it
-    as an input rather than baking it into the kernel."""
+    ``DRJIT_STRUCT``: what the kernel reads — to_world⁻¹ and the scale — is seen by Dr.Jit's
+    traversal (``dr.freeze``) through the texture; to_world⁻¹ is opaque, so a recording
+    takes it as an input rather than baking it into the kernel. ``to_world`` itself is
+    read on the host only (checked, inverted, traversed by ``mi.traverse``), so it is not
+    among them: a recorded pass walks its inputs at every replay, and a transform is 32
+    variables (docs/design-decisions.md, "Adaptive samples: the pass's fixed cost")."""
 
-    DRJIT_STRUCT = {"to_world": object, "to_texture": object, "scale": object}
+    DRJIT_STRUCT = {"to_texture": object, "scale": object}
 
     def __init__(self, to_world):
         """``to_world``: an editable transform (checked and inverted in :meth:`check` and

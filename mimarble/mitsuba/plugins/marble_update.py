@@ -44,9 +44,9 @@ class MarbleUpdates(HeldValues):
         self.stripe, self.axis_index = STRIPES[self.function], AXES.index(self.axis)
         # What mi.traverse edits in place: the table's traversed rows and to_world.
         # (ramp_positions only when given: having them is structural.)
-        self.editable = {p.name: editable_storage(p, getattr(params, p.name))
-                         for p in PARAMETERS if p.is_traversed
-                         and getattr(params, p.name) is not None}
+        self._editable = Kept({p.name: editable_storage(p, getattr(params, p.name))
+                               for p in PARAMETERS if p.is_traversed
+                               and getattr(params, p.name) is not None})
         self.ramp = Ramp(self.editable["ramp"], self.editable.get("ramp_positions"))
         self.mapping = TextureMapping.from_properties(props)
         self.editable["to_world"] = self.mapping.to_world
@@ -68,6 +68,15 @@ class MarbleUpdates(HeldValues):
         # Dr.Jit variable they are the value of (see _host_value).
         self._told, self._pending = Kept({}), Kept({})
         self._changed(set())
+
+    @property
+    def editable(self) -> dict:
+        """What ``mi.traverse`` edits in place (name → its Dr.Jit value), held in a
+        :class:`Kept`: every value the kernel reads is held where it reads it as well
+        (``scale``, ``ramp``, ``mapping``, ``spectrum``, …), so a recorded pass, which walks
+        the texture's attributes at each replay, walks them there once and not again here
+        (docs/design-decisions.md, "Adaptive samples: the pass's fixed cost")."""
+        return self._editable.value
 
     def traverse(self, cb):
         for name, value in self.editable.items():

@@ -46,8 +46,9 @@ class ChannelMaterial:
 
     def __init__(self, props):
         mi.BSDF.__init__(self, props)
-        for name in CHANNELS:   # get_texture turns an inline rgb into a texture, as C++ plugins do
-            setattr(self, name, props.get_texture(name) if name in props else None)
+        # get_texture turns an inline rgb into a texture, as C++ plugins do
+        self._hold_channels(tuple(props.get_texture(name) if name in props else None
+                                  for name in CHANNELS))
         shininess = props.get("shininess", 32.0)
         _check_shininess(shininess)
         self.shininess = mi.Float(shininess) if dr.is_jit_v(mi.Float) else \
@@ -55,6 +56,31 @@ class ChannelMaterial:
         self.parameters_changed()
         self.m_flags = mi.BSDFFlags.DiffuseReflection | mi.BSDFFlags.FrontSide
         self.m_components = [self.m_flags]
+
+    def _hold_channels(self, textures: tuple) -> None:
+        """Hold the channels' ``textures`` (in :data:`CHANNELS`' order, None: absent),
+        each object once: ``_textures`` the distinct ones, ``_slots`` each channel's
+        place among them. A recorded pass walks the material's attributes at every replay
+        (Dr.Jit's ``freeze``, mimarble/mitsuba/rendering/replay.py), several times a call;
+        a marble bound to two channels (the paper's ambient and diffuse) held as two
+        attributes was walked twice each time (docs/design-decisions.md, "Adaptive samples:
+        the pass's fixed cost")."""
+        distinct = []
+        for texture in textures:
+            if texture is not None and not any(texture is seen for seen in distinct):
+                distinct.append(texture)
+        self._textures = tuple(distinct)
+        self._slots = tuple(None if texture is None else
+                            next(k for k, seen in enumerate(distinct) if seen is texture)
+                            for texture in textures)
+
+    def _channel(self, number: int):
+        slot = self._slots[number]
+        return None if slot is None else self._textures[slot]
+
+    ambient = property(lambda self: self._channel(0), doc="ka: a texture, or None.")
+    diffuse = property(lambda self: self._channel(1), doc="kd: a texture, or None.")
+    specular = property(lambda self: self._channel(2), doc="ks: a texture, or None.")
 
     # -- what the whitted integrator calls --------------------------------------
 

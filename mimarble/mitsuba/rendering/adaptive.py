@@ -361,9 +361,12 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     low_mean = high_mean = total = None
     centre = dr.gather(mi.Color3f, means, pixels) if doubt_from_image else None
     deviation = None                 # the largest |neighbour − pixel| (doubt_from_image)
+    # A pixel of one sample has one first shape (its least and largest id are one) and no
+    # spread (its least and largest radiance are one): gathers the kernel need not make.
+    single = axis * axis == 1
     for around in _neighbours(pixels, width, height):
         first = dr.gather(mi.UInt32, state.first, around)
-        last = dr.gather(mi.UInt32, state.last, around)
+        last = first if single else dr.gather(mi.UInt32, state.last, around)
         mean = dr.gather(mi.Color3f, means, around)
         if least is None:
             least, most, low_mean, high_mean, total = first, last, mean, mean, mean
@@ -385,8 +388,8 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
         dr.scatter(state.doubt_sums, image_doubt, pixels)        # kept for the rounds
         state.doubted = dr.full(mi.UInt32, 1, state.count)
     on_silhouette = least != most
-    spread = largest_component(dr.gather(mi.Color3f, state.high, pixels)
-                               - dr.gather(mi.Color3f, state.low, pixels))
+    spread = 0.0 if single else largest_component(dr.gather(mi.Color3f, state.high, pixels)
+                                                  - dr.gather(mi.Color3f, state.low, pixels))
     contrast = dr.maximum(spread, largest_component(high_mean - low_mean))
     if doubt_from_image:
         doubt = image_doubt

@@ -359,7 +359,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     ``key`` (the scene's key from :func:`~mimarble.mitsuba.rendering.replay.scene_facts`, with the
     mode, the widths and the switches) selects the recording. One kernel computes every lane, the same for every
     spp, then Dr.Jit's block reductions (``block_sum``, ``block_reduce``) make the values
-    per pixel, and a last kernel their means. The samples stay in float32 and are summed
+    per pixel — with estimates, the sum's loop finds the extremes too (one kernel,
+    :func:`compensated_block_sum`'s ``extremes_of``) — and a last kernel their means. The samples stay in float32 and are summed
     with Neumaier's compensation (:func:`compensated_block_sum`), their pair (sum,
     compensation) added and divided per pixel in float64: float64 arithmetic once per
     pixel, never per sample (a consumer GPU runs it at 1/32–1/64 of float32's rate), with
@@ -391,7 +392,13 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     else:
         radiance, shapes = None, tracer.first_shape(pixel, sub, numbers)
     dr.eval(*(x for x in (radiance, shapes, doubt, colour) if x is not None))  # one kernel
-    if radiance is not None:
+    extremes = None
+    if with_estimates and n_samples > 1:
+        # The shapes' and colours' extremes found by the sum's own loop: one kernel, where
+        # Dr.Jit's block reductions launch one a reduction and colour (eight).
+        radiance, extremes = compensated_block_sum(radiance, n_samples, numbers.samples,
+                                                   extremes_of=(shapes, colour))
+    elif radiance is not None:
         radiance = compensated_block_sum(radiance, n_samples, numbers.samples)  # Color3d
     if radiance is not None and not split:
         # A true division by an opaque count (not a product with its reciprocal), so the
@@ -399,17 +406,16 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
         mean = mi.Color3f(radiance / mi.Float64(numbers.samples))
         radiance = dr.ravel(mean, order="F")          # r0 g0 b0 r1 …: NumPy's (pixels, 3)
     first = last = shapes
-    if shapes is not None and n_samples > 1:
+    if extremes is not None:
+        first, last = extremes[0]
+    elif shapes is not None and n_samples > 1:
         first = dr.block_reduce(dr.ReduceOp.Min, shapes, n_samples)
         last = dr.block_reduce(dr.ReduceOp.Max, shapes, n_samples)
     estimates = None
     if with_estimates:
-        low = high = colour
+        low, high = (colour, colour) if extremes is None else extremes[1]
         if doubt is not None:
             doubt = compensated_block_sum(doubt, n_samples, numbers.samples)   # Float64
-        if n_samples > 1:
-            low = dr.block_reduce(dr.ReduceOp.Min, colour, n_samples)
-            high = dr.block_reduce(dr.ReduceOp.Max, colour, n_samples)
         if split:        # summed and combined over the pixel's passes in NumPy
             estimates = (doubt, dr.ravel(low, order="F"), dr.ravel(high, order="F"))
         else:            # one mean doubt and one spread per pixel come back
@@ -423,7 +429,7 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
 traced_pass = Recorded(_trace_pass)
 
 
-def compensated_block_sum(values, block: int, opaque_block=None):
+def compensated_block_sum(values, block: int, opaque_block=None, extremes_of: tuple = ()):
     """The sum of each run of ``block`` consecutive lanes of ``values`` (a float32 Float or
     Color3f), as float64 (Float64 or Color3d, one lane per run): Neumaier's compensated
     summation in float32, in lane order — s ← s + x, c ← c + ((s_old − s) + x) where
@@ -441,7 +447,13 @@ def compensated_block_sum(values, block: int, opaque_block=None):
     literal zeros, and LLVM and PTX are given no reassociation. One kernel, a loop of
     ``block`` steps over the runs; ``opaque_block``: ``block`` as an opaque UInt32, which
     the kernel reads instead (and the scales as opaque values), so that every ``block``
-    (the spp) runs the same compiled kernel."""
+    (the spp) runs the same compiled kernel.
+
+    ``extremes_of``: arrays of the same lanes (UInt32 ids, Color3f colours) whose least
+    and largest value in each run the same loop finds; then ``(sum, [(least, largest) for
+    each array])`` is returned: one kernel, where ``dr.block_reduce`` launches one per
+    reduction and per colour (an adaptive round's pass: eight, docs/design-decisions.md,
+    "Adaptive samples: the pass's fixed cost"). The sum is the same either way."""
     wide = mi.Color3d if dr.depth_v(values) > 1 else mi.Float64
     kind = type(values)
     runs = dr.width(values) // block
@@ -455,17 +467,37 @@ def compensated_block_sum(values, block: int, opaque_block=None):
     k = dr.zeros(mi.UInt32, runs)
     total, compensation = dr.zeros(kind, runs), dr.zeros(kind, runs)
 
-    def add(k, total, compensation):
+    # Each array's least and largest so far, from the ends of its type's range.
+    bounds = [(dr.full(type(a), _most(type(a)), runs), dr.full(type(a), _least(type(a)), runs))
+              for a in extremes_of]
+
+    def add(k, total, compensation, *ranges):
         x = dr.gather(kind, values, start + k) * down
         new_total = total + x
         lost = dr.select(dr.abs(total) >= dr.abs(x), (total - new_total) + x,
                          (x - new_total) + total)
-        return k + 1, new_total, compensation + lost
+        widened = []
+        for array, least, largest in zip(extremes_of, ranges[0::2], ranges[1::2]):
+            y = dr.gather(type(array), array, start + k)
+            widened += [dr.minimum(least, y), dr.maximum(largest, y)]
+        return (k + 1, new_total, compensation + lost, *widened)
 
-    _, total, compensation = dr.while_loop((k, total, compensation),
-                                           lambda k, total, compensation: k < steps, add)
+    state = (k, total, compensation, *(x for pair in bounds for x in pair))
+    _, total, compensation, *ranges = dr.while_loop(state, lambda k, *_: k < steps, add)
     pair = dr.select(dr.isfinite(total), wide(total) + wide(compensation), wide(total))
-    return pair * up
+    if not extremes_of:
+        return pair * up
+    return pair * up, list(zip(ranges[0::2], ranges[1::2]))
+
+
+def _most(kind):
+    """The largest value of a Dr.Jit array type's elements (+∞ for floats)."""
+    return 0xFFFFFFFF if dr.type_v(kind) == dr.VarType.UInt32 else dr.inf
+
+
+def _least(kind):
+    """The least value of a Dr.Jit array type's elements (−∞ for floats)."""
+    return 0 if dr.type_v(kind) == dr.VarType.UInt32 else -dr.inf
 
 
 def _pass_function(scene):
