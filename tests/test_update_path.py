@@ -5,6 +5,7 @@ render equals a texture loaded with the same values. Expressions' updates and me
 sphere table, likewise; the passes sum samples in float32 with compensation."""
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -242,6 +243,27 @@ def test_compensated_sums_find_each_runs_extremes_with_the_sum_unchanged(llvm, b
         assert np.array_equal(np.array(high[c]), values[:, c].max(axis=1))
     assert np.array_equal(np.array(least), shapes.min(axis=1))
     assert np.array_equal(np.array(most), shapes.max(axis=1))
+
+
+def test_a_runs_extremes_skip_nan_samples_as_numpys_nan_extremes_do(llvm):
+    """A NaN sample takes no part in its run's least and largest colour (NumPy's nanmin /
+    nanmax; a run of NaNs only keeps the range's ends, +∞ and −∞), on every back end alike."""
+    from mimarble.mitsuba.rendering.passes import compensated_block_sum
+    block = 4
+    values = np.array([[1.0, np.nan, 2.0, -3.0],      # one NaN among numbers
+                       [np.nan, 5.0, np.nan, 4.0],
+                       [np.nan] * 4,                  # nothing but NaN
+                       [0.5, 0.25, 0.75, 1.0]], np.float32)
+    colour = mi.Color3f(*(mi.Float(values.ravel()) for _ in range(3)))
+    _, ((low, high),) = compensated_block_sum(colour, block, extremes_of=(colour,))
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)     # nanmin of an all-NaN run
+        expected_low = np.where(np.isnan(values).all(axis=1), np.inf, np.nanmin(values, axis=1))
+        expected_high = np.where(np.isnan(values).all(axis=1), -np.inf,
+                                 np.nanmax(values, axis=1))
+    for c in range(3):
+        assert np.array_equal(np.array(low[c]), expected_low)
+        assert np.array_equal(np.array(high[c]), expected_high)
 
 
 def test_the_kernel_that_traces_the_samples_computes_in_float32(llvm):

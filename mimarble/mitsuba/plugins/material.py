@@ -62,9 +62,8 @@ class ChannelMaterial:
         each object once: ``_textures`` the distinct ones, ``_slots`` each channel's
         place among them. A recorded pass walks the material's attributes at every replay
         (Dr.Jit's ``freeze``, mimarble/mitsuba/rendering/replay.py), several times a call;
-        a marble bound to two channels (the paper's ambient and diffuse) held as two
-        attributes was walked twice each time (docs/design-decisions.md, "Adaptive samples:
-        the pass's fixed cost")."""
+        held once, a marble bound to two channels (the paper's ambient and diffuse) is
+        walked once (docs/design-decisions.md, "Adaptive samples: the pass's fixed cost")."""
         distinct = []
         for texture in textures:
             if texture is not None and not any(texture is seen for seen in distinct):

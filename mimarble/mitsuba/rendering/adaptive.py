@@ -104,7 +104,7 @@ from mimarble.scene.model import samples_per_axis
 from mimarble.contract import DEFAULT_MAX_SPP
 from mimarble.mitsuba.plugins.registration import largest_component
 from .loaded_scenes import LOADED
-from .passes import Target, trace_sums
+from .passes import RANGE_ENDS, Target, trace_sums
 from .replay import scene_facts
 from mimarble.mitsuba.plugins.whitted import Whitted
 from mimarble.mitsuba.plugins.material import CHANNELS
@@ -113,6 +113,9 @@ from mimarble.texture.filters import Prefilter
 from .window import Window
 
 dr, mi = environment.import_drjit_and_mitsuba()
+
+#: Where a pixel's least and largest shape id and colour start (passes' range ends).
+_UINT_ENDS, _FLOAT_ENDS = RANGE_ENDS[dr.VarType.UInt32], RANGE_ENDS[dr.VarType.Float32]
 
 #: The estimate's weights (module docstring), chosen by measurement.
 DOUBT_WEIGHT = 0.5
@@ -261,19 +264,19 @@ class PixelState:
         self.count = count
         self.sums = dr.zeros(mi.Color3d, count)
         self.samples = dr.zeros(mi.UInt32, count)
-        self.first = dr.full(mi.UInt32, 0xFFFFFFFF, count)
-        self.last = dr.zeros(mi.UInt32, count)
+        self.first = dr.full(mi.UInt32, _UINT_ENDS[1], count)
+        self.last = dr.full(mi.UInt32, _UINT_ENDS[0], count)
         self.doubt_sums = dr.zeros(mi.Float64, count)
         self.doubted = dr.zeros(mi.UInt32, count)
-        self.low = dr.full(mi.Color3f, dr.inf, count)
-        self.high = dr.full(mi.Color3f, -dr.inf, count)
+        self.low = dr.full(mi.Color3f, _FLOAT_ENDS[1], count)
+        self.high = dr.full(mi.Color3f, _FLOAT_ENDS[0], count)
 
     def clear(self, pixels) -> None:
         """Forget what ``pixels`` (UInt32 local indices) hold: a level that replaces them."""
         self._settle()
         for name, value in (("sums", 0.0), ("doubt_sums", 0.0), ("samples", 0), ("doubted", 0),
-                            ("first", 0xFFFFFFFF), ("last", 0), ("low", dr.inf),
-                            ("high", -dr.inf)):
+                            ("first", _UINT_ENDS[1]), ("last", _UINT_ENDS[0]),
+                            ("low", _FLOAT_ENDS[1]), ("high", _FLOAT_ENDS[0])):
             array = getattr(self, name)
             dr.scatter(array, type(array)(value), pixels)
         self._settle()

@@ -358,9 +358,10 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     :func:`~mimarble.mitsuba.rendering.replay.scene_facts`), the opaque ``numbers`` and ``subset``;
     ``key`` (the scene's key from :func:`~mimarble.mitsuba.rendering.replay.scene_facts`, with the
     mode, the widths and the switches) selects the recording. One kernel computes every lane, the same for every
-    spp, then Dr.Jit's block reductions (``block_sum``, ``block_reduce``) make the values
-    per pixel — with estimates, the sum's loop finds the extremes too (one kernel,
-    :func:`compensated_block_sum`'s ``extremes_of``) — and a last kernel their means. The samples stay in float32 and are summed
+    spp, then :func:`compensated_block_sum` makes the values per pixel — with estimates,
+    the same loop finds the extremes too (``extremes_of``), without them Dr.Jit's
+    ``block_reduce`` finds the shapes' — and a last kernel their means. The samples stay
+    in float32 and are summed
     with Neumaier's compensation (:func:`compensated_block_sum`), their pair (sum,
     compensation) added and divided per pixel in float64: float64 arithmetic once per
     pixel, never per sample (a consumer GPU runs it at 1/32–1/64 of float32's rate), with
@@ -394,8 +395,7 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     dr.eval(*(x for x in (radiance, shapes, doubt, colour) if x is not None))  # one kernel
     extremes = None
     if with_estimates and n_samples > 1:
-        # The shapes' and colours' extremes found by the sum's own loop: one kernel, where
-        # Dr.Jit's block reductions launch one a reduction and colour (eight).
+        # The shapes' and colours' extremes found by the sum's own loop: one kernel.
         radiance, extremes = compensated_block_sum(radiance, n_samples, numbers.samples,
                                                    extremes_of=(shapes, colour))
     elif radiance is not None:
@@ -479,7 +479,9 @@ def compensated_block_sum(values, block: int, opaque_block=None, extremes_of: tu
         widened = []
         for array, least, largest in zip(extremes_of, ranges[0::2], ranges[1::2]):
             y = dr.gather(type(array), array, start + k)
-            widened += [dr.minimum(least, y), dr.maximum(largest, y)]
+            # A NaN sample is skipped (a comparison with it is false), as Dr.Jit's block
+            # reductions skip it on every back end; dr.minimum would carry it on LLVM.
+            widened += [dr.select(y < least, y, least), dr.select(y > largest, y, largest)]
         return (k + 1, new_total, compensation + lost, *widened)
 
     state = (k, total, compensation, *(x for pair in bounds for x in pair))
@@ -490,14 +492,27 @@ def compensated_block_sum(values, block: int, opaque_block=None, extremes_of: tu
     return pair * up, list(zip(ranges[0::2], ranges[1::2]))
 
 
+#: The ends of the ranges of the element types whose extremes a run's loop finds: where its
+#: least and largest start (an adaptive pixel's state starts from the same values).
+RANGE_ENDS = {dr.VarType.UInt32: (0, 0xFFFFFFFF), dr.VarType.Float32: (-dr.inf, dr.inf)}
+
+
 def _most(kind):
-    """The largest value of a Dr.Jit array type's elements (+∞ for floats)."""
-    return 0xFFFFFFFF if dr.type_v(kind) == dr.VarType.UInt32 else dr.inf
+    """The largest value of a Dr.Jit array type's elements (+∞ for float32)."""
+    return _range_ends(kind)[1]
 
 
 def _least(kind):
-    """The least value of a Dr.Jit array type's elements (−∞ for floats)."""
-    return 0 if dr.type_v(kind) == dr.VarType.UInt32 else -dr.inf
+    """The least value of a Dr.Jit array type's elements (−∞ for float32)."""
+    return _range_ends(kind)[0]
+
+
+def _range_ends(kind):
+    ends = RANGE_ENDS.get(dr.type_v(kind))
+    if ends is None:
+        raise TypeError(f"compensated_block_sum: no extremes of {kind.__name__} elements "
+                        f"(UInt32 and float32 only)")
+    return ends
 
 
 def _pass_function(scene):
