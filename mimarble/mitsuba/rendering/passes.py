@@ -105,6 +105,12 @@ def stratify(target: Target, samples: int, spp: int) -> bool:
     return stratified
 
 
+def stratified_mark(stratified: bool) -> tuple:
+    """What a stratified pass adds to its recording's key: its sampler draws a pixel's
+    samples as one sequence (samples per wavefront), other numbers than a pass without."""
+    return (True,) if stratified else ()
+
+
 class TracedPass(NamedTuple):
     """The pixels one pass completed, and how many of their samples it traced (a pass
     over a pixel list also traces the few it pads the list with; they are not counted).
@@ -179,7 +185,7 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
         stratified = stratify(target, n_samples, spp)
         values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, with_radiance, with_shapes,
-             with_estimates, split) + ((True,) if stratified else ()), target.scene, inputs,
+             with_estimates, split) + stratified_mark(stratified), target.scene, inputs,
             target.sampler, lanes, n_samples, numbers, subset, with_radiance, with_shapes,
             with_estimates, split, target.mode)
         # Views of the Dr.Jit arrays (no copy): means interleaved per pixel, or a split
@@ -246,7 +252,7 @@ def trace_samples(target: Target, spp: int, first_sample: int, count: int, *,
         lanes = n_pixels * count
         stratified = stratify(target, count, spp)
         values = _pass_function(target.scene)(
-            samples_pass_key(key, target.mode, lanes, count) + ((True,) if stratified else ()),
+            samples_pass_key(key, target.mode, lanes, count) + stratified_mark(stratified),
             target.scene,
             inputs, target.sampler, lanes, count, numbers, None, True, False, False, True,
             target.mode)[0]
@@ -314,7 +320,7 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
         stratified = stratify(target, 0 if nested else n_samples, spp)
         values, first, last, estimates = _pass_function(target.scene)(
             (key, target.mode, lanes, n_samples, subset is None, True, with_estimates,
-             with_estimates, True, nested, doubts) + ((True,) if stratified else ()),
+             with_estimates, True, nested, doubts) + stratified_mark(stratified),
             target.scene, inputs,
             target.sampler, lanes, n_samples, numbers, subset, True, with_estimates,
             with_estimates, True, target.mode, nested, doubts)
