@@ -21,7 +21,7 @@ estimate says the 3m grid will not do and the 4m grid will (:data:`JUMP`) straig
 the 4m grid, 16m² stratum centres that replace its m² (the 4m grid does not hold the
 pixel's centre); from there it goes on as the ladder does from 16m² (the 12m grid keeps
 the 4m one's centres; under ``max_spp`` 81, the 9×9 grid, replacing: :func:`jump_ladder`),
-over a bar :data:`JUMPED_BAR` times the ladder's: its doubt has chosen the 16.
+over a bar :data:`JUMPED_BAR` times the ladder's.
 The rounds then trace one pass per group of pixels at the same step of the same ladder.
 
 **What a pixel is at the end.** At 9^k·m² or 16·9^k·m² samples (and at ``max_spp``) a
@@ -124,10 +124,11 @@ DOUBT_WEIGHT = 0.5
 CONTRAST_WEIGHT = 0.25
 SPREAD_WEIGHT = 0.02
 #: The bar a pixel of n² samples is refined over: ``threshold`` · n^BAR_POWER. 2.25, not
-#: 3: the first round's bar is ``threshold`` at any power, the 9 → 81 round's 3^BAR_POWER
-#: of it; a lower power sends more of the worst pixels to 81 at a given threshold, so the
-#: RMSE is reached at a higher one, which leaves more of the least doubtful at 1
-#: (docs/design-decisions.md, "Adaptive samples: the bar and the jump against the oracle").
+#: 3: from one sample a pixel, the first round's bar is ``threshold`` at any power, the
+#: 9 → 81 round's 3^BAR_POWER times it; a lower power sends more of the worst pixels to
+#: 81 at a given threshold, so the RMSE is reached at a higher one, which leaves more of
+#: the least doubtful at 1 (docs/design-decisions.md, "Adaptive samples: the bar and the
+#: jump against the oracle").
 BAR_POWER = 2.25
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
@@ -148,13 +149,13 @@ DEVIATION_SHARE = 0.25
 #: cheaper per sample (module docstring).
 THIRDS = False
 #: The first round's jump: a pixel of m² samples whose estimate E over its bar
-#: ``threshold``·m^BAR_POWER is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m² samples,
-#: replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n² law of the
-#: estimate, n² samples pass their bar once E·m²/n² ≤ threshold·n^BAR_POWER, i.e.
+#: ``threshold``·m^BAR_POWER is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m²
+#: samples, replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n²
+#: law of the estimate, n² samples pass their bar once E·m²/n² ≤ threshold·n^BAR_POWER, i.e.
 #: (n/m)^q ≥ E/bar with q = 2 + BAR_POWER: the band starts where the 3m grid would leave
 #: the pixel over its bar, 3^q, and ends at twice 4^q, where the 4m grid would leave it
-#: over its bar by 2 (the 16 is then final, :data:`JUMPED_BAR`; measured against the
-#: oracle, a pixel over 4^q is better at 16 than at 9 and 81 up to about 2·4^q). Such a
+#: over its bar by 2 (measured: samples a pixel to plain 16 spp's RMSE on the fine veins
+#: are fewest with the end at 2–3 × 4^q; a pixel above goes to 9, then 81). Such a
 #: pixel ends at 17 samples traced where the ladder takes it to 81 (docs/design-decisions.md,
 #: "Adaptive samples: the jump to 16 and fewer kernels", "… the bar and the jump against
 #: the oracle"). None: no jump.
@@ -164,10 +165,11 @@ JUMP = (3.0 ** (2 + BAR_POWER), 2 * 4.0 ** (2 + BAR_POWER))
 #: ~20 000 lanes of a sphere cost), which a few pixels' gain does not pay.
 JUMP_LEAST = 1024
 #: A jumped pixel's bar in the rounds after the jump, as a multiple of ``threshold`` ·
-#: n^BAR_POWER: its doubt, which chose the 16, is then at most twice its bar (``JUMP[1]``)
-#: and does not send it on; its spread or a silhouette's contrast must be 4× over the bar.
-#: (1: the bar of the ladder; the jumped pixels' 16 samples show a fine vein's spread,
-#: which sent a tenth of them on to 81 where the oracle keeps them.)
+#: n^BAR_POWER. The jump's 16 replaced the pixel's samples and its first-pass doubt
+#: (:meth:`PixelState.clear`), so its spread or a silhouette's contrast sends it on: 16
+#: samples across a fine vein are far apart, and at the ladder's bar (1) that sent jumped
+#: pixels to 81 where fewer samples reach plain 16 spp's RMSE at 4 (docs/design-decisions.md,
+#: "Adaptive samples: the bar and the jump against the oracle").
 JUMPED_BAR = 4.0
 
 
@@ -517,7 +519,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                 else:
                     following.append((levels if jumped is None else jumped, 1, found))
             else:
-                # A jumped pixel's doubt already chose its 16: its own bar (JUMPED_BAR).
+                # A jumped pixel goes on over a bar of its own (JUMPED_BAR).
                 bar = threshold * (JUMPED_BAR if levels is jumped else 1.0)
                 following.append((levels, number + 1,
                                   refine(state, means, pixels, axis, bar, width, height)))
