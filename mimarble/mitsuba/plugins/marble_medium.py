@@ -97,7 +97,7 @@ from mimarble.runtime import environment
 from mimarble.texture import srgb_model
 from mimarble.mitsuba.plugins.registration import (describe, first_number, held_maximum, plugin,
     recording_key)
-from mimarble.contract import FLT_MAX
+from mimarble.contract import FLT_MAX, MAX_GRID_NODES
 from .channel_expression import gives_rgb
 from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scattering_albedo
 
@@ -154,6 +154,7 @@ class MarbleMedium:
             raise MarbleMediumError("marble_medium: a microflake phase function is not "
                                     "supported; use isotropic (the default) or hg")
         self._albedo_and_reflectance(props)
+        self._grid_layout(props)
         self.density = props.get_texture("density") if "density" in props else None
         if mi.is_spectral and self.density is not None and not gives_rgb(self.density):
             # d is a number made from the density's RGB colour (density_at), the same in
@@ -173,6 +174,36 @@ class MarbleMedium:
         if self._bound_given:
             self.editable["density_bound"] = _held(float(bound))
         self.parameters_changed([])
+
+    def _grid_layout(self, props):
+        """The albedo grid's layout (``grid_origin``, ``grid_spacing``, ``grid_counts``: all
+        three or none), checked before anything is allocated; None without one, and in
+        spectral variants, where α depends on the wavelength and is evaluated directly."""
+        names = ("grid_origin", "grid_spacing", "grid_counts")
+        given = [name in props for name in names]
+        self.grid_layout = self.grid = None
+        if not any(given):
+            return
+        if not all(given):
+            raise MarbleMediumError("marble_medium: grid_origin, grid_spacing and grid_counts "
+                                    "go together (the albedo grid), not one without the others")
+        origin = [float(v) for v in props.get("grid_origin")]
+        spacing = props.get("grid_spacing")
+        counts = [float(v) for v in props.get("grid_counts")]
+        problem = _number_problem("grid_spacing", spacing, 0.0, strict=True)
+        if not problem and not (len(origin) == 3 and all(math.isfinite(v) for v in origin)):
+            problem = f"marble_medium: grid_origin={origin!r} must be three finite numbers"
+        if not problem and not (len(counts) == 3 and all(c.is_integer() and c >= 2
+                                                         for c in counts)):
+            problem = (f"marble_medium: grid_counts={counts!r} must be three whole numbers "
+                       f"≥ 2 (nodes along x, y, z)")
+        if not problem and math.prod(counts) > MAX_GRID_NODES:
+            problem = (f"marble_medium: an albedo grid of {math.prod(counts):.0f} nodes is "
+                       f"past the limit of {MAX_GRID_NODES} (a coarser grid_spacing, or none)")
+        if problem:
+            raise MarbleMediumError(problem)
+        if not mi.is_spectral and dr.is_jit_v(mi.Float):
+            self.grid_layout = (tuple(origin), float(spacing), tuple(int(c) for c in counts))
 
     def _albedo_and_reflectance(self, props):
         """``albedo`` (default 0.75) or ``reflectance`` with its ``ior`` (default 1), F̄(ior)
@@ -271,6 +302,53 @@ class MarbleMedium:
             self.scale, self.bound = self.editable["scale"], self.editable.get("density_bound")
         else:     # the scalar variant computes on Python floats
             self.scale, self.bound = scale, bound
+        if self.grid_layout is not None and (not keys or any(
+                key.split(".")[0] in ("albedo", "reflectance") for key in keys)):
+            self._bake()
+
+    def _bake(self):
+        """α at every node of the grid, into ``self.grid`` (four floats a node: RGB and a
+        pad, so that a corner is one aligned packet gather), evaluated now in one kernel
+        with the textures as they are — attached: a gradient of a texture parameter
+        reaches it through the lookups. Node (i, j, k) is origin + spacing·(i, j, k)."""
+        origin, spacing, (nx, ny, nz) = self.grid_layout
+        index = dr.arange(mi.UInt32, nx * ny * nz)
+        i, rest = index % nx, index // nx
+        j, k = rest % ny, rest // ny
+        si = dr.zeros(mi.SurfaceInteraction3f, nx * ny * nz)
+        si.p = mi.Point3f(*(o + spacing * mi.Float(n) for o, n in zip(origin, (i, j, k))))
+        albedo = self.albedo_at(si)
+        grid = dr.zeros(mi.Float, 4 * nx * ny * nz)
+        for c in range(3):
+            dr.scatter(grid, albedo[c], 4 * index + c)
+        dr.eval(grid)
+        self.grid = grid
+
+    def grid_albedo(self, p, active=True):
+        """α at world points ``p`` by trilinear interpolation of the grid's nodes: u =
+        (p − origin)/spacing clamped to the grid, the cell [⌊u⌋, ⌊u⌋ + 1] (its last one at
+        the far faces), weights u − ⌊u⌋."""
+        origin, spacing, counts = self.grid_layout
+        corner, weight = [], []
+        for axis in range(3):
+            u = dr.clip((p[axis] - origin[axis]) * (1.0 / spacing), 0.0, counts[axis] - 1.0)
+            cell = dr.minimum(mi.UInt32(u), counts[axis] - 2)
+            corner.append(cell)
+            weight.append(u - mi.Float(cell))
+        nx, ny = counts[0], counts[1]
+        base = corner[0] + nx * (corner[1] + ny * corner[2])
+        result = None
+        for dz in (0, 1):
+            for dy in (0, 1):
+                for dx in (0, 1):
+                    w = (weight[0] if dx else 1.0 - weight[0]) \
+                        * (weight[1] if dy else 1.0 - weight[1]) \
+                        * (weight[2] if dz else 1.0 - weight[2])
+                    node = dr.gather(mi.Vector4f, self.grid,
+                                     base + (dx + nx * (dy + ny * dz)), active)
+                    term = mi.Color3f(node.x, node.y, node.z) * w
+                    result = term if result is None else result + term
+        return result
 
     def _defined(self):
         """Whether scale and the bound keep their rules as they are now (scale > 0 and
@@ -290,7 +368,7 @@ class MarbleMedium:
         derived = not self._bound_given and self.density is not None
         colour = ("albedo", recording_key(self.albedo)) if self.reflectance is None else \
             ("reflectance", recording_key(self.reflectance), self.fresnel_mean)
-        return ("marble_medium", self.density is None, colour,
+        return ("marble_medium", self.density is None, colour, self.grid_layout,
                 recording_key(self.density), self._bound_given,
                 held_maximum(self.density)[1] if derived else ())
 
@@ -365,7 +443,8 @@ class MarbleMedium:
         gives: Mitsuba asks at points past the medium too, p = ray(∞) there)."""
         si = self._texture_point(mei)
         sigma_t = dr.select(self._defined(), self.scale * self.density_at(si, active), dr.nan)
-        albedo = self.albedo_at(si, active)
+        albedo = self.albedo_at(si, active) if self.grid is None \
+            else mi.UnpolarizedSpectrum(self.grid_albedo(si.p, active))
         sigma_s = albedo * sigma_t
         sigma_n = self.majorant - sigma_t
         zero = mi.UnpolarizedSpectrum(0.0)
