@@ -302,9 +302,26 @@ class MarbleMedium:
             self.scale, self.bound = self.editable["scale"], self.editable.get("density_bound")
         else:     # the scalar variant computes on Python floats
             self.scale, self.bound = scale, bound
-        if self.grid_layout is not None and (not keys or any(
-                key.split(".")[0] in ("albedo", "reflectance") for key in keys)):
-            self._bake()
+        self.refresh_grid()
+
+    def _colour_state(self) -> tuple:
+        """The Dr.Jit variables (JIT and AD indices) of every traversed value of the colour
+        texture (reflectance or albedo), expressions' operands included: an edit through
+        ``mi.traverse`` puts a new variable in place, enabling a gradient adds an AD one."""
+        params = mi.traverse(self.reflectance if self.reflectance is not None else self.albedo)
+        return tuple((key, tuple(dr.detail.collect_indices(params[key])))
+                     for key in params.keys())
+
+    def refresh_grid(self) -> None:
+        """Bake the grid again if the colour texture's traversed values are not those it was
+        baked from. Called at each update of the medium and, by the pass renderer, before
+        each render (``replay.scene_facts``): ``mi.traverse`` tells only an edited texture's
+        first parent, which may be another medium of the same material or a surface."""
+        if self.grid_layout is not None:
+            state = self._colour_state()
+            if state != getattr(self, "_baked_state", None):
+                self._bake()
+                self._baked_state = state
 
     def _bake(self):
         """α at every node of the grid, into ``self.grid`` (four floats a node: RGB and a
@@ -441,6 +458,11 @@ class MarbleMedium:
     def get_scattering_coefficients(self, mei, active=True):
         """(σ_s, σ_n, σ_t) at ``mei.p``; zero where ``active`` is False (as ``homogeneous``
         gives: Mitsuba asks at points past the medium too, p = ray(∞) there)."""
+        if self.grid is not None and self._colour_state() != self._baked_state:
+            raise MarbleMediumError(
+                "marble_medium: its colour texture was edited after the albedo grid was made "
+                "(mi.traverse told another parent of it); call refresh_grid() on the medium "
+                "before mi.render (mimarble.render does)")
         si = self._texture_point(mei)
         sigma_t = dr.select(self._defined(), self.scale * self.density_at(si, active), dr.nan)
         albedo = self.albedo_at(si, active) if self.grid is None \

@@ -1,0 +1,247 @@
+"""A translucent material's albedo read from a grid (mimarble/scene/albedo_grid.py, issue 40):
+the rule's layouts worked by hand and what it leaves alone, that the translation and the
+float64 reference walk both apply it, that Mitsuba's lookup (``marble_medium``'s grid, float32,
+Dr.Jit) gives what the reference's (float64, NumPy, its own marble and inversion) gives at the
+same points, that an edit and a gradient reach the grid, and the limit checked before
+anything is allocated. The walks' agreement where the grid applies is the z-test of
+tests/test_subsurface_band_limit.py (its scene has a grid: asserted below)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+import mimarble
+from mimarble.contract import MAX_GRID_NODES
+from mimarble.reference import volume_scene
+from mimarble.scene import model
+from mimarble.scene.albedo_grid import AlbedoGrid, albedo_grid
+
+from test_translucent_reference import SIDE_LIGHT, llvm_variant  # noqa: F401
+
+dr, mi = mimarble.dr, mimarble.mi
+
+VEINS = model.MarbleChannel(function="sine", axis="x", period=3.0, distortion=2.0, octaves=3,
+                            ramp=((0.93, 0.92, 0.9), (0.55, 0.35, 0.2), (0.2, 0.5, 0.3)))
+
+
+def subsurface(**kw):
+    base = dict(reflectance=VEINS, mean_free_path=0.2, ior=1.5)
+    base.update(kw)
+    return model.Subsurface(**base)
+
+
+def scene_of(sub, spheres=((0.0, 0.0, 0.0, 1.0),), planes=(), size=16):
+    return model.Scene(
+        image=model.Image(width=size, height=size),
+        camera=model.Camera(eye=(0.0, 0.4, 5.0), lookat=(0.0, 0.0, 0.0), fov=30.0),
+        ambient=(0.6, 0.65, 0.7), lights=(SIDE_LIGHT,),
+        materials={"m": model.Material("m", subsurface=sub)},
+        spheres=tuple(model.Sphere("m", (x, y, z), r) for x, y, z, r in spheres),
+        planes=planes)
+
+
+# ---------------------------------------------------------------------------
+# The rule, by hand
+
+def test_the_layout_by_hand():
+    """A sphere of radius 2 at the origin, ℓ = 0.05: 4/0.05 = 80 cells, 81 nodes a side
+    from −2. Two spheres (centres 0 and 3 on x, radii 1 and 0.5), ℓ = 0.3: the box
+    [−1, 3.5] × [−1, 1]², 4.5/0.3 = 15 cells (16 nodes), 2/0.3 = 6.67 → 7 cells (8 nodes)."""
+    one = albedo_grid(subsurface(mean_free_path=0.05), [model.Sphere("m", (0, 0, 0), 2.0)])
+    assert one == AlbedoGrid((-2.0, -2.0, -2.0), 0.05, (81, 81, 81))
+    two = albedo_grid(subsurface(mean_free_path=0.3), [model.Sphere("m", (0, 0, 0), 1.0),
+                                                       model.Sphere("m", (3, 0, 0), 0.5)])
+    assert two.origin == (-1.0, -1.0, -1.0) and two.counts == (16, 8, 8)
+    assert two.spacing == 0.3
+
+
+@pytest.mark.parametrize("sub, shapes", [
+    (subsurface(reflectance=model.ColorChannel((0.8, 0.7, 0.6))), None),     # no marble
+    (subsurface(density=model.ColorChannel((1.0, 1.0, 1.0))), None),          # a density
+    (subsurface(), [model.Sphere("m", (0, 0, 0), 1.0), model.Plane("m")]),    # unbounded
+    (subsurface(), []),                                                       # no shape
+    (subsurface(mean_free_path=1e-3), None),       # 2001³ nodes: past MAX_GRID_NODES
+    (subsurface(mean_free_path=1e-30), None),      # cells past any count: none computed
+], ids=["constant", "density", "plane", "no shape", "past the limit", "tiny mean free path"])
+def test_what_the_rule_leaves_to_direct_evaluation(sub, shapes):
+    shapes = [model.Sphere("m", (0, 0, 0), 1.0)] if shapes is None else shapes
+    assert albedo_grid(sub, shapes) is None
+
+
+def test_the_largest_grid_allowed_is_made():
+    """128³ = MAX_GRID_NODES nodes (127 cells a side) is made; 129³ is not."""
+    at = albedo_grid(subsurface(mean_free_path=2.0 / 127), [model.Sphere("m", (0, 0, 0), 1.0)])
+    assert at is not None and at.nodes == MAX_GRID_NODES
+    past = albedo_grid(subsurface(mean_free_path=2.0 / 128), [model.Sphere("m", (0, 0, 0), 1.0)])
+    assert past is None
+
+
+# ---------------------------------------------------------------------------
+# Both walks apply it
+
+def grid_props(translated: dict) -> list:
+    return [{k: v for k, v in shape["interior"].items() if k.startswith("grid_")}
+            for shape in translated.values() if isinstance(shape, dict) and "interior" in shape]
+
+
+def test_the_translation_and_the_reference_both_use_the_grid():
+    from mimarble.mitsuba.translate import scene_dict
+    scene = scene_of(subsurface(), spheres=((0, 0, 0, 1.0), (3, 0, 0, 0.5)))
+    expected = albedo_grid(scene.materials["m"].subsurface, scene.spheres)
+    assert expected.counts == (24, 11, 11)      # the box around both spheres (one medium)
+    props = grid_props(scene_dict.to_mitsuba(scene, "path", 4))
+    assert props and all(p == {"grid_origin": list(expected.origin),
+                               "grid_spacing": expected.spacing,
+                               "grid_counts": list(expected.counts)} for p in props)
+    assert volume_scene.WalkSpheres(scene).grids == [expected, expected]
+    # Object-space marbles: a medium (and a grid) per placement.
+    placed = scene_of(subsurface(reflectance=dataclasses.replace(VEINS, space="object")),
+                      spheres=((0, 0, 0, 1.0), (3, 0, 0, 0.5)))
+    grids = volume_scene.WalkSpheres(placed).grids
+    assert [g.origin for g in grids] == [(-1.0, -1.0, -1.0), (2.5, -0.5, -0.5)]
+    assert sorted(p["grid_origin"] for p in grid_props(scene_dict.to_mitsuba(placed, "path", 4))) \
+        == [[-1.0, -1.0, -1.0], [2.5, -0.5, -0.5]]
+
+
+def test_the_band_limit_tests_scene_has_a_grid():
+    """tests/test_subsurface_band_limit.py's z-test of the two walks runs with the grid."""
+    from test_subsurface_band_limit import marble, scene_of as band_limit_scene
+    sub = model.Subsurface(reflectance=marble(distortion=4.0), mean_free_path=0.25, ior=1.5)
+    assert volume_scene.WalkSpheres(band_limit_scene(sub)).grids[0] is not None
+
+
+# ---------------------------------------------------------------------------
+# Mitsuba's grid against the reference's
+
+def loaded_medium(scene):
+    from mimarble.mitsuba.translate import scene_dict
+    translated = scene_dict.to_mitsuba(scene, "path", 4)
+    loaded = mi.load_dict(translated)
+    return next(s.interior_medium() for s in loaded.shapes() if s.interior_medium() is not None)
+
+
+def albedo_at(medium, points):
+    """σ_s/σ_t (n, 3) = α of the medium at world points (n, 3)."""
+    mei = dr.zeros(mi.MediumInteraction3f, len(points))
+    mei.p = mi.Point3f(*(mi.Float(np.asarray(points[:, k], np.float32)) for k in range(3)))
+    sigma_s, _, sigma_t = medium.get_scattering_coefficients(mei, True)
+    return (np.array(sigma_s, np.float64) / np.array(sigma_t, np.float64)).T
+
+
+def in_ball(n, radius, seed):
+    rng = np.random.default_rng(seed)
+    p = rng.uniform(-radius, radius, (3 * n, 3))
+    return p[np.linalg.norm(p, axis=1) < radius][:n]
+
+
+def test_mitsubas_lookup_gives_the_references(llvm_variant):
+    """α at 2000 points in the ball from the Mitsuba medium (its marble and inversion in
+    float32, its grid and lookup in Dr.Jit) and from the reference walk's (float64, its own
+    marble, inversion and lookup): within 2·10⁻⁵ (float32's rounding of the marble and the
+    inversion). Without the grid the two differ by the interpolation (≥ 10⁻³ here), which
+    a broken lookup (a wrong node order, an off-by-one cell) would show at this size too."""
+    scene = scene_of(subsurface())
+    medium = loaded_medium(scene)
+    assert medium.grid is not None
+    points = in_ball(2000, 1.0, 1)
+    walk = volume_scene.WalkSpheres(scene)
+    reference = walk.coefficients(0, points)[1]
+    np.testing.assert_allclose(albedo_at(medium, points), reference, atol=2e-5)
+    walk.grids[0] = None                                   # the reference, evaluated directly
+    direct = walk.coefficients(0, points)[1]
+    assert np.abs(direct - reference).max() > 1e-3
+
+
+def test_at_the_nodes_the_grid_is_the_colour(llvm_variant):
+    """At the grid's nodes the lookup gives the colour evaluated there (the node placement),
+    to float32's rounding of u = (p − origin)/h."""
+    scene = scene_of(subsurface())
+    medium = loaded_medium(scene)
+    grid = albedo_grid(scene.materials["m"].subsurface, scene.spheres)
+    rng = np.random.default_rng(2)
+    ijk = np.stack([rng.integers(0, n, 500) for n in grid.counts], axis=1)
+    nodes = np.asarray(grid.origin) + grid.spacing * ijk
+    walk = volume_scene.WalkSpheres(scene)
+    walk.grids[0] = None
+    np.testing.assert_allclose(albedo_at(medium, nodes), walk.coefficients(0, nodes)[1],
+                               atol=2e-5)
+
+
+# ---------------------------------------------------------------------------
+# Edits and gradients
+
+def test_an_edit_of_the_colour_bakes_the_grid_again(llvm_variant):
+    """An edit of the reflectance's ramp through ``mi.traverse``, which tells the scene (the
+    texture's first parent) and not the medium: the medium refuses to be traced with the
+    old grid, in one sentence; refreshed (as the pass renderer does before each render) it
+    gives the α a medium loaded with that ramp gives."""
+    other = ((0.3, 0.4, 0.5), (0.9, 0.8, 0.7), (0.6, 0.6, 0.6))
+    from mimarble.mitsuba.translate import scene_dict
+    scene = scene_of(subsurface(), spheres=((0, 0, 0, 1.0), (3, 0, 0, 0.5)))
+    loaded = mi.load_dict(scene_dict.to_mitsuba(scene, "path", 4))
+    media = [s.interior_medium() for s in loaded.shapes() if s.interior_medium() is not None]
+    params = mi.traverse(loaded)
+    key = next(k for k in params.keys() if k.endswith(".ramp"))
+    params[key] = mi.Color3f(*zip(*other))
+    params.update()
+    edited = scene_of(subsurface(reflectance=dataclasses.replace(VEINS, ramp=other)))
+    points = in_ball(300, 0.5, 3)
+    expected = albedo_at(loaded_medium(edited), points)
+    assert key == "texture_0.ramp"      # told: the scene, the texture's first parent
+    with pytest.raises(Exception, match="marble_medium: its colour texture was edited after "
+                                        "the albedo grid was made"):
+        albedo_at(media[0], points)
+    for medium in media:
+        medium.refresh_grid()           # what the pass renderer does before each render
+        np.testing.assert_allclose(albedo_at(medium, points), expected, atol=1e-6)
+
+
+def test_a_gradient_reaches_the_colour_through_the_grid(llvm_variant):
+    """∂(Σ α at the nodes)/∂ramp through the grid equals it without the grid (at a node
+    the lookup is the node's value, whose derivative is the texture's)."""
+    from mimarble.mitsuba.translate import scene_dict
+    scene = scene_of(subsurface())
+    grid = albedo_grid(scene.materials["m"].subsurface, scene.spheres)
+    nodes = np.asarray(grid.origin) + grid.spacing * np.array([[3, 4, 5], [6, 2, 7], [5, 5, 5]])
+    grads = []
+    for with_grid in (True, False):
+        translated = scene_dict.to_mitsuba(scene, "path", 4)
+        for shape in translated.values():
+            if isinstance(shape, dict) and "interior" in shape and not with_grid:
+                for k in ("grid_origin", "grid_spacing", "grid_counts"):
+                    shape["interior"].pop(k)
+        loaded = mi.load_dict(translated)
+        medium = next(s.interior_medium() for s in loaded.shapes() if s.interior_medium())
+        params = mi.traverse(loaded)
+        key = next(k for k in params.keys() if k.endswith(".ramp"))
+        dr.enable_grad(params[key])
+        params.update()
+        medium.refresh_grid()
+        assert (medium.grid is not None) == with_grid
+        mei = dr.zeros(mi.MediumInteraction3f, len(nodes))
+        mei.p = mi.Point3f(*(mi.Float(nodes[:, k].astype(np.float32)) for k in range(3)))
+        sigma_s, _, sigma_t = medium.get_scattering_coefficients(mei, True)
+        dr.backward(dr.sum(sigma_s / sigma_t, axis=None))
+        grads.append(np.array(dr.grad(params[key])))
+    assert np.abs(grads[1]).max() > 0.1
+    np.testing.assert_allclose(grads[0], grads[1], atol=1e-4)
+
+
+# ---------------------------------------------------------------------------
+# Bad grids
+
+@pytest.mark.parametrize("props, words", [
+    ({"grid_origin": [0, 0, 0]}, "grid_origin, grid_spacing and grid_counts go together"),
+    ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": [200, 200, 200]},
+     "an albedo grid of 8000000 nodes is past the limit of 2097152"),
+    ({"grid_origin": [0, 0, 0], "grid_spacing": 0.0, "grid_counts": [2, 2, 2]},
+     "grid_spacing=0.0 must be a finite number > 0"),
+    ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": [1, 2, 2]},
+     "grid_counts=.* must be three whole numbers ≥ 2"),
+])
+def test_bad_grids_are_refused_in_one_sentence(llvm_variant, props, words):
+    with pytest.raises(Exception, match=f"marble_medium: {words}"):
+        mi.load_dict({"type": "marble_medium", "reflectance": 0.5, **props})
