@@ -131,6 +131,6 @@ DEFAULT_MAX_SPP = 81
 RENDER_MODES = ("whitted", "path", "preview")
 
 #: The most nodes a translucent material's albedo grid may have (mimarble/scene/albedo_grid.py,
-#: marble_medium's ``grid_counts``): 2²¹ nodes of four float32, 32 MiB — a cube of 128 nodes
-#: a side. Past it the walk evaluates the colour at each collision instead.
-MAX_GRID_NODES = 2 ** 21
+#: marble_medium's ``grid_counts``): 2²³ nodes of four half floats, 64 MiB — a cube of 203
+#: nodes a side. Past it the walk evaluates the colour at each collision instead.
+MAX_GRID_NODES = 2 ** 23

@@ -17,6 +17,7 @@ import mimarble
 from mimarble.contract import MAX_GRID_NODES
 from mimarble.reference import volume_scene
 from mimarble.scene import model
+from mimarble.scene import albedo_grid as albedo_grid_module
 from mimarble.scene.albedo_grid import AlbedoGrid, albedo_grid
 
 from test_translucent_reference import SIDE_LIGHT, llvm_variant  # noqa: F401
@@ -47,15 +48,19 @@ def scene_of(sub, spheres=((0.0, 0.0, 0.0, 1.0),), planes=(), size=16):
 # The rule, by hand
 
 def test_the_layout_by_hand():
-    """A sphere of radius 2 at the origin, ℓ = 0.05: 4/0.05 = 80 cells, 81 nodes a side
-    from −2. Two spheres (centres 0 and 3 on x, radii 1 and 0.5), ℓ = 0.3: the box
-    [−1, 3.5] × [−1, 1]², 4.5/0.3 = 15 cells (16 nodes), 2/0.3 = 6.67 → 7 cells (8 nodes)."""
-    one = albedo_grid(subsurface(mean_free_path=0.05), [model.Sphere("m", (0, 0, 0), 2.0)])
-    assert one == AlbedoGrid((-2.0, -2.0, -2.0), 0.05, (81, 81, 81))
-    two = albedo_grid(subsurface(mean_free_path=0.3), [model.Sphere("m", (0, 0, 0), 1.0),
-                                                       model.Sphere("m", (3, 0, 0), 0.5)])
-    assert two.origin == (-1.0, -1.0, -1.0) and two.counts == (16, 8, 8)
-    assert two.spacing == 0.3
+    """h = ℓ/2. A sphere of radius 2 at the origin, ℓ = 1/16: 4/(1/32) = 128 cells, 129
+    nodes a side from −2. Two spheres (centres 0 and 3 on x, radii 1 and 0.5), ℓ = 1/4:
+    the box [−1, 3.5] × [−1, 1]², 4.5/(1/8) = 36 cells (37 nodes), 2/(1/8) = 16 (17)."""
+    assert albedo_grid_module.GRID_SPACING_PER_MEAN_FREE_PATH == 0.5
+    one = albedo_grid(subsurface(mean_free_path=1 / 16), [model.Sphere("m", (0, 0, 0), 2.0)])
+    assert one == AlbedoGrid((-2.0, -2.0, -2.0), 1 / 32, (129, 129, 129))
+    two = albedo_grid(subsurface(mean_free_path=0.25), [model.Sphere("m", (0, 0, 0), 1.0),
+                                                        model.Sphere("m", (3, 0, 0), 0.5)])
+    assert two == AlbedoGrid((-1.0, -1.0, -1.0), 0.125, (37, 17, 17))
+    # A box that is not a whole number of cells: 2.1/0.125 = 16.8 → 17 cells, 18 nodes
+    # reaching 0.025 past the far face.
+    odd = albedo_grid(subsurface(mean_free_path=0.25), [model.Sphere("m", (0, 0, 0), 1.05)])
+    assert odd.counts == (18, 18, 18)
 
 
 @pytest.mark.parametrize("sub, shapes", [
@@ -63,7 +68,7 @@ def test_the_layout_by_hand():
     (subsurface(density=model.ColorChannel((1.0, 1.0, 1.0))), None),          # a density
     (subsurface(), [model.Sphere("m", (0, 0, 0), 1.0), model.Plane("m")]),    # unbounded
     (subsurface(), []),                                                       # no shape
-    (subsurface(mean_free_path=1e-3), None),       # 2001³ nodes: past MAX_GRID_NODES
+    (subsurface(mean_free_path=1e-2), None),       # 401³ nodes: past MAX_GRID_NODES
     (subsurface(mean_free_path=1e-30), None),      # cells past any count: none computed
 ], ids=["constant", "density", "plane", "no shape", "past the limit", "tiny mean free path"])
 def test_what_the_rule_leaves_to_direct_evaluation(sub, shapes):
@@ -72,10 +77,14 @@ def test_what_the_rule_leaves_to_direct_evaluation(sub, shapes):
 
 
 def test_the_largest_grid_allowed_is_made():
-    """128³ = MAX_GRID_NODES nodes (127 cells a side) is made; 129³ is not."""
-    at = albedo_grid(subsurface(mean_free_path=2.0 / 127), [model.Sphere("m", (0, 0, 0), 1.0)])
-    assert at is not None and at.nodes == MAX_GRID_NODES
-    past = albedo_grid(subsurface(mean_free_path=2.0 / 128), [model.Sphere("m", (0, 0, 0), 1.0)])
+    """203³ ≤ MAX_GRID_NODES = 2²³ < 204³: a unit sphere at 202 cells a side is made, at
+    203 it is not."""
+    assert 203 ** 3 <= MAX_GRID_NODES < 204 ** 3
+    h = albedo_grid_module.GRID_SPACING_PER_MEAN_FREE_PATH
+    at = albedo_grid(subsurface(mean_free_path=2.0 / 202 / h), [model.Sphere("m", (0, 0, 0), 1.0)])
+    assert at is not None and at.counts == (203, 203, 203)
+    past = albedo_grid(subsurface(mean_free_path=2.0 / 203 / h),
+                       [model.Sphere("m", (0, 0, 0), 1.0)])
     assert past is None
 
 
@@ -89,9 +98,9 @@ def grid_props(translated: dict) -> list:
 
 def test_the_translation_and_the_reference_both_use_the_grid():
     from mimarble.mitsuba.translate import scene_dict
-    scene = scene_of(subsurface(), spheres=((0, 0, 0, 1.0), (3, 0, 0, 0.5)))
+    scene = scene_of(subsurface(mean_free_path=0.25), spheres=((0, 0, 0, 1.0), (3, 0, 0, 0.5)))
     expected = albedo_grid(scene.materials["m"].subsurface, scene.spheres)
-    assert expected.counts == (24, 11, 11)      # the box around both spheres (one medium)
+    assert expected.counts == (37, 17, 17)      # the box around both spheres (one medium)
     props = grid_props(scene_dict.to_mitsuba(scene, "path", 4))
     assert props and all(p == {"grid_origin": list(expected.origin),
                                "grid_spacing": expected.spacing,
@@ -137,11 +146,17 @@ def in_ball(n, radius, seed):
     return p[np.linalg.norm(p, axis=1) < radius][:n]
 
 
+def within_rounding(actual, expected):
+    """|actual − expected| ≤ 2⁻¹¹·(1 − expected) + 2·10⁻⁵: the half precision of the grid's
+    1 − α (a relative 2⁻¹¹) and float32's rounding of the marble and the inversion."""
+    slack = 2.0 ** -11 * (1.0 - expected) + 2e-5
+    assert np.all(np.abs(actual - expected) <= slack), np.abs(actual - expected).max()
+
+
 def test_mitsubas_lookup_gives_the_references(llvm_variant):
     """α at 2000 points in the ball from the Mitsuba medium (its marble and inversion in
     float32, its grid and lookup in Dr.Jit) and from the reference walk's (float64, its own
-    marble, inversion and lookup): within 2·10⁻⁵ (float32's rounding of the marble and the
-    inversion). Without the grid the two differ by the interpolation (≥ 10⁻³ here), which
+    marble, inversion and lookup): within :func:`within_rounding`. Without the grid the two differ by the interpolation (≥ 10⁻³ here), which
     a broken lookup (a wrong node order, an off-by-one cell) would show at this size too."""
     scene = scene_of(subsurface())
     medium = loaded_medium(scene)
@@ -149,7 +164,7 @@ def test_mitsubas_lookup_gives_the_references(llvm_variant):
     points = in_ball(2000, 1.0, 1)
     walk = volume_scene.WalkSpheres(scene)
     reference = walk.coefficients(0, points)[1]
-    np.testing.assert_allclose(albedo_at(medium, points), reference, atol=2e-5)
+    within_rounding(albedo_at(medium, points), reference)
     walk.grids[0] = None                                   # the reference, evaluated directly
     direct = walk.coefficients(0, points)[1]
     assert np.abs(direct - reference).max() > 1e-3
@@ -157,7 +172,7 @@ def test_mitsubas_lookup_gives_the_references(llvm_variant):
 
 def test_at_the_nodes_the_grid_is_the_colour(llvm_variant):
     """At the grid's nodes the lookup gives the colour evaluated there (the node placement),
-    to float32's rounding of u = (p − origin)/h."""
+    within :func:`within_rounding` (and float32's rounding of u = (p − origin)/h)."""
     scene = scene_of(subsurface())
     medium = loaded_medium(scene)
     grid = albedo_grid(scene.materials["m"].subsurface, scene.spheres)
@@ -166,8 +181,7 @@ def test_at_the_nodes_the_grid_is_the_colour(llvm_variant):
     nodes = np.asarray(grid.origin) + grid.spacing * ijk
     walk = volume_scene.WalkSpheres(scene)
     walk.grids[0] = None
-    np.testing.assert_allclose(albedo_at(medium, nodes), walk.coefficients(0, nodes)[1],
-                               atol=2e-5)
+    within_rounding(albedo_at(medium, nodes), walk.coefficients(0, nodes)[1])
 
 
 # ---------------------------------------------------------------------------
@@ -235,8 +249,8 @@ def test_a_gradient_reaches_the_colour_through_the_grid(llvm_variant):
 
 @pytest.mark.parametrize("props, words", [
     ({"grid_origin": [0, 0, 0]}, "grid_origin, grid_spacing and grid_counts go together"),
-    ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": [200, 200, 200]},
-     "an albedo grid of 8000000 nodes is past the limit of 2097152"),
+    ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": [300, 300, 300]},
+     "an albedo grid of 27000000 nodes is past the limit of 8388608"),
     ({"grid_origin": [0, 0, 0], "grid_spacing": 0.0, "grid_counts": [2, 2, 2]},
      "grid_spacing=0.0 must be a finite number > 0"),
     ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": [1, 2, 2]},
