@@ -153,21 +153,54 @@ def within_rounding(actual, expected):
     assert np.all(np.abs(actual - expected) <= slack), np.abs(actual - expected).max()
 
 
-def test_mitsubas_lookup_gives_the_references(llvm_variant):
-    """α at 2000 points in the ball from the Mitsuba medium (its marble and inversion in
-    float32, its grid and lookup in Dr.Jit) and from the reference walk's (float64, its own
-    marble, inversion and lookup): within :func:`within_rounding`. Without the grid the two differ by the interpolation (≥ 10⁻³ here), which
-    a broken lookup (a wrong node order, an off-by-one cell) would show at this size too."""
+def test_mitsubas_lookup_draws_a_corner_with_its_trilinear_weight(llvm_variant):
+    """Mitsuba's lookup (its marble and inversion in float32, its grid in half precision, one
+    corner drawn per point by a hash of the point) against the reference walk's (float64,
+    its own marble and inversion, the trilinear interpolation itself — the draw's
+    expectation): at each of 20000 points in the ball the value read is one of the eight
+    corners' (:func:`within_rounding` of the reference's nodes); over the points, each
+    corner is drawn as often as its trilinear weight says, and the mean of what is read
+    is the mean of the interpolation, within 4 standard errors (the draws' spread)."""
     scene = scene_of(subsurface())
     medium = loaded_medium(scene)
     assert medium.grid is not None
-    points = in_ball(2000, 1.0, 1)
+    points = in_ball(20000, 1.0, 1)
     walk = volume_scene.WalkSpheres(scene)
-    reference = walk.coefficients(0, points)[1]
-    within_rounding(albedo_at(medium, points), reference)
+    trilinear = walk.coefficients(0, points)[1]
+    read = albedo_at(medium, points)
+    grid = walk.grids[0]
+    counts = np.asarray(grid.counts)
+    u = np.clip((points - np.asarray(grid.origin)) / grid.spacing, 0.0, counts - 1.0)
+    cell = np.minimum(np.floor(u).astype(np.int64), counts - 2)
+    f = u - cell
+    nodes = walk._grid_albedo[0]
+    weights, values = [], []
+    for dx in (0, 1):
+        for dy in (0, 1):
+            for dz in (0, 1):
+                weights.append(np.prod([f[:, a] if d else 1.0 - f[:, a]
+                                        for a, d in enumerate((dx, dy, dz))], axis=0))
+                values.append(nodes[(cell[:, 0] + dx) + counts[0] * ((cell[:, 1] + dy)
+                                                                      + counts[1] * (cell[:, 2] + dz))])
+    weights, values = np.stack(weights, axis=1), np.stack(values, axis=1)   # (n, 8), (n, 8, 3)
+    slack = 2.0 ** -11 * (1.0 - values) + 2e-5
+    hit = np.all(np.abs(read[:, None, :] - values) <= slack, axis=2)         # (n, 8)
+    assert hit.any(axis=1).all()
+    # The corner drawn (the first that matches; corners of equal value are one outcome
+    # for the mean below) against its weight: Σ (1{drawn} − w) ≈ 0 per corner slot.
+    drawn = np.zeros_like(weights)
+    drawn[np.arange(len(points)), hit.argmax(axis=1)] = 1.0
+    distinct = np.all(np.abs(values[:, :, None, :] - values[:, None, :, :]).max(axis=3)
+                      + np.eye(8)[None] > 1e-3, axis=(1, 2))
+    excess = (drawn - weights)[distinct]
+    se = np.sqrt((weights * (1 - weights))[distinct].sum(axis=0))
+    assert np.all(np.abs(excess.sum(axis=0)) < 4 * se + 1e-9), (excess.sum(axis=0), se)
+    difference = read - trilinear
+    z = difference.mean(axis=0) / (difference.std(axis=0) / np.sqrt(len(points)))
+    assert np.all(np.abs(z) < 4), z
     walk.grids[0] = None                                   # the reference, evaluated directly
     direct = walk.coefficients(0, points)[1]
-    assert np.abs(direct - reference).max() > 1e-3
+    assert np.abs(direct - trilinear).max() > 1e-3
 
 
 def test_at_the_nodes_the_grid_is_the_colour(llvm_variant):

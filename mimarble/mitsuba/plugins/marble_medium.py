@@ -352,30 +352,28 @@ class MarbleMedium:
         self.grid = grid
 
     def grid_albedo(self, p, active=True):
-        """α at world points ``p`` by trilinear interpolation of the grid's nodes (in
-        float32, of 1 − α): u = (p − origin)/spacing clamped to the grid, the cell [⌊u⌋,
-        ⌊u⌋ + 1] (its last one at the far faces), weights u − ⌊u⌋."""
+        """α at world points ``p`` from the grid's nodes, one corner of the cell around p
+        drawn with its trilinear weight (stochastic filtering, Pharr et al. 2024): u =
+        (p − origin)/spacing clamped to the grid, the cell [⌊u⌋, ⌊u⌋ + 1] (its last one at
+        the far faces), on each axis the upper node with probability u − ⌊u⌋, so that a
+        corner's probability is its trilinear weight and the expectation of what is read is
+        the trilinear interpolation. One 8-byte gather instead of eight. The numbers drawn
+        are a hash of p's bits (TEA, 4 rounds: x and z in one word, y in the other; 24,
+        24 and 16 bits): the medium has no sampler, and p itself is a draw of the walk —
+        no two collisions share it."""
         origin, spacing, counts = self.grid_layout
-        corner, weight = [], []
+        bits = [dr.reinterpret_array(mi.UInt32, p[axis]) for axis in range(3)]
+        a, b = mi.sample_tea_32(bits[0] ^ ((bits[2] << 16) | (bits[2] >> 16)), bits[1], 4)
+        draws = (mi.Float(a >> 8) * 2.0 ** -24, mi.Float(b >> 8) * 2.0 ** -24,
+                 mi.Float((a & 0xFF) | ((b & 0xFF) << 8)) * 2.0 ** -16)
+        node = []
         for axis in range(3):
             u = dr.clip((p[axis] - origin[axis]) * (1.0 / spacing), 0.0, counts[axis] - 1.0)
             cell = dr.minimum(mi.UInt32(u), counts[axis] - 2)
-            corner.append(cell)
-            weight.append(u - mi.Float(cell))
-        nx, ny = counts[0], counts[1]
-        base = corner[0] + nx * (corner[1] + ny * corner[2])
-        result = None
-        for dz in (0, 1):
-            for dy in (0, 1):
-                for dx in (0, 1):
-                    w = (weight[0] if dx else 1.0 - weight[0]) \
-                        * (weight[1] if dy else 1.0 - weight[1]) \
-                        * (weight[2] if dz else 1.0 - weight[2])
-                    node = dr.gather(_half_types()[1], self.grid,
-                                     base + (dx + nx * (dy + ny * dz)), active)
-                    term = mi.Color3f(mi.Float(node.x), mi.Float(node.y), mi.Float(node.z)) * w
-                    result = term if result is None else result + term
-        return 1.0 - result
+            node.append(dr.select(draws[axis] < u - mi.Float(cell), cell + 1, cell))
+        index = node[0] + counts[0] * (node[1] + counts[1] * node[2])
+        kept = dr.gather(_half_types()[1], self.grid, index, active)
+        return 1.0 - mi.Color3f(mi.Float(kept.x), mi.Float(kept.y), mi.Float(kept.z))
 
     def _defined(self):
         """Whether scale and the bound keep their rules as they are now (scale > 0 and
