@@ -79,6 +79,19 @@ the shape whose ``interior`` it is bounds it.
      - An upper bound of d. Given: as given (traversed, not differentiable), whatever
        the density becomes. Not given: 1 without a density, else the density texture's
        maximum as it is when the kernel runs (below), not traversed.
+   * - ``grid_origin``, ``grid_spacing``, ``grid_counts``
+     - 3 floats, float > 0, 3 whole numbers ≥ 2 (optional, all three or none)
+     - The albedo grid (mimarble/scene/albedo_grid.py; the scene translation gives one):
+       α is evaluated once per update at the nodes origin + spacing·(i, j, k), i <
+       counts[0], …, and each collision reads one corner of its cell drawn with its
+       trilinear weight (:meth:`grid_albedo`) instead of evaluating the textures — a
+       stated bias (the trilinear interpolation's; docs/rendering-model.md, "The albedo
+       grid"). At most ``contract.MAX_GRID_NODES`` nodes, checked before anything is
+       allocated. Made again when the colour texture's traversed values change: at an
+       update of the medium, or :meth:`refresh_grid` (the pass renderer calls it before
+       each render; an edit Mitsuba told only another parent of is refused in one
+       sentence when a kernel is traced with the old grid). Differentiable through the
+       nodes. Ignored in the scalar and spectral variants (α evaluated at each collision).
    * - ``sample_emitters``
      - bool (default true)
      - Mitsuba's: shadow rays from inside (useless behind a boundary that is not ``null``,
