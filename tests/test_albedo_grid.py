@@ -292,3 +292,23 @@ def test_a_gradient_reaches_the_colour_through_the_grid(llvm_variant):
 def test_bad_grids_are_refused_in_one_sentence(llvm_variant, props, words):
     with pytest.raises(Exception, match=f"marble_medium: {words}"):
         mi.load_dict({"type": "marble_medium", "reflectance": 0.5, **props})
+
+
+# ---------------------------------------------------------------------------
+# The off switch
+
+def test_grid_false_in_the_scene_language_renders_the_exact_walk():
+    """``subsurface { … grid false }``: no grid in either walk; anything but true or false
+    refused at the word, in one sentence with its line and column."""
+    from mimarble import scene as S
+    from mimarble.mitsuba.translate import scene_dict
+    text = '''material "m" { subsurface { reflectance marble { function sine period 3 }
+        mean_free_path 0.2 grid WORD } }
+    sphere { center < 0 0 0 > radius 1 material "m" }'''
+    on, off = (S.parse(text.replace("WORD", w)) for w in ("true", "false"))
+    assert on.materials["m"].subsurface.grid and not off.materials["m"].subsurface.grid
+    assert grid_props(scene_dict.to_mitsuba(on, "path", 4))[0]
+    assert grid_props(scene_dict.to_mitsuba(off, "path", 4)) == [{}]
+    assert volume_scene.WalkSpheres(off).grids == [None]
+    with pytest.raises(S.SceneError, match=r"^<string>:2:33: grid is true or false, found 'maybe'"):
+        S.parse(text.replace("WORD", "maybe"))

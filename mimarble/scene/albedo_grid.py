@@ -19,7 +19,8 @@ walk without the grid in docs/rendering-model.md ("The albedo grid"); both the M
 reference walk (mimarble/reference/volume_scene.py) apply this rule, each with its own
 code, so that their agreement tests still hold.
 
-No grid (α evaluated at each collision, as before) for: a colour with no marble (a
+No grid (α evaluated at each collision, as before) for: a subsurface written with
+``grid false`` (the exact walk, its only cost time), a colour with no marble (a
 constant: nothing to save, and the grid would only round it), a subsurface with a
 ``density`` (as band_limit: its local mean free path ℓ/d may be shorter than h), a
 medium whose shapes are not all bounded (a plane), and a grid of more than
@@ -65,7 +66,7 @@ def albedo_grid(subsurface, shapes) -> AlbedoGrid | None:
     or None where the walk evaluates α at each collision (module docstring)."""
     colour = subsurface.reflectance if subsurface.reflectance is not None \
         else subsurface.albedo
-    if subsurface.density is not None or colour is None \
+    if not subsurface.grid or subsurface.density is not None or colour is None \
             or not any(isinstance(c, MarbleChannel) for c in walk(colour)):
         return None
     corners = [shape.corners() for shape in shapes]
