@@ -18,7 +18,8 @@ __all__ = ["T_MIN_REL", "EPS_REL", "FLT_MAX", "FLT_MIN_NORMAL", "FLOAT32_EPSILON
            "FLOAT32_INTEGER_LIMIT",
            "NOISE_BOUND", "MAX_OCTAVES", "MAX_OCTAVES_EVALUATED", "SKIPPED_OCTAVES_BOUND",
            "PATH_MAX_DEPTH", "PREVIEW_MAX_DEPTH", "VOLPATH_MAX_DEPTH", "VOLPATH_RR_DEPTH", "ROULETTE_DEPTH", "ROULETTE_MAX",
-           "SPHERICAL_ALBEDO_FIT_B", "SPHERICAL_ALBEDO_FIT_C", "DEFAULT_MAX_SPP", "RENDER_MODES"]
+           "SPHERICAL_ALBEDO_FIT_B", "SPHERICAL_ALBEDO_FIT_C", "DEFAULT_MAX_SPP", "RENDER_MODES",
+           "MAX_GRID_NODES"]
 
 # ---------------------------------------------------------------------------
 # Tracing (docs/rendering-model.md)
@@ -128,3 +129,8 @@ DEFAULT_MAX_SPP = 81
 #: translucent materials) and ``preview`` (path mode with each translucent material's
 #: fast preview, ``subsurface_preview``, in place of its walk).
 RENDER_MODES = ("whitted", "path", "preview")
+
+#: The most nodes a translucent material's albedo grid may have (mimarble/scene/albedo_grid.py,
+#: marble_medium's ``grid_counts``): 2²³ nodes of four half floats, 64 MiB — a cube of 203
+#: nodes a side. Past it the walk evaluates the colour at each collision instead.
+MAX_GRID_NODES = 2 ** 23

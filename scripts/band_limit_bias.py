@@ -1,13 +1,17 @@
-"""The bias of band-limiting a translucent material's marbles to its mean free path
-(mimarble/scene/band_limit.py): the walk as path mode renders it against the walk with every
-octave, both converged, and the time of each.
+"""The bias of one of the random walk's stated approximations, the walk as path mode renders it
+against the walk without it, both converged, and the time of each: ``--rule band-limit``
+(default) band-limiting a translucent material's marbles to its mean free path
+(mimarble/scene/band_limit.py), or ``--rule albedo-grid`` reading the albedo from its grid
+(mimarble/scene/albedo_grid.py; both walks band-limited).
 
-    ./go python scripts/band_limit_bias.py SCENE [--size 100] [--spp 512] [--json OUT.json]
+    ./go python scripts/band_limit_bias.py SCENE [--rule band-limit|albedo-grid] [--size 100]
+        [--spp 512] [--json OUT.json]
 
-The unfiltered walk is the same translation with ``band_limited`` replaced by the identity
-(this script's own switch; the package has none), the loaded scenes cleared before each. Each is rendered twice (seeds 1, 2) after
+The walk without the rule ("full") is the same translation with ``band_limited`` replaced by
+the identity, or ``albedo_grid`` by no grid (this script's own switch; the package has
+none), the loaded scenes cleared before each. Each is rendered twice (seeds 1, 2) after
 a warm-up. Over the object's pixels (scripts/translucent_vs_cycles.py's mask), relative to
-the full walk's mean m:
+the full walk's mean m ("limited": the walk with the rule):
 
 * ``mean_shift``: (mean(limited) − mean(full)) / m, with its standard error from the
   renders' own noise (se);
@@ -33,15 +37,22 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from translucent_vs_cycles import object_mask  # noqa: E402  (the sibling script)
 
 
-def renders(scene, spp: int, full: bool):
-    """Two path renders (seeds 1, 2) after a warm-up; with ``full`` every octave."""
+#: Each rule's switch: the name in mimarble/mitsuba/translate/media.py, and what stands in
+#: for it in the walk without the rule.
+RULES = {"band-limit": ("band_limited", lambda subsurface: subsurface),
+         "albedo-grid": ("albedo_grid", lambda subsurface, shapes: None)}
+
+
+def renders(scene, spp: int, full: bool, rule: str = "band-limit"):
+    """Two path renders (seeds 1, 2) after a warm-up; with ``full`` without ``rule``."""
     import mimarble
     from mimarble.mitsuba.translate import media
     from mimarble.mitsuba.rendering.loaded_scenes import LOADED
     LOADED.clear()           # a model once translated is not translated again
-    kept = media.band_limited
+    name, without = RULES[rule]
+    kept = getattr(media, name)
     if full:
-        media.band_limited = lambda subsurface: subsurface
+        setattr(media, name, without)
     try:
         mimarble.render(scene, spp=spp, mode="path", seed=0)
         images, cpu = [], []
@@ -50,13 +61,14 @@ def renders(scene, spp: int, full: bool):
             images.append(mimarble.render(scene, spp=spp, mode="path", seed=seed))
             cpu.append(time.process_time() - used)
     finally:
-        media.band_limited = kept
+        setattr(media, name, kept)
     return np.asarray(images, np.float64), cpu
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scene")
+    parser.add_argument("--rule", choices=sorted(RULES), default="band-limit")
     parser.add_argument("--size", type=int, default=100)
     parser.add_argument("--spp", type=int, default=512)
     parser.add_argument("--json")
@@ -66,8 +78,8 @@ def main(argv=None) -> int:
     from mimarble.scene.edits import resized
     scene = resized(scene_language.load(packaged_scenes.resolve(args.scene)), args.size)
     mask = object_mask(scene)
-    full, full_cpu = renders(scene, args.spp, full=True)
-    limited, limited_cpu = renders(scene, args.spp, full=False)
+    full, full_cpu = renders(scene, args.spp, True, args.rule)
+    limited, limited_cpu = renders(scene, args.spp, False, args.rule)
     f, lim = full[:, mask], limited[:, mask]                 # (2, pixels, 3)
     m = f.mean()
     # Same seed, same random numbers: L_k − F_k is far less noisy than either (paired).
@@ -76,7 +88,7 @@ def main(argv=None) -> int:
     noise2 = float(np.mean(np.square(d[0] - d[1]) / 2.0) / 2.0)   # variance of diff, per pixel
     rms = float(np.sqrt(np.mean(np.square(diff))))
     result = {
-        "scene": args.scene, "size": args.size, "spp": args.spp, "pixels": int(mask.sum()),
+        "scene": args.scene, "rule": args.rule, "size": args.size, "spp": args.spp, "pixels": int(mask.sum()),
         "mean_full": float(m), "mean_limited": float(lim.mean()),
         "mean_shift": float(diff.mean() / m),
         "mean_shift_se": float(np.sqrt(noise2 / diff.size) / m),

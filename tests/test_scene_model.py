@@ -270,7 +270,7 @@ def test_block_keys_table_matches_the_grammar(tmp_path):
         "point": "<0 0 0>", "normal": "<0 0 1>", "min": "<0 0 0>", "max": "<1 1 1>",
         "file": f'"{tmp_path / "a.obj"}"',
         "subsurface": "{ albedo color <1 1 1> mean_free_path 1 }",
-        "density": "color <1 1 1>", "ior": "1.3",
+        "density": "color <1 1 1>", "ior": "1.3", "grid": "false",
     }
     wrap = {
         "image": "image {{ {} }}", "camera": "camera {{ {} }}", "light": "light {{ position <0 5 0> {} }}",

@@ -99,9 +99,9 @@ def test_the_model_takes_exactly_one_of_albedo_and_reflectance(given):
 def test_every_key_of_a_subsurface_is_accepted():
     # BLOCK_KEYS lists what the grammar takes, in the order the messages list them.
     assert S.BLOCK_KEYS["subsurface"] == ("albedo", "reflectance", "mean_free_path", "density",
-                                          "ior")
+                                          "ior", "grid")
     assert S.BLOCK_KEYS["material"][-1] == "subsurface"
-    values = {"density": "color < 1 1 1 >", "ior": "1.1"}
+    values = {"density": "color < 1 1 1 >", "ior": "1.1", "grid": "false"}
     for key in S.BLOCK_KEYS["subsurface"]:
         extra = f" {key} {values[key]}" if key in values else ""
         colour = "reflectance" if key == "reflectance" else "albedo"   # one of the two
@@ -193,7 +193,7 @@ def test_an_unknown_key_lists_the_subsurface_keys_in_order():
     text = material("albedo color < 1 1 1 > scattering 2")
     refused_at(text, *where(text, "scattering"),
                "unknown keyword 'scattering' in 'subsurface' block; allowed: 'albedo', "
-               "'reflectance', 'mean_free_path', 'density' or 'ior'")
+               "'reflectance', 'mean_free_path', 'density', 'ior' or 'grid'")
 
 
 def test_a_mistake_inside_an_image_map_there_lists_the_image_maps_keys():

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from mimarble.scene import geometry
+from mimarble.scene.albedo_grid import albedo_grid
 from mimarble.scene.band_limit import band_limited
 from mimarble.scene.model import (
     Add,
@@ -35,6 +36,10 @@ from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scatteri
 
 __all__ = ["channel_interval", "density_bound", "area_radiance", "point_intensity", "walk_problem",
            "WalkSpheres", "WalkLights"]
+
+
+#: Grid nodes evaluated at a time when an albedo grid is made (bounds the temporaries).
+GRID_CHUNK = 1 << 16
 
 
 # ---------------------------------------------------------------------------
@@ -223,6 +228,14 @@ class WalkSpheres:
                              for s in subs]
         self.from_world = np.linalg.inv(np.array([geometry.object_to_world(s) for s in spheres],
                                                  dtype=np.float64).reshape(-1, 4, 4))[:, :3, :]
+        # The albedo grid of each sphere's medium (mimarble/scene/albedo_grid.py), over the
+        # spheres that share it as path mode's translator shares it: every sphere of the
+        # material, or with object-space marbles those of the same placement.
+        self.grids = [albedo_grid(sub, [o for o in spheres if o.material == s.material and (
+            not self.object_space[k]
+            or geometry.object_to_world(o) == geometry.object_to_world(s))])
+            for k, (s, sub) in enumerate(zip(spheres, subs))]
+        self._grid_albedo = [None] * len(spheres)          # made when first read
 
     def coefficients(self, s: int, p: np.ndarray):
         """(σ_t/σ̄ (k,), albedo (k, 3)) of sphere s's medium at world points p (k, 3): the
@@ -232,11 +245,7 @@ class WalkSpheres:
         if self.object_space[s]:
             m = self.from_world[s]
             obj = p @ m[:, :3].T + m[:, 3]
-        if self.reflectance[s] is not None:
-            albedo = single_scattering_albedo(
-                channel_color(self.reflectance[s], p, object_points=obj), self.fresnel_mean[s])
-        else:
-            albedo = np.clip(channel_color(self.albedo[s], p, object_points=obj), 0.0, 1.0)
+        albedo = self._albedo(s, p, obj) if self.grids[s] is None else self._from_grid(s, p)
         if self.density[s] is None:
             ratio = np.ones(len(p))
         else:
@@ -244,6 +253,49 @@ class WalkSpheres:
             # σ_t/σ̄ = d/bound(d) ≤ 1 (the bound holds; min() only absorbs rounding)
             ratio = np.minimum(d / (self.majorant[s] * self.mfp[s]), 1.0)
         return ratio, albedo
+
+
+    def _albedo(self, s: int, p: np.ndarray, obj) -> np.ndarray:
+        """α (k, 3) of sphere s's medium evaluated at world points p (object points obj)."""
+        if self.reflectance[s] is not None:
+            return single_scattering_albedo(
+                channel_color(self.reflectance[s], p, object_points=obj), self.fresnel_mean[s])
+        return np.clip(channel_color(self.albedo[s], p, object_points=obj), 0.0, 1.0)
+
+    def _from_grid(self, s: int, p: np.ndarray) -> np.ndarray:
+        """α (k, 3) at world points p by trilinear interpolation of sphere s's grid of α at
+        its nodes (made at the first call, GRID_CHUNK nodes at a time): u = (p − origin)/h
+        clamped to [0, n − 1] per axis, the cell of ⌊u⌋ (the last one at the far face),
+        weights u − ⌊u⌋ and their complements."""
+        grid = self.grids[s]
+        if self._grid_albedo[s] is None:
+            nx, ny, nz = grid.counts
+            index = np.arange(grid.nodes)
+            ijk = np.stack([index % nx, (index // nx) % ny, index // (nx * ny)], axis=1)
+            nodes = np.asarray(grid.origin) + grid.spacing * ijk
+            if self.object_space[s]:
+                m = self.from_world[s]
+                to_object = lambda q: q @ m[:, :3].T + m[:, 3]   # noqa: E731
+            else:
+                to_object = lambda q: None                       # noqa: E731
+            self._grid_albedo[s] = np.concatenate([
+                self._albedo(s, nodes[a:a + GRID_CHUNK], to_object(nodes[a:a + GRID_CHUNK]))
+                for a in range(0, len(nodes), GRID_CHUNK)])
+        counts = np.asarray(grid.counts)
+        u = np.clip((p - np.asarray(grid.origin)) / grid.spacing, 0.0, counts - 1.0)
+        cell = np.minimum(np.floor(u).astype(np.int64), counts - 2)
+        f = u - cell
+        values = self._grid_albedo[s]
+        out = np.zeros((len(p), 3))
+        for dx in (0, 1):
+            for dy in (0, 1):
+                for dz in (0, 1):
+                    w = (f[:, 0] if dx else 1.0 - f[:, 0]) * (f[:, 1] if dy else 1.0 - f[:, 1]) \
+                        * (f[:, 2] if dz else 1.0 - f[:, 2])
+                    node = (cell[:, 0] + dx) + counts[0] * ((cell[:, 1] + dy)
+                                                            + counts[1] * (cell[:, 2] + dz))
+                    out += w[:, None] * values[node]
+        return out
 
 
 class WalkLights:

@@ -147,6 +147,12 @@ class MaterialBuilder(ValueReader):
                 values[key] = self.volume_channel(tree, f"{key} of the subsurface of {block}")
                 continue
             tok = tree.children[0]
+            if key == "grid":
+                if str(tok) not in ("true", "false"):
+                    raise self.error(tok, f"grid is true or false, found "
+                                          f"'{rules.shortened(str(tok), 40)}'")
+                values[key] = str(tok) == "true"
+                continue
             values[key] = self.number(tok)
             problem = (rules.mean_free_path_problem if key == "mean_free_path"
                        else rules.ior_problem)(values[key])

@@ -41,7 +41,7 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     "area": ("axis1", "axis2", "radius", "samples"),
     "environment": ("file", "color", "intensity", "rotate"),
     "material": ("ambient", "diffuse", "specular", "shininess", "subsurface"),
-    "subsurface": ("albedo", "reflectance", "mean_free_path", "density", "ior"),  # BARE_CHANNEL_KEYS: a channel
+    "subsurface": ("albedo", "reflectance", "mean_free_path", "density", "ior", "grid"),  # BARE_CHANNEL_KEYS: a channel
     "ambient": CHANNEL_KEYWORDS,
     "diffuse": CHANNEL_KEYWORDS,
     "specular": CHANNEL_KEYWORDS,

@@ -312,6 +312,8 @@ class Subsurface:
 
     ``mean_free_path`` is required; its default (None) only lets ``albedo`` default to
     None, so that ``Subsurface(reflectance=C, mean_free_path=0.2)`` reads as the block does.
+    ``grid`` (default True): whether the random walk may read the albedo from a grid
+    (mimarble/scene/albedo_grid.py, a stated bias); False: evaluated at every collision.
     """
 
     albedo: Channel | None = None
@@ -319,6 +321,7 @@ class Subsurface:
     ior: float = 1.5
     density: Channel | None = None
     reflectance: Channel | None = None
+    grid: bool = True
     pos: Pos | None = pos_field()
 
     def __post_init__(self) -> None:
@@ -335,6 +338,8 @@ class Subsurface:
                                  f"has no (u, v)")
         mfp = checked_number(self.mean_free_path, "mean_free_path")
         refuse(rules.mean_free_path_problem(mfp), self.mean_free_path)
+        if not isinstance(self.grid, bool):
+            raise TypeError(f"a subsurface's grid is True or False, found {shown(self.grid)}")
         ior = checked_number(self.ior, "ior")
         refuse(rules.ior_problem(ior), self.ior)
         store_checked(self, mean_free_path=mfp, ior=ior)

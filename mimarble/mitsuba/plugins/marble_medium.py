@@ -79,6 +79,19 @@ the shape whose ``interior`` it is bounds it.
      - An upper bound of d. Given: as given (traversed, not differentiable), whatever
        the density becomes. Not given: 1 without a density, else the density texture's
        maximum as it is when the kernel runs (below), not traversed.
+   * - ``grid_origin``, ``grid_spacing``, ``grid_counts``
+     - 3 floats, float > 0, 3 whole numbers ≥ 2 (optional, all three or none)
+     - The albedo grid (mimarble/scene/albedo_grid.py; the scene translation gives one):
+       α is evaluated once per update at the nodes origin + spacing·(i, j, k), i <
+       counts[0], …, and each collision reads one corner of its cell drawn with its
+       trilinear weight (:meth:`grid_albedo`) instead of evaluating the textures — a
+       stated bias (the trilinear interpolation's; docs/rendering-model.md, "The albedo
+       grid"). At most ``contract.MAX_GRID_NODES`` nodes, checked before anything is
+       allocated. Made again when the colour texture's traversed values change: at an
+       update of the medium, or :meth:`refresh_grid` (the pass renderer calls it before
+       each render; an edit Mitsuba told only another parent of is refused in one
+       sentence when a kernel is traced with the old grid). Differentiable through the
+       nodes. Ignored in the scalar and spectral variants (α evaluated at each collision).
    * - ``sample_emitters``
      - bool (default true)
      - Mitsuba's: shadow rays from inside (useless behind a boundary that is not ``null``,
@@ -97,7 +110,7 @@ from mimarble.runtime import environment
 from mimarble.texture import srgb_model
 from mimarble.mitsuba.plugins.registration import (describe, first_number, held_maximum, plugin,
     recording_key)
-from mimarble.contract import FLT_MAX
+from mimarble.contract import FLT_MAX, MAX_GRID_NODES
 from .channel_expression import gives_rgb
 from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scattering_albedo
 
@@ -105,6 +118,12 @@ dr, mi = environment.import_drjit_and_mitsuba()
 
 #: Mitsuba's default single-scattering albedo of its media (src/media/homogeneous.cpp).
 DEFAULT_ALBEDO = 0.75
+
+
+def _half_types():
+    """(Dr.Jit's half-precision float of the variant's backend, its 4-vector)."""
+    backend = dr.cuda.ad if dr.backend_v(mi.Float) == dr.JitBackend.CUDA else dr.llvm.ad
+    return backend.Float16, backend.Array4f16
 
 
 class MarbleMediumError(ValueError):
@@ -154,6 +173,7 @@ class MarbleMedium:
             raise MarbleMediumError("marble_medium: a microflake phase function is not "
                                     "supported; use isotropic (the default) or hg")
         self._albedo_and_reflectance(props)
+        self._grid_layout(props)
         self.density = props.get_texture("density") if "density" in props else None
         if mi.is_spectral and self.density is not None and not gives_rgb(self.density):
             # d is a number made from the density's RGB colour (density_at), the same in
@@ -173,6 +193,36 @@ class MarbleMedium:
         if self._bound_given:
             self.editable["density_bound"] = _held(float(bound))
         self.parameters_changed([])
+
+    def _grid_layout(self, props):
+        """The albedo grid's layout (``grid_origin``, ``grid_spacing``, ``grid_counts``: all
+        three or none), checked before anything is allocated; None without one, and in
+        spectral variants, where α depends on the wavelength and is evaluated directly."""
+        names = ("grid_origin", "grid_spacing", "grid_counts")
+        given = [name in props for name in names]
+        self.grid_layout = self.grid = None
+        if not any(given):
+            return
+        if not all(given):
+            raise MarbleMediumError("marble_medium: grid_origin, grid_spacing and grid_counts "
+                                    "go together (the albedo grid), not one without the others")
+        origin = [float(v) for v in props.get("grid_origin")]
+        spacing = props.get("grid_spacing")
+        counts = [float(v) for v in props.get("grid_counts")]
+        problem = _number_problem("grid_spacing", spacing, 0.0, strict=True)
+        if not problem and not (len(origin) == 3 and all(math.isfinite(v) for v in origin)):
+            problem = f"marble_medium: grid_origin={origin!r} must be three finite numbers"
+        if not problem and not (len(counts) == 3 and all(c.is_integer() and c >= 2
+                                                         for c in counts)):
+            problem = (f"marble_medium: grid_counts={counts!r} must be three whole numbers "
+                       f"≥ 2 (nodes along x, y, z)")
+        if not problem and math.prod(counts) > MAX_GRID_NODES:
+            problem = (f"marble_medium: an albedo grid of {math.prod(counts):.0f} nodes is "
+                       f"past the limit of {MAX_GRID_NODES} (a coarser grid_spacing, or none)")
+        if problem:
+            raise MarbleMediumError(problem)
+        if not mi.is_spectral and dr.is_jit_v(mi.Float):
+            self.grid_layout = (tuple(origin), float(spacing), tuple(int(c) for c in counts))
 
     def _albedo_and_reflectance(self, props):
         """``albedo`` (default 0.75) or ``reflectance`` with its ``ior`` (default 1), F̄(ior)
@@ -271,6 +321,72 @@ class MarbleMedium:
             self.scale, self.bound = self.editable["scale"], self.editable.get("density_bound")
         else:     # the scalar variant computes on Python floats
             self.scale, self.bound = scale, bound
+        self.refresh_grid()
+
+    def _colour_state(self) -> tuple:
+        """The Dr.Jit variables (JIT and AD indices) of every traversed value of the colour
+        texture (reflectance or albedo), expressions' operands included: an edit through
+        ``mi.traverse`` puts a new variable in place, enabling a gradient adds an AD one."""
+        params = mi.traverse(self.reflectance if self.reflectance is not None else self.albedo)
+        return tuple((key, tuple(dr.detail.collect_indices(params[key])))
+                     for key in params.keys())
+
+    def refresh_grid(self) -> None:
+        """Bake the grid again if the colour texture's traversed values are not those it was
+        baked from. Called at each update of the medium and, by the pass renderer, before
+        each render (``replay.scene_facts``): ``mi.traverse`` tells only an edited texture's
+        first parent, which may be another medium of the same material or a surface."""
+        if self.grid_layout is not None:
+            state = self._colour_state()
+            if state != getattr(self, "_baked_state", None):
+                self._bake()
+                self._baked_state = state
+
+    def _bake(self):
+        """α at every node of the grid, into ``self.grid``, evaluated now in one kernel with
+        the textures as they are — attached: a gradient of a texture parameter reaches it
+        through the lookups. Node (i, j, k) is origin + spacing·(i, j, k). Held as 1 − α in
+        half precision, four a node (RGB and a pad: a corner is one aligned 8-byte packet
+        gather): half the memory of float32, so a grid twice as fine fits the cache as
+        well; 1 − α, not α, because white marble's α ≈ 0.999 needs its distance from 1 (a
+        half rounds it to 2⁻¹¹ of itself; α itself would round to 2⁻¹¹)."""
+        origin, spacing, (nx, ny, nz) = self.grid_layout
+        index = dr.arange(mi.UInt32, nx * ny * nz)
+        i, rest = index % nx, index // nx
+        j, k = rest % ny, rest // ny
+        si = dr.zeros(mi.SurfaceInteraction3f, nx * ny * nz)
+        si.p = mi.Point3f(*(o + spacing * mi.Float(n) for o, n in zip(origin, (i, j, k))))
+        albedo = self.albedo_at(si)
+        half = _half_types()[0]
+        grid = dr.zeros(half, 4 * nx * ny * nz)
+        for c in range(3):
+            dr.scatter(grid, half(1.0 - albedo[c]), 4 * index + c)
+        dr.eval(grid)
+        self.grid = grid
+
+    def grid_albedo(self, p, active=True):
+        """α at world points ``p`` from the grid's nodes, one corner of the cell around p
+        drawn with its trilinear weight (stochastic filtering, Pharr et al. 2024): u =
+        (p − origin)/spacing clamped to the grid, the cell [⌊u⌋, ⌊u⌋ + 1] (its last one at
+        the far faces), on each axis the upper node with probability u − ⌊u⌋, so that a
+        corner's probability is its trilinear weight and the expectation of what is read is
+        the trilinear interpolation. One 8-byte gather instead of eight. The numbers drawn
+        are a hash of p's bits (TEA, 4 rounds: x and z in one word, y in the other; 24,
+        24 and 16 bits): the medium has no sampler, and p itself is a draw of the walk —
+        no two collisions share it."""
+        origin, spacing, counts = self.grid_layout
+        bits = [dr.reinterpret_array(mi.UInt32, p[axis]) for axis in range(3)]
+        a, b = mi.sample_tea_32(bits[0] ^ ((bits[2] << 16) | (bits[2] >> 16)), bits[1], 4)
+        draws = (mi.Float(a >> 8) * 2.0 ** -24, mi.Float(b >> 8) * 2.0 ** -24,
+                 mi.Float((a & 0xFF) | ((b & 0xFF) << 8)) * 2.0 ** -16)
+        node = []
+        for axis in range(3):
+            u = dr.clip((p[axis] - origin[axis]) * (1.0 / spacing), 0.0, counts[axis] - 1.0)
+            cell = dr.minimum(mi.UInt32(u), counts[axis] - 2)
+            node.append(dr.select(draws[axis] < u - mi.Float(cell), cell + 1, cell))
+        index = node[0] + counts[0] * (node[1] + counts[1] * node[2])
+        kept = dr.gather(_half_types()[1], self.grid, index, active)
+        return 1.0 - mi.Color3f(mi.Float(kept.x), mi.Float(kept.y), mi.Float(kept.z))
 
     def _defined(self):
         """Whether scale and the bound keep their rules as they are now (scale > 0 and
@@ -290,7 +406,7 @@ class MarbleMedium:
         derived = not self._bound_given and self.density is not None
         colour = ("albedo", recording_key(self.albedo)) if self.reflectance is None else \
             ("reflectance", recording_key(self.reflectance), self.fresnel_mean)
-        return ("marble_medium", self.density is None, colour,
+        return ("marble_medium", self.density is None, colour, self.grid_layout,
                 recording_key(self.density), self._bound_given,
                 held_maximum(self.density)[1] if derived else ())
 
@@ -363,9 +479,15 @@ class MarbleMedium:
     def get_scattering_coefficients(self, mei, active=True):
         """(σ_s, σ_n, σ_t) at ``mei.p``; zero where ``active`` is False (as ``homogeneous``
         gives: Mitsuba asks at points past the medium too, p = ray(∞) there)."""
+        if self.grid is not None and self._colour_state() != self._baked_state:
+            raise MarbleMediumError(
+                "marble_medium: its colour texture was edited after the albedo grid was made "
+                "(mi.traverse told another parent of it); call refresh_grid() on the medium "
+                "before mi.render (mimarble.render does)")
         si = self._texture_point(mei)
         sigma_t = dr.select(self._defined(), self.scale * self.density_at(si, active), dr.nan)
-        albedo = self.albedo_at(si, active)
+        albedo = self.albedo_at(si, active) if self.grid is None \
+            else mi.UnpolarizedSpectrum(self.grid_albedo(si.p, active))
         sigma_s = albedo * sigma_t
         sigma_n = self.majorant - sigma_t
         zero = mi.UnpolarizedSpectrum(0.0)

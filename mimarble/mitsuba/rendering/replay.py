@@ -104,6 +104,12 @@ def scene_facts(scene, params=None) -> SceneFacts:
     traversed value that is not a Dr.Jit variable (a Python number such as the sensor's
     ``near_clip``, which Mitsuba's C++ plugins read as a constant of the traced code)."""
     params = mi.traverse(scene) if params is None else params
+    for node in params.hierarchy:
+        # Derived data that follows a child Mitsuba may not have told of an edit
+        # (marble_medium's albedo grid), made current before the pass reads it.
+        refresh = getattr(node, "refresh_grid", None)
+        if refresh is not None:
+            refresh()
     integrator = scene.integrator()
     plugins = tuple(recording_key(node) for node in params.hierarchy
                     if hasattr(node, "recording_key") and node is not integrator)

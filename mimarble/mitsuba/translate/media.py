@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from mimarble.contract import FLT_MAX, VOLPATH_RR_DEPTH
 from mimarble.scene import model
+from mimarble.scene.albedo_grid import albedo_grid
 from mimarble.scene.band_limit import band_limited
 from mimarble.texture import error_budget
 
@@ -42,7 +43,8 @@ def subsurface_preview(subsurface: model.Subsurface, ref) -> dict:
             "int_ior": subsurface.ior, "ext_ior": 1.0}
 
 
-def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> dict:
+def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None,
+                shapes=()) -> dict:
     """The ``marble_medium`` (mimarble/mitsuba/plugins/marble_medium.py) of a subsurface: the
     textures of its albedo (or reflectance, with the boundary's ``ior`` for its inversion)
     and density channels (``ref(channel)``: a texture or a reference
@@ -56,7 +58,9 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
     float32's range is refused (ModeError at the ``subsurface`` keyword): Mitsuba's
     arithmetic is single precision. The colour channel's marbles are band-limited to the
     mean free path (``band_limited``: octaves finer than it left out, as the reference walk
-    does)."""
+    does). Its albedo is read from a grid over ``shapes`` (those that hold the medium)
+    where ``albedo_grid`` gives one (mimarble/scene/albedo_grid.py: ``grid_origin``,
+    ``grid_spacing``, ``grid_counts``)."""
     ref = texture_dict if ref is None else ref
     subsurface = band_limited(subsurface)
     density = subsurface.density
@@ -76,6 +80,10 @@ def medium_dict(scene: model.Scene, subsurface: model.Subsurface, ref=None) -> d
     if density is not None:
         out["density"] = ref(density)
     out.update(scale=scale, density_bound=bound, sample_emitters=False)
+    grid = albedo_grid(subsurface, shapes)
+    if grid is not None:
+        out.update(grid_origin=list(grid.origin), grid_spacing=grid.spacing,
+                   grid_counts=list(grid.counts))
     out.update(roulette_phase(scene))
     return out
 

@@ -187,7 +187,11 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             placement = None
         key = (name, None if placement is None else placement[1])
         if key not in media:
-            media[key] = medium_dict(scene, subsurface, lambda channel: ref(channel, placement))
+            holders = [shape for _, shape in scene.shapes() if shape.material == name
+                       and (placement is None
+                            or geometry.object_to_world(shape) == placement[1])]
+            media[key] = medium_dict(scene, subsurface, lambda channel: ref(channel, placement),
+                                     holders)
         return media[key]
 
     two_sided: dict = {}       # id of a path BSDF -> the one twosided wrapper of it
