@@ -304,8 +304,9 @@ def test_the_first_round_refines_where_the_images_doubt_says(llvm, monkeypatch, 
 
 def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeypatch):
     """With max_spp 16 a pixel the first round refines goes to 16 samples (the 4×4 grid)
-    when its E over the bar is in JUMP's band (3⁵, 4⁵] — the 3×3 grid would leave it over
-    the bar at 9 under the estimate's 1/n² law, the 4×4 one would not — and to 9 when it
+    when its E over the bar is in JUMP's band (3^q, 2·4^q], q = 2 + BAR_POWER — the 3×3
+    grid would leave it over the bar at 9 under the estimate's 1/n² law, the 4×4 one by at
+    most 2 — and to 9 when it
     is above the band or below it; E from the test's own doubt of a plain 1-spp render
     (silhouettes off)."""
     monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
@@ -314,9 +315,10 @@ def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeyp
     doubt, _ = _image_doubt(render_in_passes(m, 1), adaptive.DEVIATION_SHARE)
     errors = adaptive.CURVATURE_WEIGHT * doubt
     low, high = adaptive.JUMP
-    assert (low, high) == (3.0 ** 5, 4.0 ** 5)
+    q = 2 + adaptive.BAR_POWER
+    assert (low, high) == (3.0 ** q, 2 * 4.0 ** q)
     # A threshold that puts the band across the errors' spread: every kind present.
-    threshold = float(np.quantile(errors, 0.9)) / (low * high) ** 0.5
+    threshold = float(np.quantile(errors, 0.97)) / high
     result = adaptive.render_adaptive(m, 1, threshold, 16, rounds=1)
     ratio, margin = errors / threshold, 1 + 1e-4
     jumped = (ratio > low * margin) & (ratio < high / margin)
@@ -328,6 +330,36 @@ def test_the_first_round_jumps_where_the_band_of_the_estimate_says(llvm, monkeyp
     monkeypatch.setattr(adaptive, "JUMP_LEAST", int(jumped.sum()) + 100)
     merged = adaptive.render_adaptive(m, 1, threshold, 16, rounds=1)
     np.testing.assert_array_equal(merged.samples, np.where(result.samples > 1, 9, 1))
+
+
+def test_a_jumped_pixel_goes_on_over_its_own_bar(llvm, monkeypatch):
+    """After the jump to 16 a pixel goes on to 81 (max_spp 81: the 9×9 grid) only over
+    JUMPED_BAR times the ladder's bar. The jump's 16 replaces the pixel's samples and with
+    them the first pass's doubt, so its own spread sends it on (silhouettes off here):
+    with JUMPED_BAR 1 some jumped pixels go on, with JUMPED_BAR none; every pixel the
+    bar is not about (not jumped) ends alike, and the default sends on a subset of what 1
+    does."""
+    monkeypatch.setattr(adaptive, "CONTRAST_WEIGHT", 0.0)
+    monkeypatch.setattr(adaptive, "SPREAD_WEIGHT", 0.5)   # a spread that can send them on
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)
+    m = loaded(small(size=40, period=6.0))
+    doubt, _ = _image_doubt(render_in_passes(m, 1), adaptive.DEVIATION_SHARE)
+    errors = adaptive.CURVATURE_WEIGHT * doubt
+    low, high = adaptive.JUMP
+    threshold = float(np.quantile(errors, 0.97)) / high
+    runs = {}
+    for bar in (1.0, adaptive.JUMPED_BAR, 1e30):
+        monkeypatch.setattr(adaptive, "JUMPED_BAR", bar)
+        runs[bar] = adaptive.render_adaptive(m, 1, threshold, 81, rounds=2).samples
+    ratio, margin = errors / threshold, 1 + 1e-4
+    jumped = (ratio > low * margin) & (ratio < high / margin)
+    assert jumped.sum() > 5 and np.all(runs[1e30][jumped] == 16)
+    assert np.isin(runs[1.0][jumped], (16, 81)).all() and (runs[1.0][jumped] == 81).sum() > 0
+    far = runs[1e30] != 16                        # not jumped: the bar is not theirs
+    for samples in runs.values():
+        np.testing.assert_array_equal(samples[far], runs[1e30][far])
+    default = list(runs.values())[1]
+    assert np.all(runs[1.0][default == 81] == 81)
 
 
 def test_a_crop_refines_its_pixels_as_the_whole_image_does(llvm, monkeypatch):

@@ -20,7 +20,8 @@ samples (fine veins) the ladder takes many to 81. So the first round sends a pix
 estimate says the 3m grid will not do and the 4m grid will (:data:`JUMP`) straight to
 the 4m grid, 16m² stratum centres that replace its m² (the 4m grid does not hold the
 pixel's centre); from there it goes on as the ladder does from 16m² (the 12m grid keeps
-the 4m one's centres; under ``max_spp`` 81, the 9×9 grid, replacing: :func:`jump_ladder`).
+the 4m one's centres; under ``max_spp`` 81, the 9×9 grid, replacing: :func:`jump_ladder`),
+over a bar :data:`JUMPED_BAR` times the ladder's.
 The rounds then trace one pass per group of pixels at the same step of the same ladder.
 
 **What a pixel is at the end.** At 9^k·m² or 16·9^k·m² samples (and at ``max_spp``) a
@@ -48,10 +49,11 @@ prefiltered marble, where the first pass traces the marbles' doubts
 (:func:`traces_doubts`); the rounds trace the plain kernel, and read the first pass's doubt.
 
 Why a bar that grows with n: a round costs a pixel more than its samples, so the error
-it removes per sample falls as n grows; ``threshold`` · n³ leaves deeper rounds to fewer
-pixels, and was measured best on this ladder (docs/design-decisions.md, "Adaptive samples
-at the price of plain ones"). At 1 spp the threshold is the estimated error in colour
-units.
+it removes per sample falls as n grows; ``threshold`` · n^2.25 leaves deeper rounds to
+fewer pixels, and was measured best on this ladder with the image's doubt
+(docs/design-decisions.md, "Adaptive samples at the price of plain ones" and "Adaptive
+samples: the bar and the jump against the oracle"). At 1 spp the threshold is the
+estimated error in colour units.
 
 The estimate of a pixel of n² samples, in linear colour units (the largest of the
 three colours):
@@ -121,8 +123,13 @@ _UINT_ENDS, _FLOAT_ENDS = RANGE_ENDS[dr.VarType.UInt32], RANGE_ENDS[dr.VarType.F
 DOUBT_WEIGHT = 0.5
 CONTRAST_WEIGHT = 0.25
 SPREAD_WEIGHT = 0.02
-#: The bar a pixel of n² samples is refined over: ``threshold`` · n^BAR_POWER.
-BAR_POWER = 3.0
+#: The bar a pixel of n² samples is refined over: ``threshold`` · n^BAR_POWER. 2.25, not
+#: 3: from one sample a pixel, the first round's bar is ``threshold`` at any power, the
+#: 9 → 81 round's 3^BAR_POWER times it; a lower power sends more of the worst pixels to
+#: 81 at a given threshold, so the RMSE is reached at a higher one, which leaves more of
+#: the least doubtful at 1 (docs/design-decisions.md, "Adaptive samples: the bar and the
+#: jump against the oracle").
+BAR_POWER = 2.25
 #: Samples a pixel has before its own spread is read (fewer say little: a range of
 #: one or two samples).
 SPREAD_SAMPLES = 3
@@ -142,18 +149,28 @@ DEVIATION_SHARE = 0.25
 #: cheaper per sample (module docstring).
 THIRDS = False
 #: The first round's jump: a pixel of m² samples whose estimate E over its bar
-#: ``threshold``·m³ is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m² samples,
-#: replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n² law of the
-#: estimate, n² samples pass their bar once E·m²/n² ≤ threshold·n³, i.e. (n/m)⁵ ≥ E/bar
-#: (the 5 is 2 + BAR_POWER): the band is the pixels that the 3m grid would leave over
-#: their bar and the 4m grid would not, 3⁵ < E/bar ≤ 4⁵. Such a pixel ends at 17 samples
-#: traced where the ladder takes it to 81 (docs/design-decisions.md, "Adaptive samples:
-#: the jump to 16 and fewer kernels"). None: no jump.
-JUMP = (3.0 ** 5, 4.0 ** 5)
+#: ``threshold``·m^BAR_POWER is in (JUMP[0], JUMP[1]] goes straight to the 4m grid (16m²
+#: samples, replacing its m²) instead of the 3m one (9m², keeping them). Under the 1/n²
+#: law of the estimate, n² samples pass their bar once E·m²/n² ≤ threshold·n^BAR_POWER, i.e.
+#: (n/m)^q ≥ E/bar with q = 2 + BAR_POWER: the band starts where the 3m grid would leave
+#: the pixel over its bar, 3^q, and ends at twice 4^q, where the 4m grid would leave it
+#: over its bar by 2 (measured: samples a pixel to plain 16 spp's RMSE on the fine veins
+#: are fewest with the end at 2–3 × 4^q; a pixel above goes to 9, then 81). Such a
+#: pixel ends at 17 samples traced where the ladder takes it to 81 (docs/design-decisions.md,
+#: "Adaptive samples: the jump to 16 and fewer kernels", "… the bar and the jump against
+#: the oracle"). None: no jump.
+JUMP = (3.0 ** (2 + BAR_POWER), 2 * 4.0 ** (2 + BAR_POWER))
 #: Fewer pixels than this that the band sends to 16m² go to 9m² with the others: a pass
 #: has fixed costs (a replay's host work, its small kernels: about a millisecond, what
 #: ~20 000 lanes of a sphere cost), which a few pixels' gain does not pay.
 JUMP_LEAST = 1024
+#: A jumped pixel's bar in the rounds after the jump, as a multiple of ``threshold`` ·
+#: n^BAR_POWER. The jump's 16 replaced the pixel's samples and its first-pass doubt
+#: (:meth:`PixelState.clear`), so its spread or a silhouette's contrast sends it on: 16
+#: samples across a fine vein are far apart, and at the ladder's bar (1) that sent jumped
+#: pixels to 81 where fewer samples reach plain 16 spp's RMSE at 4 (docs/design-decisions.md,
+#: "Adaptive samples: the bar and the jump against the oracle").
+JUMPED_BAR = 4.0
 
 
 class AdaptiveRender(NamedTuple):
@@ -502,9 +519,10 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                 else:
                     following.append((levels if jumped is None else jumped, 1, found))
             else:
+                # A jumped pixel goes on over a bar of its own (JUMPED_BAR).
+                bar = threshold * (JUMPED_BAR if levels is jumped else 1.0)
                 following.append((levels, number + 1,
-                                  refine(state, means, pixels, axis, threshold, width,
-                                         height)))
+                                  refine(state, means, pixels, axis, bar, width, height)))
         dr.eval(*(pixels for _, _, pixels in following))
         groups = [(levels, number, pixels, dr.width(pixels))
                   for levels, number, pixels in following if dr.width(pixels)]
