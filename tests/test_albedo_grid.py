@@ -246,6 +246,33 @@ def test_an_edit_of_the_colour_bakes_the_grid_again(llvm_variant):
         np.testing.assert_allclose(albedo_at(medium, points), expected, atol=1e-6)
 
 
+def test_every_refresh_after_edits_bakes_the_grid_again(llvm_variant):
+    """Dr.Jit hands a freed variable's index to a later variable, and the grid tells an edit
+    by its colour's variable indices: one to four edits of the period between refreshes,
+    many times, so that a later value can be made after an edit freed the baked one. Each
+    refresh after an edit bakes the grid again, and the last grid is the edited colour's."""
+    from mimarble.mitsuba.translate import scene_dict
+    scene = scene_of(subsurface())
+    loaded = mi.load_dict(scene_dict.to_mitsuba(scene, "path", 4))
+    medium = next(s.interior_medium() for s in loaded.shapes()
+                  if s.interior_medium() is not None)
+    params = mi.traverse(loaded)
+    key = next(k for k in params.keys() if k.endswith(".period"))
+    period = VEINS.period
+    for round_ in range(24):
+        for _ in range(1 + round_ % 4):
+            period = VEINS.period * (1.0 + 0.01 * (round_ + 1)) + 0.001 * _
+            params[key] = period
+            params.update()
+        before = medium.grid
+        medium.refresh_grid()           # as before each render
+        assert medium.grid is not before, f"round {round_}: the grid was not baked again"
+    edited = scene_of(subsurface(reflectance=dataclasses.replace(VEINS, period=period)))
+    points = in_ball(200, 0.5, 5)
+    np.testing.assert_allclose(albedo_at(medium, points),
+                               albedo_at(loaded_medium(edited), points), atol=1e-6)
+
+
 def test_a_gradient_reaches_the_colour_through_the_grid(llvm_variant):
     """∂(Σ α at the nodes)/∂ramp through the grid equals it without the grid (at a node
     the lookup is the node's value, whose derivative is the texture's)."""
@@ -288,6 +315,10 @@ def test_a_gradient_reaches_the_colour_through_the_grid(llvm_variant):
      "grid_spacing=0.0 must be a finite number > 0"),
     ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": [1, 2, 2]},
      "grid_counts=.* must be three whole numbers ≥ 2"),
+    ({"grid_origin": 0.5, "grid_spacing": 0.1, "grid_counts": [2, 2, 2]},
+     "grid_origin=0.5 must be three finite numbers"),
+    ({"grid_origin": [0, 0, 0], "grid_spacing": 0.1, "grid_counts": "abc"},
+     "grid_counts='abc' must be three whole numbers ≥ 2"),
 ])
 def test_bad_grids_are_refused_in_one_sentence(llvm_variant, props, words):
     with pytest.raises(Exception, match=f"marble_medium: {words}"):
@@ -312,3 +343,5 @@ def test_grid_false_in_the_scene_language_renders_the_exact_walk():
     assert volume_scene.WalkSpheres(off).grids == [None]
     with pytest.raises(S.SceneError, match=r"^<string>:2:33: grid is true or false, found 'maybe'"):
         S.parse(text.replace("WORD", "maybe"))
+    with pytest.raises(S.SceneError, match=r"^<string>:2:33: grid is true or false, found number 1"):
+        S.parse(text.replace("WORD", "1"))    # not a word: the parser's sentence, the same

@@ -6,8 +6,9 @@ marble costs its octaves of noise, its ramp and the reflectance's inversion each
 Light travels ~ one mean free path ℓ between collisions and a pixel averages α over many
 collisions of many walks, so α finer than ℓ is averaged out anyway (mimarble/scene/
 band_limit.py keeps only the marble's octaves coarser than ℓ). So the walk reads α from
-a grid of nodes made once per render (and after each edit of the colour), and
-interpolates trilinearly between the eight nodes around each collision:
+a grid of nodes made once per render (and after each edit of the colour): the trilinear
+interpolation between the eight nodes around each collision, in expectation (the Mitsuba
+walk draws one corner with its weight, the float64 walk interpolates):
 
     node (i, j, k) at  x = origin + h·(i, j, k),   0 ≤ i < n_x, …,    h = ℓ/2
     α(p) ≈ Σ over the cell's corners of α(node) · Π_axis (1 − |u − i|),   u = (p − origin)/h
@@ -39,10 +40,10 @@ from .channels import MarbleChannel, walk
 
 __all__ = ["AlbedoGrid", "albedo_grid", "GRID_SPACING_PER_MEAN_FREE_PATH"]
 
-#: h / ℓ. fig11a-translucent (a sphere of radius 2, ℓ = 0.05; docs/benchmarks.md, "The albedo
-#: grid"): at ½ its grid has 161³ nodes (33 MiB of half floats) and the grid leaves a
-#: per-pixel bias of 2.4 % of the mean; at 0.7, 4.2 %, at 1, 7.2 % (the error of trilinear
-#: interpolation falls as h²) for 10 % and 15 % less time than at ½.
+#: h / ℓ: the spacing's trade of bias against time, measured on fig11a-translucent (a sphere
+#: of radius 2, ℓ = 0.05: at ½, 161³ nodes, 33 MiB of half floats), is the table of
+#: docs/rendering-model.md, "The albedo grid" (the error of trilinear interpolation falls
+#: as h²).
 GRID_SPACING_PER_MEAN_FREE_PATH = 0.5
 
 

@@ -148,10 +148,7 @@ class MaterialBuilder(ValueReader):
                 continue
             tok = tree.children[0]
             if key == "grid":
-                if str(tok) not in ("true", "false"):
-                    raise self.error(tok, f"grid is true or false, found "
-                                          f"'{rules.shortened(str(tok), 40)}'")
-                values[key] = str(tok) == "true"
+                values[key] = self.switch(tok, key)
                 continue
             values[key] = self.number(tok)
             problem = (rules.mean_free_path_problem if key == "mean_free_path"

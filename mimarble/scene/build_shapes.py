@@ -108,7 +108,7 @@ class ShapeBuilder(ValueReader):
         if problem:
             raise self.error(tok, problem)
         steps = self.transform(f["transform"]) if "transform" in f else ()
-        smooth = self.switch(f["smooth"].children[0]) if "smooth" in f else None
+        smooth = self.switch(f["smooth"].children[0], "smooth") if "smooth" in f else None
         if smooth and facts.normals_problem:
             raise self.error(tok, f"mesh file '{rules.shortened(name, 256)}': "
                                   f"{facts.normals_problem}")
@@ -116,13 +116,6 @@ class ShapeBuilder(ValueReader):
         mesh = Mesh(unquoted(name_tok), name, path, steps, pos=Pos(tok.line, tok.column),
                     digest=facts.digest, smooth=smooth)
         return mesh, name_tok, facts.has_uv
-
-    def switch(self, tok: Token) -> bool:
-        """A shape's ``true`` or ``false`` (a mesh's ``smooth``), refused at the word."""
-        if str(tok) not in ("true", "false"):
-            raise self.error(tok, f"smooth is true or false, found "
-                                  f"'{rules.shortened(str(tok), 40)}'")
-        return str(tok) == "true"
 
 
 #: The kinds read by a reader of their own, not from their keys alone.

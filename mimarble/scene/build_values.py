@@ -75,7 +75,16 @@ class ValueReader:
     filename: str
     folder: str
 
+    def switch(self, tok: Token, key: str) -> bool:
+        """The value of a key of :data:`~mimarble.scene.keywords.SWITCH_KEYS`, ``true`` or
+        ``false``, refused at the word."""
+        if str(tok) not in ("true", "false"):
+            raise self.error(tok, f"{key} is true or false, found "
+                                  f"'{rules.shortened(str(tok), 40)}'")
+        return str(tok) == "true"
+
     # -- errors ---------------------------------------------------------------
+
     def error(self, where, message: str) -> SceneError:
         if isinstance(where, Tree):
             line, col = where.meta.line, where.meta.column

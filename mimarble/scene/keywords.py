@@ -55,3 +55,6 @@ BLOCK_KEYS: dict[str, tuple[str, ...]] = {
     **{kind.keyword: tuple(key.name for key in kind.keys) + ("material",)
        for kind in SHAPE_KINDS},
 }
+
+#: Keys whose value is the word true or false (a mesh's smooth, a subsurface's grid).
+SWITCH_KEYS = ("smooth", "grid")

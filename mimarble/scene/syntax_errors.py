@@ -16,7 +16,8 @@ from lark.exceptions import UnexpectedCharacters, UnexpectedEOF, UnexpectedInput
 
 from mimarble.parameters import BOOLEAN, BY_NAME, CHOICE, RENAMED, hex_colour_problem
 from .errors import SceneError
-from .keywords import BARE_CHANNEL_KEYS, BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS, STATEMENTS
+from .keywords import (BARE_CHANNEL_KEYS, BLOCK_KEYS, CHANNEL_BLOCKS, CHANNEL_KEYWORDS,
+                       STATEMENTS, SWITCH_KEYS)
 from .channels import SPACES
 from .rules import shortened
 
@@ -438,7 +439,7 @@ def _syntax_error(e: UnexpectedInput, text: str, filename: str,
             return at(line, col, f"{parameter.name} {parameter.requirement}, found {found}")
         if after and str(prev) == "space":                  # the builder's sentence
             return at(line, col, f"a marble's space is {' or '.join(SPACES)}, found {found}")
-        if after and str(prev) == "smooth":                 # a mesh's; the builder's sentence
-            return at(line, col, f"smooth is true or false, found {found}")
+        if after and str(prev) in SWITCH_KEYS:              # the builder's sentence
+            return at(line, col, f"{prev} is true or false, found {found}")
         return at(line, col, f"expected a name{after}, found {found}")
     return at(line, col, f"unexpected {found}; expected {_expected_list(expected, keywords)}")

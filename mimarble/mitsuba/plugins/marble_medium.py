@@ -108,8 +108,8 @@ import math
 
 from mimarble.runtime import environment
 from mimarble.texture import srgb_model
-from mimarble.mitsuba.plugins.registration import (describe, first_number, held_maximum, plugin,
-    recording_key)
+from mimarble.mitsuba.plugins.registration import (Kept, describe, first_number, held_maximum,
+    plugin, recording_key)
 from mimarble.contract import FLT_MAX, MAX_GRID_NODES
 from .channel_expression import gives_rgb
 from .subsurface_reflectance import diffuse_fresnel_reflectance, single_scattering_albedo
@@ -145,6 +145,16 @@ def _host_number(value, read: bool):
     if read or not dr.is_jit_v(mi.Float):
         return first_number(value)
     return value[0] if value.state == dr.VarState.Literal else None
+
+
+def _three_numbers(value) -> list | None:
+    """``value`` (a property's: a list, a vector) as three Python floats, or None where it
+    is not three numbers."""
+    try:
+        numbers = [float(v) for v in value]
+    except (TypeError, ValueError):
+        return None
+    return numbers if len(numbers) == 3 else None
 
 
 def _held(value: float):
@@ -206,16 +216,16 @@ class MarbleMedium:
         if not all(given):
             raise MarbleMediumError("marble_medium: grid_origin, grid_spacing and grid_counts "
                                     "go together (the albedo grid), not one without the others")
-        origin = [float(v) for v in props.get("grid_origin")]
+        origin, counts = (_three_numbers(props.get(name)) for name in ("grid_origin",
+                                                                          "grid_counts"))
         spacing = props.get("grid_spacing")
-        counts = [float(v) for v in props.get("grid_counts")]
         problem = _number_problem("grid_spacing", spacing, 0.0, strict=True)
-        if not problem and not (len(origin) == 3 and all(math.isfinite(v) for v in origin)):
-            problem = f"marble_medium: grid_origin={origin!r} must be three finite numbers"
-        if not problem and not (len(counts) == 3 and all(c.is_integer() and c >= 2
-                                                         for c in counts)):
-            problem = (f"marble_medium: grid_counts={counts!r} must be three whole numbers "
-                       f"≥ 2 (nodes along x, y, z)")
+        if not problem and not (origin and all(math.isfinite(v) for v in origin)):
+            problem = (f"marble_medium: grid_origin={props.get('grid_origin')!r:.60} must be "
+                       f"three finite numbers")
+        if not problem and not (counts and all(c.is_integer() and c >= 2 for c in counts)):
+            problem = (f"marble_medium: grid_counts={props.get('grid_counts')!r:.60} must be "
+                       f"three whole numbers ≥ 2 (nodes along x, y, z)")
         if not problem and math.prod(counts) > MAX_GRID_NODES:
             problem = (f"marble_medium: an albedo grid of {math.prod(counts):.0f} nodes is "
                        f"past the limit of {MAX_GRID_NODES} (a coarser grid_spacing, or none)")
@@ -323,24 +333,38 @@ class MarbleMedium:
             self.scale, self.bound = scale, bound
         self.refresh_grid()
 
-    def _colour_state(self) -> tuple:
-        """The Dr.Jit variables (JIT and AD indices) of every traversed value of the colour
-        texture (reflectance or albedo), expressions' operands included: an edit through
-        ``mi.traverse`` puts a new variable in place, enabling a gradient adds an AD one."""
+    def _colour_values(self) -> tuple:
+        """(the Dr.Jit variables — JIT and AD indices — of every traversed value of the
+        colour texture, reflectance or albedo, expressions' operands included; the values
+        themselves): an edit through ``mi.traverse`` puts a new variable in place, enabling
+        a gradient adds an AD one."""
         params = mi.traverse(self.reflectance if self.reflectance is not None else self.albedo)
-        return tuple((key, tuple(dr.detail.collect_indices(params[key])))
-                     for key in params.keys())
+        # Own references to the variables (a copy shares them), not the objects
+        # themselves: an edit writes a new variable into the same object.
+        values = tuple(type(params[key])(params[key]) if dr.is_array_v(params[key])
+                       else params[key] for key in params.keys())
+        state = tuple((key, tuple(dr.detail.collect_indices(value)))
+                      for key, value in zip(params.keys(), values))
+        return state, values
+
+    def _grid_is_current(self) -> bool:
+        """Whether the colour's values are the ones the grid was baked from. The baked
+        values are held (:meth:`refresh_grid`), so their variables stay alive and Dr.Jit
+        cannot give a later value one of their indices: equal indices are the same values."""
+        baked = getattr(self, "_baked", None)
+        return baked is not None and self._colour_values()[0] == baked.value[0]
 
     def refresh_grid(self) -> None:
         """Bake the grid again if the colour texture's traversed values are not those it was
-        baked from. Called at each update of the medium and, by the pass renderer, before
-        each render (``replay.scene_facts``): ``mi.traverse`` tells only an edited texture's
-        first parent, which may be another medium of the same material or a surface."""
-        if self.grid_layout is not None:
-            state = self._colour_state()
-            if state != getattr(self, "_baked_state", None):
-                self._bake()
-                self._baked_state = state
+        baked from. Called at each update of the medium and before each render
+        (``replay.refresh_derived``: the pass renderer and ``mimarble.render``'s
+        ``mi.render``): ``mi.traverse`` tells only an edited texture's first parent, which
+        may be another medium of the same material or a surface."""
+        if self.grid_layout is not None and not self._grid_is_current():
+            state, values = self._colour_values()
+            self._bake()
+            # Held outside what a recording walks (Kept): the indices' owners.
+            self._baked = Kept((state, values))
 
     def _bake(self):
         """α at every node of the grid, into ``self.grid``, evaluated now in one kernel with
@@ -479,7 +503,7 @@ class MarbleMedium:
     def get_scattering_coefficients(self, mei, active=True):
         """(σ_s, σ_n, σ_t) at ``mei.p``; zero where ``active`` is False (as ``homogeneous``
         gives: Mitsuba asks at points past the medium too, p = ray(∞) there)."""
-        if self.grid is not None and self._colour_state() != self._baked_state:
+        if self.grid is not None and not self._grid_is_current():
             raise MarbleMediumError(
                 "marble_medium: its colour texture was edited after the albedo grid was made "
                 "(mi.traverse told another parent of it); call refresh_grid() on the medium "

@@ -26,6 +26,7 @@ from mimarble.scene.rules import (adaptive_problem, default_max_spp, seed_proble
 from mimarble.scene.edits import with_image_size
 from .adaptive import render_adaptive
 from .passes import Target, trace_in_passes
+from .replay import refresh_derived
 from .silhouettes import edge_sample_passes
 from .loaded_scenes import LOADED
 from .window import Window
@@ -202,6 +203,7 @@ def _render_loaded(mitsuba_scene, spp, mode, progress, tolerance, filter, edge_s
         return render_in_passes(mitsuba_scene, spp, "whitted", progress, edge_spp=edge_spp,
                                 adaptive=adaptive, max_spp=max_spp)
     # Any other integrator, film filter or AOV: Mitsuba's own render, as it would be.
+    refresh_derived(mitsuba_scene)
     return np.array(mi.render(mitsuba_scene, spp=spp, seed=seed), dtype=np.float32)[..., :3]
 
 

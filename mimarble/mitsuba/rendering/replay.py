@@ -95,6 +95,18 @@ class SceneFacts(NamedTuple):
     inputs: tuple
 
 
+def refresh_derived(scene, params=None) -> None:
+    """Make current the data a plugin derives from a child that Mitsuba may not have told
+    of an edit (``mi.traverse`` tells an edited texture's first parent only):
+    marble_medium's albedo grid. Called before every render of the scene, by the pass
+    renderer (:func:`scene_facts`) and before Mitsuba's own ``mi.render``."""
+    params = mi.traverse(scene) if params is None else params
+    for node in params.hierarchy:
+        refresh = getattr(node, "refresh_grid", None)
+        if refresh is not None:
+            refresh()
+
+
 def scene_facts(scene, params=None) -> SceneFacts:
     """The key and extra inputs of a pass over ``scene`` (module docstring), from its
     ``mi.traverse`` (``params``: one already made, e.g. by the loaded scenes; else made
@@ -104,12 +116,7 @@ def scene_facts(scene, params=None) -> SceneFacts:
     traversed value that is not a Dr.Jit variable (a Python number such as the sensor's
     ``near_clip``, which Mitsuba's C++ plugins read as a constant of the traced code)."""
     params = mi.traverse(scene) if params is None else params
-    for node in params.hierarchy:
-        # Derived data that follows a child Mitsuba may not have told of an edit
-        # (marble_medium's albedo grid), made current before the pass reads it.
-        refresh = getattr(node, "refresh_grid", None)
-        if refresh is not None:
-            refresh()
+    refresh_derived(scene, params)
     integrator = scene.integrator()
     plugins = tuple(recording_key(node) for node in params.hierarchy
                     if hasattr(node, "recording_key") and node is not integrator)
