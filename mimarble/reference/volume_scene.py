@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from mimarble.scene import geometry
-from mimarble.scene.albedo_grid import albedo_grid
+from mimarble.scene.albedo_grid import albedo_grid, medium_holders
 from mimarble.scene.band_limit import band_limited
 from mimarble.scene.model import (
     Add,
@@ -231,9 +231,8 @@ class WalkSpheres:
         # The albedo grid of each sphere's medium (mimarble/scene/albedo_grid.py), over the
         # spheres that share it as path mode's translator shares it: every sphere of the
         # material, or with object-space marbles those of the same placement.
-        self.grids = [albedo_grid(sub, [o for o in spheres if o.material == s.material and (
-            not self.object_space[k]
-            or geometry.object_to_world(o) == geometry.object_to_world(s))])
+        self.grids = [albedo_grid(sub, medium_holders(
+            spheres, s.material, geometry.object_to_world(s) if self.object_space[k] else None))
             for k, (s, sub) in enumerate(zip(spheres, subs))]
         self._grid_albedo = [None] * len(spheres)          # made when first read
 

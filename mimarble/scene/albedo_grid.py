@@ -36,9 +36,10 @@ from dataclasses import dataclass
 
 from mimarble.contract import MAX_GRID_NODES
 
+from . import geometry
 from .channels import MarbleChannel, walk
 
-__all__ = ["AlbedoGrid", "albedo_grid", "GRID_SPACING_PER_MEAN_FREE_PATH"]
+__all__ = ["AlbedoGrid", "albedo_grid", "medium_holders", "GRID_SPACING_PER_MEAN_FREE_PATH"]
 
 #: h / ℓ: the spacing's trade of bias against time, measured on fig11a-translucent (a sphere
 #: of radius 2, ℓ = 0.05: at ½, 161³ nodes, 33 MiB of half floats), is the table of
@@ -87,3 +88,11 @@ def albedo_grid(subsurface, shapes) -> AlbedoGrid | None:
         counts.append(max(2, math.ceil(cells) + 1))
     grid = AlbedoGrid(lo, spacing, tuple(counts))
     return grid if grid.nodes <= MAX_GRID_NODES else None
+
+
+def medium_holders(shapes, material: str, placement=None) -> list:
+    """The shapes of ``shapes`` that hold one medium of ``material``, the grid's extent: all
+    the material's shapes, or with ``placement`` (the object-to-world matrix of a
+    subsurface with object-space marbles, one medium a placement) those placed by it."""
+    return [shape for shape in shapes if shape.material == material
+            and (placement is None or geometry.object_to_world(shape) == placement)]

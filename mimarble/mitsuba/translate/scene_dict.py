@@ -15,6 +15,7 @@ import warnings
 
 from mimarble.contract import VOLPATH_MAX_DEPTH
 from mimarble.scene import geometry, model
+from mimarble.scene.albedo_grid import medium_holders
 from mimarble.scene.environment_header import check_environment
 from mimarble.scene.image_header import check_image_maps
 from mimarble.scene.mesh_files import check_mesh_files
@@ -187,9 +188,8 @@ def to_mitsuba(scene: model.Scene, mode: str = "whitted", spp: int | None = None
             placement = None
         key = (name, None if placement is None else placement[1])
         if key not in media:
-            holders = [shape for _, shape in scene.shapes() if shape.material == name
-                       and (placement is None
-                            or geometry.object_to_world(shape) == placement[1])]
+            holders = medium_holders((shape for _, shape in scene.shapes()), name,
+                                     None if placement is None else placement[1])
             media[key] = medium_dict(scene, subsurface, lambda channel: ref(channel, placement),
                                      holders)
         return media[key]
