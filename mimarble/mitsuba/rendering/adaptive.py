@@ -49,8 +49,8 @@ prefiltered marble, where the first pass traces the marbles' doubts
 (:func:`traces_doubts`); the rounds trace the plain kernel, and read the first pass's doubt.
 
 Why a bar that grows with n: a round costs a pixel more than its samples, so the error
-it removes per sample falls as n grows; ``threshold`` · n^2.25 leaves deeper rounds to
-fewer pixels, and was measured best on this ladder with the image's doubt
+it removes per sample falls as n grows; ``threshold`` · n^:data:`BAR_POWER` leaves deeper
+rounds to fewer pixels, and was measured best on this ladder with the image's doubt
 (docs/design-decisions.md, "Adaptive samples at the price of plain ones" and "Adaptive
 samples: the bar and the jump against the oracle"). At 1 spp the threshold is the
 estimated error in colour units.
