@@ -304,6 +304,62 @@ def test_a_gradient_reaches_the_colour_through_the_grid(llvm_variant):
     np.testing.assert_allclose(grads[0], grads[1], atol=1e-4)
 
 
+def test_a_renders_gradient_through_the_grid_matches_finite_differences(llvm_variant):
+    """∂(mean image)/∂(one ramp component) of a gridded reflectance medium, by ``prbvolpath``
+    through ``mi.render(scene, params)`` (whose primal pass runs under ``dr.suspend_grad``:
+    the grid baked with the gradient must still count as current there), against central
+    differences of renders with the grid baked again at ±h. The differences use common
+    random numbers (one seed both sides): with roulette off the albedo enters only the
+    weights and the corner drawn hashes the point, not the parameters, so both renders
+    take the same paths and the difference is the derivative of one estimate — unbiased
+    up to the O(h²) of the difference. Measured: AD 0.13674 ± 0.00010, FD 0.13688 ±
+    0.00007 (h 0.01). Asserted: within 5 standard errors of both plus 1 %."""
+    from test_marble_medium import MAX_DEPTH, sphere_scene
+    from mimarble.mitsuba.translate.scene_dict import texture_dict
+    veins = dataclasses.replace(VEINS, ramp=((0.3, 0.5, 0.4), (0.7, 0.6, 0.5)))
+    layout = albedo_grid(subsurface(reflectance=veins, mean_free_path=0.25),
+                         [model.Sphere("m", (0, 0, 0), 1.0)])
+    medium = {"type": "marble_medium", "reflectance": texture_dict(veins), "ior": 1.5,
+              "scale": 4.0, "sample_emitters": False, "grid_origin": list(layout.origin),
+              "grid_spacing": layout.spacing, "grid_counts": list(layout.counts)}
+    described = sphere_scene(medium, size=16, spp=1024)
+    described["integrator"] = {"type": "prbvolpath", "max_depth": MAX_DEPTH,
+                               "rr_depth": MAX_DEPTH}
+    scene = mi.load_dict(described)
+    medium = next(s.interior_medium() for s in scene.shapes() if s.interior_medium())
+    params = mi.traverse(scene)
+    key = next(k for k in params.keys() if k.endswith(".ramp"))
+    base, component = np.array(params[key]), (1, 1)    # the second colour's green
+
+    def set_ramp(delta=0.0):
+        ramp = base.copy()
+        ramp[component] += delta
+        params[key] = type(params[key])(ramp)
+        params.update()
+        medium.refresh_grid()           # a bare mi.render: the medium was not told
+
+    ad = []
+    for seed in range(4):
+        set_ramp()
+        dr.enable_grad(params[key])
+        params.update()
+        medium.refresh_grid()
+        assert medium.grid is not None
+        dr.backward(dr.mean(mi.render(scene, params, seed=10 + seed), axis=None))
+        ad.append(np.array(dr.grad(params[key]))[component])
+        dr.disable_grad(params[key])
+
+    def mean_at(delta, seed):
+        set_ramp(delta)
+        return float(np.mean(mi.render(scene, seed=seed)))
+    h = 0.01
+    fd = np.array([(mean_at(h, seed) - mean_at(-h, seed)) / (2 * h) for seed in range(4)])
+    ad = np.array(ad)
+    error = np.hypot(ad.std(ddof=1), fd.std(ddof=1)) / 2
+    assert fd.mean() > 0.05, fd
+    assert abs(ad.mean() - fd.mean()) < 5 * error + 0.01 * fd.mean(), (ad, fd)
+
+
 # ---------------------------------------------------------------------------
 # Bad grids
 

@@ -340,9 +340,12 @@ class MarbleMedium:
         a gradient adds an AD one."""
         params = mi.traverse(self.reflectance if self.reflectance is not None else self.albedo)
         # Own references to the variables (a copy shares them), not the objects
-        # themselves: an edit writes a new variable into the same object.
-        values = tuple(type(params[key])(params[key]) if dr.is_array_v(params[key])
-                       else params[key] for key in params.keys())
+        # themselves: an edit writes a new variable into the same object. Copied with the
+        # gradients resumed: under dr.suspend_grad (mi.render's primal pass of a
+        # differentiated render) a copy would be a detached variable, another index.
+        with dr.resume_grad():
+            values = tuple(type(params[key])(params[key]) if dr.is_array_v(params[key])
+                           else params[key] for key in params.keys())
         state = tuple((key, tuple(dr.detail.collect_indices(value)))
                       for key, value in zip(params.keys(), values))
         return state, values
