@@ -23,12 +23,12 @@ nor Dr.Jit: the command line reads it before either is loaded.
 from __future__ import annotations
 
 import dataclasses
+import re
 import math
 import struct
 from typing import Any
 
 from mimarble.contract import FLT_MAX, FLT_MIN_NORMAL, MAX_OCTAVES
-from mimarble.mitsuba.properties import numbered_properties
 # Colours and ramps as text (the form of the colours and positions rows), re-exported.
 from mimarble.ramp_text import (HEX_FORM, MAX_RAMP_COLOURS, ParameterError, hex_colour,
     hex_colour_problem, parse_positioned_ramp, parse_positions, parse_ramp, positions_problem,
@@ -377,6 +377,19 @@ def checked(parameter: Parameter, value, context: str = "marble", text: bool = F
 
 # ---------------------------------------------------------------------------
 # The ramp as Mitsuba properties
+
+def numbered_properties(props, name: str) -> list[str] | None:
+    """The keys ``NAME_0``, ``NAME_1``, … of ``props`` in order; None when there are none;
+    ValueError when they have gaps."""
+    pattern = re.compile(rf"{re.escape(name)}_(\d+)$")
+    numbered = sorted((int(m.group(1)), key) for key in props.keys() if (m := pattern.match(key)))
+    if not numbered:
+        return None
+    if [k for k, _ in numbered] != list(range(len(numbered))):
+        raise ValueError(f"{name}_0, {name}_1, … must be numbered without gaps, got "
+                         f"{', '.join(key for _, key in numbered)}")
+    return [key for _, key in numbered]
+
 
 def _ramp_given(props) -> bool:
     """Whether ``props`` gives a ramp: ``ramp``, or ``ramp_0``, ``ramp_1``, …"""

@@ -25,10 +25,27 @@ def _doctor(args) -> int:
     if args.warm is not None:
         start_mitsuba(args)
         start, compiled = time.perf_counter(), 0
-        for path, seconds, kernels in kernel_cache.warm(scenes, progress=True):
+        for path, seconds, kernels in _warm(scenes, progress=True):
             compiled += kernels
             say(f"warm: {path}: {kernels} kernel{'s' * (kernels != 1)} compiled, {seconds:.2f} s",
                   flush=True)
         print(f"warm: {compiled} kernels compiled in {time.perf_counter() - start:.1f} s; "
               f"{kernel_cache.describe()}")
     return 0
+
+
+def _warm(scenes, progress=None):
+    """Render each scene once at its own size, 1 spp; yields (name, seconds, kernels compiled).
+
+    ``scenes``: (name, scene model) pairs. Afterwards a render of these scenes at
+    their size compiles nothing, at any spp. ``progress`` as for :func:`mimarble.render`.
+    """
+    import mimarble
+    from mimarble.runtime.kernel_cache import compiled
+    dr = mimarble.dr
+    for name, scene in scenes:
+        start = time.perf_counter()
+        with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
+            mimarble.render(scene, spp=1, progress=progress)
+            kernels = compiled(dr.kernel_history())
+        yield name, time.perf_counter() - start, kernels

@@ -16,8 +16,8 @@ and the pass offsets as opaque values, so no spp is in the kernel; it passes
 width and height as opaque values too, yet a new image size still compiles a
 new kernel (measured, Dr.Jit 1.5 and Mitsuba 3.9: fig11a at 16², 24² and 33²
 compiled three render kernels, 16² again found its own in memory).
-:func:`warm` renders scenes once so that those kernels are on disk before the
-first real render (``mimarble doctor --warm``).
+``mimarble doctor --warm`` (mimarble/cli/doctor.py) renders scenes once so that
+those kernels are on disk before the first real render.
 
 drjit-core's C++ call for the folder is reached through mimarble/runtime/drjit_core.py,
 once Dr.Jit is imported the safe way (mimarble/runtime/environment.py).
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import ctypes
 import os
-import time
 from pathlib import Path
 
 from . import drjit_core, environment
@@ -80,19 +79,3 @@ def compiled(history) -> int:
     """How many kernels of a ``dr.kernel_history()`` were compiled (found in no cache)."""
     import drjit as dr
     return sum(1 for k in history if k["type"] == dr.KernelType.JIT and not k["cache_hit"])
-
-
-def warm(scenes, progress=None):
-    """Render each scene once at its own size, 1 spp; yields (name, seconds, kernels compiled).
-
-    ``scenes``: (name, scene model) pairs. Afterwards a render of these scenes at
-    their size compiles nothing, at any spp. ``progress`` as for :func:`mimarble.render`.
-    """
-    import mimarble
-    dr = mimarble.dr
-    for name, scene in scenes:
-        start = time.perf_counter()
-        with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
-            mimarble.render(scene, spp=1, progress=progress)
-            kernels = compiled(dr.kernel_history())
-        yield name, time.perf_counter() - start, kernels

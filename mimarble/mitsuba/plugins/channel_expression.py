@@ -54,7 +54,7 @@ import numpy as np
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import (Kept, RGBTexture, describe, held_maximum,
     numbers, plugin, recording_key)
-from ..properties import numbered_properties
+from mimarble.parameters import numbered_properties
 from .shared_evaluations import evaluate
 
 dr, mi = environment.import_drjit_and_mitsuba()
