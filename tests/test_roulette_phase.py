@@ -1,6 +1,7 @@
 """``roulette_isotropic`` (mimarble/mitsuba/plugins/roulette_phase.py) on its own, in every RGB
-variant: directions uniform on the sphere, kept with probability max α (a binomial bound),
-weight 1/max α, an isotropic eval_pdf; and path mode's choice of it."""
+variant: directions uniform on the sphere, kept with probability (max α)^p (a binomial bound),
+weight 1/(max α)^p, an isotropic eval_pdf; a bad survival_power refused; and path mode's
+choice of it."""
 
 from __future__ import annotations
 
@@ -24,13 +25,15 @@ def _collision(albedo):
     return mei
 
 
+@pytest.mark.parametrize("power", [None, 3.0, 0.0])
 @pytest.mark.parametrize("albedo", [(0.9, 0.9, 0.9), (0.3, 0.7, 0.5), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)])
-def test_samples_survive_with_the_largest_albedo_and_weigh_its_inverse(variant, albedo):
-    phase = mi.load_dict({"type": "roulette_isotropic"})
+def test_samples_survive_with_the_largest_albedo_and_weigh_its_inverse(variant, albedo, power):
+    given = {} if power is None else {"survival_power": power}
+    phase = mi.load_dict({"type": "roulette_isotropic", **given})
     ctx = mi.PhaseFunctionContext(None)
     rng = np.random.default_rng(3)
     k = 200 if variant == "scalar_rgb" else 20000
-    q = max(albedo)
+    q = max(albedo) ** (1.0 if power is None else power)     # 0 ** 0 = 1: p = 0 keeps all
     kept, directions = 0, []
     u1, u2 = rng.random(k), rng.random((k, 2))
     if dr.is_jit_v(mi.Float):
@@ -52,6 +55,13 @@ def test_samples_survive_with_the_largest_albedo_and_weigh_its_inverse(variant, 
     value, pdf = phase.eval_pdf(ctx, _collision(albedo), mi.Vector3f(0.0, 0.6, 0.8))
     assert np.allclose(np.array(value).ravel(), 1.0 / (4.0 * math.pi)) and \
         np.allclose(np.array(pdf), 1.0 / (4.0 * math.pi))
+
+
+@pytest.mark.parametrize("power", [-1.0, float("inf"), float("nan"), "3", True])
+def test_a_bad_survival_power_is_refused_in_one_sentence(power):
+    with pytest.raises(Exception, match=r"roulette_isotropic: survival_power=.* must be a "
+                                        r"finite number ≥ 0"):
+        mi.load_dict({"type": "roulette_isotropic", "survival_power": power})
 
 
 @pytest.mark.parametrize("albedo, phase", [("0.9", None), ("0.99", "roulette_isotropic")])

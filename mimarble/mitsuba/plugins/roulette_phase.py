@@ -1,24 +1,46 @@
-"""``roulette_isotropic``: the isotropic phase function with Russian roulette by the albedo at each scattering, so that long walks end with bounded weights (issue 40).
+"""``roulette_isotropic``: the isotropic phase function with Russian roulette by the albedo at each scattering, so that long walks end (issue 40).
 
 ``volpath`` multiplies a path's weight by the albedo α = σ_s/σ_t at a real collision, then
 samples the phase function. This one draws the new direction uniformly on the sphere (as
 ``isotropic``) and, with the ``sample1`` volpath gives it, keeps the path with probability
-q = max_c α_c (the largest channel, clamped to [0, 1]), weight 1/q, else ends it (weight
-0: volpath stops a path whose weight is 0). Over the two factors a collision weighs the
-path by α/q ≤ 1 per channel, exactly 1 for a grey albedo: the expectation is the
-isotropic medium's, and no weight grows. volpath's own roulette (survival
-min(max β, 0.95)) multiplies weights by 1/0.95 wherever they stay near 1, which they do
-here: path mode turns it off (``contract.VOLPATH_RR_DEPTH``). A walk of single-scattering
-albedo α then ends after 1/(1 − α) collisions on average instead of running to the
-boundary or the depth cap with a weight αᵏ that adds little (docs/benchmarks.md, "Where
-volpath's time goes on the Cycles-twin sphere").
+
+    q = (max_c α_c)^p        (the largest channel, clamped to [0, 1]; p = ``survival_power``)
+
+weight 1/q, else ends it (weight 0: volpath stops a path whose weight is 0). The
+expectation is the isotropic medium's for every p: E[weight] = q·(1/q) = 1. Over the
+two factors a collision weighs a survivor by α/q per channel:
+
+- **p = 1** (the default, the analog walk): α/q ≤ 1, exactly 1 for a grey albedo; no
+  weight grows. A walk ends after 1/(1 − α) collisions on average instead of running to
+  the boundary or the depth cap with a weight αᵏ that adds little (docs/benchmarks.md,
+  "Where volpath's time goes on the Cycles-twin sphere").
+- **p > 1**: the walk ends p times as often near α = 1 (q ≈ 1 − p(1 − α)), and a
+  survivor of k collisions weighs α^((1−p)k): fewer long walks — the ones that keep a
+  packet of lanes looping (docs/benchmarks.md, "Where volpath's time goes") — for more
+  noise. A walk of k collisions that leaves has the second moment α^((2−p)k) against the
+  analog walk's αᵏ: bounded for p ≤ 2, growing with k beyond; volpath's depth cap
+  bounds k. Path mode takes p = ``media.WALK_SURVIVAL_POWER`` (docs/benchmarks.md, "The
+  walk's survival power against Cycles").
+- p < 1 ends fewer walks than the analog walk (0: none, weight 1).
+
+volpath's own roulette (survival min(max β, 0.95)) multiplies weights by 1/0.95 wherever
+they stay near 1, which they do here: path mode turns it off
+(``contract.VOLPATH_RR_DEPTH``).
 
 ``eval_pdf`` is the isotropic 1/(4π) (value and pdf): next-event estimation from inside
 the medium, where a medium does it, is unchanged by the roulette of the direction that
-follows. No parameters.
+follows.
+
+=================  ======  ===========================================================
+Parameter          Type    Description
+=================  ======  ===========================================================
+survival_power     float   p ≥ 0, finite: the survival (max α)^p. Default 1 (analog).
+=================  ======  ===========================================================
 """
 
 from __future__ import annotations
+
+import math
 
 from mimarble.runtime import environment
 from mimarble.mitsuba.plugins.registration import plugin
@@ -26,19 +48,35 @@ from mimarble.mitsuba.plugins.registration import plugin
 dr, mi = environment.import_drjit_and_mitsuba()
 
 
+class RouletteIsotropicError(ValueError):
+    """An invalid ``roulette_isotropic``; the message names the parameter."""
+
+
 @plugin("phase", "roulette_isotropic")
 class RouletteIsotropic:
-    """Isotropic scattering, kept with probability max α (module docstring)."""
+    """Isotropic scattering, kept with probability (max α)^p (module docstring)."""
 
     def __init__(self, props):
         mi.PhaseFunction.__init__(self, props)
+        power = props.get("survival_power", 1.0)
+        if isinstance(power, bool) or not isinstance(power, (int, float)) \
+                or not math.isfinite(power) or power < 0:
+            raise RouletteIsotropicError(
+                f"roulette_isotropic: survival_power={power!r:.40} must be a finite number ≥ 0")
+        self.power = float(power)
         self.m_flags = mi.PhaseFunctionFlags.Isotropic
         self.m_components = [self.m_flags]
 
     def survival(self, mei):
-        """q = max over channels of σ_s/σ_t at the collision, in [0, 1] (0 where σ_t is 0)."""
+        """q = (max over channels of σ_s/σ_t at the collision)^p, in [0, 1] (0 where σ_t is
+        0; 1 where p is 0)."""
         albedo = dr.select(mei.sigma_t > 0.0, mei.sigma_s / mei.sigma_t, 0.0)
-        return dr.clip(dr.max(mi.UnpolarizedSpectrum(albedo)), 0.0, 1.0)
+        q = dr.clip(dr.max(mi.UnpolarizedSpectrum(albedo)), 0.0, 1.0)
+        if self.power == 1.0:           # the analog walk: the same kernel as before p existed
+            return q
+        if self.power == 0.0:           # no roulette (0⁰ = 1; Dr.Jit's power gives NaN there)
+            return dr.full(mi.Float, 1.0, dr.width(q))
+        return dr.power(q, self.power)
 
     def sample(self, ctx, mei, sample1, sample2, active=True):
         wo = mi.warp.square_to_uniform_sphere(sample2)
@@ -52,7 +90,7 @@ class RouletteIsotropic:
         return mi.Spectrum(pdf), pdf
 
     def recording_key(self) -> tuple:
-        return ("roulette_isotropic",)
+        return ("roulette_isotropic", self.power)
 
     def to_string(self):
-        return "RouletteIsotropic[]"
+        return f"RouletteIsotropic[survival_power={self.power:g}]"
