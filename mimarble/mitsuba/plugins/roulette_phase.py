@@ -31,11 +31,17 @@ they stay near 1, which they do here: path mode turns it off
 the medium, where a medium does it, is unchanged by the roulette of the direction that
 follows.
 
-=================  ======  ===========================================================
-Parameter          Type    Description
-=================  ======  ===========================================================
-survival_power     float   p ≥ 0, finite: the survival (max α)^p. Default 1 (analog).
-=================  ======  ===========================================================
+.. list-table::
+   :header-rows: 1
+
+   * - Parameter
+     - Type
+     - Description
+   * - ``survival_power``
+     - float (1, the analog walk)
+     - p ≥ 0, finite: a walk survives a scattering with probability (max α)^p, its
+       weight divided by that. A constant of the traced code (its ``recording_key``), not
+       a traversed parameter. Path mode gives ``media.WALK_SURVIVAL_POWER``.
 """
 
 from __future__ import annotations
