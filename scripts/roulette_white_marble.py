@@ -10,7 +10,8 @@ point light, path mode's translation (``subsurface_boundary`` around ``marble_me
 at size² (e.g. scenes/translucent/fig11a-translucent.scene). For each of rr_depth 5 with
 the ``isotropic`` phase function, rr_depth max_depth with ``isotropic``, and rr_depth
 max_depth with ``roulette_isotropic`` at survival power 1 (the analog walk) and at path
-mode's ``media.WALK_SURVIVAL_POWER`` (the medium's phase set in the translated dict):
+mode's ``media.WALK_SURVIVAL_POWER`` and ``WALK_POWER_ALBEDOS`` (the medium's phase set in
+the translated dict):
 ``--renders`` renders of different seeds after a warm-up, each timed (``dr.sync_thread``
 before the clock); over the pixels the sphere covers: the mean, the relative per-pixel
 standard deviation across the renders (std/mean of each pixel, averaged), the largest
@@ -30,7 +31,7 @@ import numpy as np
 import mimarble
 from mimarble import scene as S
 from mimarble.contract import ROULETTE_DEPTH, VOLPATH_MAX_DEPTH
-from mimarble.mitsuba.translate.media import WALK_SURVIVAL_POWER
+from mimarble.mitsuba.translate.media import WALK_POWER_ALBEDOS, WALK_SURVIVAL_POWER
 from mimarble.mitsuba.translate.scene_dict import to_mitsuba
 from mimarble.scene.edits import resized
 
@@ -48,7 +49,9 @@ sphere {{ material "white" }}
 def measure(scene, spp: int, renders: int, rr_depth: int, phase: str, power: float = 1.0) -> dict:
     scene_dict = to_mitsuba(scene, "path", spp=spp)
     scene_dict["integrator"] = dict(scene_dict["integrator"], rr_depth=rr_depth)
-    given = {"survival_power": power} if phase == "roulette_isotropic" else {}
+    lo, hi = WALK_POWER_ALBEDOS if power != 1.0 else (0.0, 1.0)
+    given = {"survival_power": power, "power_albedo_min": lo, "power_albedo_max": hi} \
+        if phase == "roulette_isotropic" else {}
     for shape in scene_dict.values():
         if isinstance(shape, dict) and "interior" in shape:
             shape["interior"] = dict(shape["interior"], phase={"type": phase, **given})

@@ -1,7 +1,7 @@
 """``roulette_isotropic`` (mimarble/mitsuba/plugins/roulette_phase.py) on its own, in every RGB
-variant: directions uniform on the sphere, kept with probability q = (max α)^p (max α below
-the power_threshold; a binomial bound), weight 1/q, an isotropic eval_pdf; a bad
-survival_power or power_threshold refused; and path mode's choice of it."""
+variant: directions uniform on the sphere, kept with probability q = (max α)^p (max α outside
+the power's albedo window; a binomial bound), weight 1/q, an isotropic eval_pdf; a bad
+survival_power or window refused; and path mode's choice of it."""
 
 from __future__ import annotations
 
@@ -25,18 +25,19 @@ def _collision(albedo):
     return mei
 
 
-@pytest.mark.parametrize("power, threshold", [(None, None), (3.0, None), (0.0, None), (3.0, 0.8)])
+@pytest.mark.parametrize("power, window", [(None, None), (3.0, None), (0.0, None), (3.0, (0.8, 0.95))])
 @pytest.mark.parametrize("albedo", [(0.9, 0.9, 0.9), (0.3, 0.7, 0.5), (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)])
 def test_samples_survive_with_the_largest_albedo_and_weigh_its_inverse(variant, albedo, power,
-                                                                      threshold):
+                                                                      window):
     given = {} if power is None else {"survival_power": power}
-    given.update({} if threshold is None else {"power_threshold": threshold})
+    given.update({} if window is None else {"power_albedo_min": window[0],
+                                             "power_albedo_max": window[1]})
     phase = mi.load_dict({"type": "roulette_isotropic", **given})
     ctx = mi.PhaseFunctionContext(None)
     rng = np.random.default_rng(3)
     k = 200 if variant == "scalar_rgb" else 20000
-    a, p, t = max(albedo), 1.0 if power is None else power, threshold or 0.0
-    q = a ** p if a >= t else a                     # 0 ** 0 = 1: p = 0 keeps all
+    a, p, (lo, hi) = max(albedo), 1.0 if power is None else power, window or (0.0, 1.0)
+    q = a ** p if lo <= a < hi or a == 1.0 else a   # 0 ** 0 = 1: p = 0 keeps all
     kept, directions = 0, []
     u1, u2 = rng.random(k), rng.random((k, 2))
     if dr.is_jit_v(mi.Float):
@@ -67,11 +68,14 @@ def test_a_bad_survival_power_is_refused_in_one_sentence(power):
         mi.load_dict({"type": "roulette_isotropic", "survival_power": power})
 
 
-@pytest.mark.parametrize("threshold", [-0.1, 1.5, float("nan"), "0.9", False])
-def test_a_bad_power_threshold_is_refused_in_one_sentence(threshold):
-    with pytest.raises(Exception, match=r"roulette_isotropic: power_threshold=.* must be a "
-                                        r"number in \[0, 1\]"):
-        mi.load_dict({"type": "roulette_isotropic", "power_threshold": threshold})
+@pytest.mark.parametrize("window", [(-0.1, 1.0), (0.0, 1.5), (0.9, 0.8), (float("nan"), 1.0),
+                                    ("0.9", 1.0), (0.0, True)])
+def test_a_bad_power_window_is_refused_in_one_sentence(window):
+    with pytest.raises(Exception, match=r"roulette_isotropic: power_albedo_min=.* and "
+                                        r"power_albedo_max=.* must be numbers with "
+                                        r"0 ≤ min ≤ max ≤ 1"):
+        mi.load_dict({"type": "roulette_isotropic", "power_albedo_min": window[0],
+                      "power_albedo_max": window[1]})
 
 
 @pytest.mark.parametrize("albedo, phase", [("0.9", None), ("0.99", "roulette_isotropic")])

@@ -4,8 +4,10 @@
 samples the phase function. This one draws the new direction uniformly on the sphere (as
 ``isotropic``) and, with the ``sample1`` volpath gives it, keeps the path with probability
 
-    q = a^p   where a ≥ t,   else a      (a = max_c α_c, the largest channel, clamped to
-                                           [0, 1]; p = ``survival_power``, t = ``power_threshold``)
+    q = a^p   where lo ≤ a < hi,   else a     (a = max_c α_c, the largest channel,
+                                                clamped to [0, 1]; p = ``survival_power``,
+                                                [lo, hi) = [``power_albedo_min``,
+                                                ``power_albedo_max``))
 
 weight 1/q, else ends it (weight 0: volpath stops a path whose weight is 0). The
 expectation is the isotropic medium's for every p: E[weight] = q·(1/q) = 1. Over the
@@ -15,14 +17,15 @@ two factors a collision weighs a survivor by α/q per channel:
   weight grows. A walk ends after 1/(1 − α) collisions on average instead of running to
   the boundary or the depth cap with a weight αᵏ that adds little (docs/benchmarks.md,
   "Where volpath's time goes on the Cycles-twin sphere").
-- **p > 1** (where a ≥ t): the walk ends p times as often near α = 1 (q ≈ 1 − p(1 − α)), and a
+- **p > 1** (where lo ≤ a < hi): the walk ends p times as often near α = 1 (q ≈ 1 − p(1 − α)), and a
   survivor of k collisions weighs α^((1−p)k): fewer long walks — the ones that keep a
   packet of lanes looping (docs/benchmarks.md, "Where volpath's time goes") — for more
   noise. A walk of k collisions that leaves has the second moment α^((2−p)k) against the
   analog walk's αᵏ: bounded for p ≤ 2, growing with k beyond; volpath's depth cap
-  bounds k. Path mode takes p = ``media.WALK_SURVIVAL_POWER`` above
-  t = ``media.WALK_POWER_THRESHOLD`` (docs/benchmarks.md, "The walk's survival power
-  against Cycles"): where the albedo is lower the walks are short anyway, and the extra
+  bounds k. Path mode takes p = ``media.WALK_SURVIVAL_POWER`` on
+  ``media.WALK_POWER_ALBEDOS`` (docs/benchmarks.md, "The walk's survival power against
+  Cycles"): below the window the walks are short anyway, above it (white marble) the
+  boundary and the depth cap end them before absorption would, and either way the extra
   deaths cost more noise than they save time.
 - p < 1 ends fewer walks than the analog walk (0: none, weight 1).
 
@@ -45,10 +48,10 @@ follows.
      - p ≥ 0, finite: a walk survives a scattering with probability (max α)^p, its
        weight divided by that. A constant of the traced code (its ``recording_key``), not
        a traversed parameter. Path mode gives ``media.WALK_SURVIVAL_POWER``.
-   * - ``power_threshold``
-     - float (0: the power at every albedo)
-     - t in [0, 1]: the power applies where max α ≥ t; below it the survival is max α.
-       Path mode gives ``media.WALK_POWER_THRESHOLD``.
+   * - ``power_albedo_min``, ``power_albedo_max``
+     - float (0, 1: the power at every albedo)
+     - 0 ≤ lo ≤ hi ≤ 1: the power applies where lo ≤ max α < hi; elsewhere the survival is
+       max α (the analog walk). Path mode gives ``media.WALK_POWER_ALBEDOS``.
 """
 
 from __future__ import annotations
@@ -77,18 +80,19 @@ class RouletteIsotropic:
             raise RouletteIsotropicError(
                 f"roulette_isotropic: survival_power={power!r:.40} must be a finite number ≥ 0")
         self.power = float(power)
-        threshold = props.get("power_threshold", 0.0)
-        if isinstance(threshold, bool) or not isinstance(threshold, (int, float)) \
-                or not 0.0 <= threshold <= 1.0:
+        window = [props.get(name, default) for name, default in
+                  (("power_albedo_min", 0.0), ("power_albedo_max", 1.0))]
+        if any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in window) \
+                or not 0.0 <= window[0] <= window[1] <= 1.0:
             raise RouletteIsotropicError(
-                f"roulette_isotropic: power_threshold={threshold!r:.40} must be a number in "
-                f"[0, 1]")
-        self.threshold = float(threshold)
+                f"roulette_isotropic: power_albedo_min={window[0]!r:.40} and power_albedo_max="
+                f"{window[1]!r:.40} must be numbers with 0 ≤ min ≤ max ≤ 1")
+        self.window = (float(window[0]), float(window[1]))
         self.m_flags = mi.PhaseFunctionFlags.Isotropic
         self.m_components = [self.m_flags]
 
     def survival(self, mei):
-        """q = a^p where a ≥ t, else a; a = max over channels of σ_s/σ_t at the collision,
+        """q = a^p where lo ≤ a < hi, else a; a = max over channels of σ_s/σ_t at the collision,
         in [0, 1] (0 where σ_t is 0). Any q > 0 where α > 0 keeps the walk unbiased: the
         weight is 1/q of the q used."""
         albedo = dr.select(mei.sigma_t > 0.0, mei.sigma_s / mei.sigma_t, 0.0)
@@ -99,7 +103,10 @@ class RouletteIsotropic:
             powered = dr.full(mi.Float, 1.0, dr.width(q))
         else:
             powered = dr.power(q, self.power)
-        return powered if self.threshold == 0.0 else dr.select(q >= self.threshold, powered, q)
+        lo, hi = self.window
+        if (lo, hi) == (0.0, 1.0):      # a = 1 gives q = 1 either way
+            return powered
+        return dr.select((q >= lo) & (q < hi), powered, q)
 
     def sample(self, ctx, mei, sample1, sample2, active=True):
         wo = mi.warp.square_to_uniform_sphere(sample2)
@@ -113,8 +120,8 @@ class RouletteIsotropic:
         return mi.Spectrum(pdf), pdf
 
     def recording_key(self) -> tuple:
-        return ("roulette_isotropic", self.power, self.threshold)
+        return ("roulette_isotropic", self.power, self.window)
 
     def to_string(self):
         return (f"RouletteIsotropic[survival_power={self.power:g}, "
-                f"power_threshold={self.threshold:g}]")
+                f"power_albedos=[{self.window[0]:g}, {self.window[1]:g})]")
