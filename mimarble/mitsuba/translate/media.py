@@ -114,16 +114,16 @@ def constant_sky_weight(scene: model.Scene, mode: str) -> dict:
 #: The power p of the walk's survival q = (max α)^p at each scattering where max α lies in
 #: WALK_POWER_ALBEDOS (``roulette_isotropic``'s ``survival_power``; issue 40,
 #: docs/rendering-model.md "Translucent materials"): p = 1 is the analog walk (weights ≤ 1);
-#: p = 3 ends a walk of albedo α ≈ 1 three times as often, each survivor weighing α^(1 − p)
-#: more per scattering. Unbiased; the time and noise it gives: docs/benchmarks.md, "The
+#: p = 3 ends a walk of albedo α ≈ 1 three times as often, each survivor's weight multiplied
+#: by α^(1 − p) ≥ 1 a scattering. Unbiased; the time and noise it gives: docs/benchmarks.md, "The
 #: walk's survival power against Cycles".
 WALK_SURVIVAL_POWER = 3.0
 #: [lo, hi): the albedos at which the walk's survival takes the power (the phase's
 #: ``power_albedo_min``, ``power_albedo_max``); elsewhere the analog walk's max α. Below
-#: 0.95 the walks are short (the honey onyx's dark bands lost 41 % of their efficiency to
-#: the power); from 0.999 (a reflectance of ~0.93 at ior 1.5) the absorption length,
+#: 0.95 the walks are short (with the power there, the honey onyx kept 0.58× of its
+#: efficiency); from 0.999 (a reflectance of ~0.93 at ior 1.5) the absorption length,
 #: 1000 scatterings, is 4× the depth cap, so the boundary and the cap end white walks
-#: and the power only added noise (efficiency 0.83×): docs/benchmarks.md, "The walk's
+#: and the power only added noise (efficiency 0.83–0.84×): docs/benchmarks.md, "The walk's
 #: survival power against Cycles".
 WALK_POWER_ALBEDOS = (0.95, 0.999)
 
