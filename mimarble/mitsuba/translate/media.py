@@ -119,13 +119,15 @@ def constant_sky_weight(scene: model.Scene, mode: str) -> dict:
 #: walk's survival power against Cycles".
 WALK_SURVIVAL_POWER = 3.0
 #: [lo, hi): the albedos at which the walk's survival takes the power (the phase's
-#: ``power_albedo_min``, ``power_albedo_max``); elsewhere the analog walk's max α. Below
-#: 0.95 the walks are short (with the power there, the honey onyx kept 0.58× of its
-#: efficiency); from 0.999 (a reflectance of ~0.93 at ior 1.5) the absorption length,
-#: 1000 scatterings, is 4× the depth cap, so the boundary and the cap end white walks
-#: and the power only added noise (efficiency 0.83–0.84×): docs/benchmarks.md, "The walk's
-#: survival power against Cycles".
-WALK_POWER_ALBEDOS = (0.95, 0.999)
+#: ``power_albedo_min``, ``power_albedo_max``); elsewhere the analog walk's max α. From lo
+#: the depth cap bounds the variance: a walk of k ≤ VOLPATH_MAX_DEPTH scatterings at albedo
+#: α carries the second moment α^((2 − p)k) ≤ 0.99^(−256) = 13 (≤ 1 for p ≤ 2, which saved
+#: too little time) and a weight ≤ 0.99^(−512) = 171; lower albedos end their walks soon
+#: anyway (from 0.95 on, the honey onyx kept 0.89× of its efficiency; from 0.99, all). From hi (a
+#: reflectance of ~0.93 at ior 1.5) the absorption length, 1000 scatterings, is 4× the
+#: depth cap, so the boundary and the cap end white walks and the power only added noise
+#: (efficiency 0.83–0.84×). docs/benchmarks.md, "The walk's survival power against Cycles".
+WALK_POWER_ALBEDOS = (0.99, 0.999)
 
 
 def roulette_phase(scene: model.Scene) -> dict:
