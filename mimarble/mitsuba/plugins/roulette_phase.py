@@ -24,9 +24,10 @@ two factors a collision weighs a survivor by α/q per channel:
   analog walk's αᵏ: bounded for p ≤ 2, growing with k beyond; volpath's depth cap
   bounds k. Path mode takes p = ``media.WALK_SURVIVAL_POWER`` on
   ``media.WALK_POWER_ALBEDOS`` (docs/benchmarks.md, "The walk's survival power against
-  Cycles"): below the window the walks are short anyway, above it (white marble) the
-  boundary and the depth cap end them before absorption would, and either way the extra
-  deaths cost more noise than they save time.
+  Cycles"): from its lower end the depth cap bounds the growth (α^(2−p) ≥ 0.99 a
+  scattering, 256 of them at most), below it the walks are short anyway; above it (white
+  marble) the boundary and the cap end them before absorption would, and the extra deaths
+  cost more noise than they save time.
 - p < 1 ends fewer walks than the analog walk (0: none, weight 1).
 
 volpath's own roulette (survival min(max β, 0.95)) multiplies weights by 1/0.95 wherever
