@@ -24,7 +24,7 @@ two factors a collision weighs a survivor by α/q per channel:
   analog walk's αᵏ: bounded for p ≤ 2, growing with k beyond; volpath's depth cap
   bounds k. Path mode takes p = ``media.WALK_SURVIVAL_POWER`` on
   ``media.WALK_POWER_ALBEDOS`` (docs/benchmarks.md, "The walk's survival power against
-  Cycles"): from its lower end the depth cap bounds the growth (α^(2−p) ≥ 0.99 a
+  Cycles"): from its lower end the depth cap bounds the growth (α^(2−p) ≤ 1/0.99 a
   scattering, 256 of them at most), below it the walks are short anyway; above it (white
   marble) the boundary and the cap end them before absorption would, and the extra deaths
   cost more noise than they save time.
