@@ -1,15 +1,17 @@
 """The bias of one of the random walk's stated approximations, the walk as path mode renders it
 against the walk without it, both converged, and the time of each: ``--rule band-limit``
 (default) band-limiting a translucent material's marbles to its mean free path
-(mimarble/scene/band_limit.py), or ``--rule albedo-grid`` reading the albedo from its grid
-(mimarble/scene/albedo_grid.py; both walks band-limited).
+(mimarble/scene/band_limit.py), ``--rule albedo-grid`` reading the albedo from its grid
+(mimarble/scene/albedo_grid.py; both walks band-limited), or ``--rule survival-power``
+the walk's roulette at ``media.WALK_SURVIVAL_POWER`` (unbiased by design: the check that
+it is; both walks band-limited and on the grid).
 
-    ./go python scripts/band_limit_bias.py SCENE [--rule band-limit|albedo-grid] [--size 100]
-        [--spp 512] [--json OUT.json]
+    ./go python scripts/band_limit_bias.py SCENE [--rule band-limit|albedo-grid|survival-power]
+        [--size 100] [--spp 512] [--json OUT.json]
 
 The walk without the rule ("full") is the same translation with ``band_limited`` replaced by
-the identity, or ``albedo_grid`` by no grid (this script's own switch; the package has
-none), the loaded scenes cleared before each. Each is rendered twice (seeds 1, 2) after
+the identity, ``albedo_grid`` by no grid, or the survival power by 1, the analog walk
+(this script's own switch; the package has none), the loaded scenes cleared before each. Each is rendered twice (seeds 1, 2) after
 a warm-up. Over the object's pixels (scripts/translucent_vs_cycles.py's mask), relative to
 the full walk's mean m ("limited": the walk with the rule):
 
@@ -40,7 +42,8 @@ from translucent_vs_cycles import object_mask  # noqa: E402  (the sibling script
 #: Each rule's switch: the name in mimarble/mitsuba/translate/media.py, and what stands in
 #: for it in the walk without the rule.
 RULES = {"band-limit": ("band_limited", lambda subsurface: subsurface),
-         "albedo-grid": ("albedo_grid", lambda subsurface, shapes: None)}
+         "albedo-grid": ("albedo_grid", lambda subsurface, shapes: None),
+         "survival-power": ("WALK_SURVIVAL_POWER", 1.0)}
 
 
 def renders(scene, spp: int, full: bool, rule: str = "band-limit"):

@@ -111,15 +111,38 @@ def constant_sky_weight(scene: model.Scene, mode: str) -> dict:
     return {}
 
 
+#: The power p of the walk's survival q = (max α)^p at each scattering where max α lies in
+#: WALK_POWER_ALBEDOS (``roulette_isotropic``'s ``survival_power``; issue 40,
+#: docs/rendering-model.md "Translucent materials"): p = 1 is the analog walk (weights ≤ 1);
+#: p = 3 ends a walk of albedo α ≈ 1 three times as often, each survivor's weight multiplied
+#: by α^(1 − p) ≥ 1 a scattering. Unbiased; the time and noise it gives: docs/benchmarks.md, "The
+#: walk's survival power against Cycles".
+WALK_SURVIVAL_POWER = 3.0
+#: [lo, hi): the albedos at which the walk's survival takes the power (the phase's
+#: ``power_albedo_min``, ``power_albedo_max``); elsewhere the analog walk's max α. From lo
+#: the depth cap bounds the variance: a walk of k ≤ VOLPATH_MAX_DEPTH scatterings at albedo
+#: α carries the second moment α^((2 − p)k) ≤ 0.99^(−256) = 13 (≤ 1 for p ≤ 2, which saved
+#: too little time) and a weight ≤ 0.99^(−512) = 171; lower albedos end their walks soon
+#: anyway (from 0.95 on, the honey onyx kept 0.89× of its efficiency; from 0.99, all). From hi (a
+#: reflectance of ~0.93 at ior 1.5) the absorption length, 1000 scatterings, is 4× the
+#: depth cap, so the boundary and the cap end white walks and the power only added noise
+#: (efficiency 0.83–0.84×). docs/benchmarks.md, "The walk's survival power against Cycles".
+WALK_POWER_ALBEDOS = (0.99, 0.999)
+
+
 def roulette_phase(scene: model.Scene) -> dict:
-    """``{"phase": {"type": "roulette_isotropic"}}`` where path mode's volpath runs without
-    Russian roulette (``modes.roulette_depth``: some albedo may pass 0.95), else nothing
-    (Mitsuba's ``isotropic``). The phase function ends a walk at each scattering with
-    probability 1 − max α, keeping weights ≤ 1 (mimarble/mitsuba/plugins/roulette_phase.py):
-    without it a white walk runs to the boundary or the depth cap. Near albedo 1 it is more
-    efficient than no roulette, or as efficient; below 0.95 volpath's own roulette is the
-    better, which the scene keeps there (docs/benchmarks.md, "Russian roulette on white
-    marble")."""
+    """``{"phase": {"type": "roulette_isotropic", "survival_power": WALK_SURVIVAL_POWER,
+    "power_albedo_min": …, "power_albedo_max": …}}`` (:data:`WALK_POWER_ALBEDOS`) where path
+    mode's volpath runs without Russian roulette (``modes.roulette_depth``: some albedo may
+    pass 0.95), else nothing (Mitsuba's ``isotropic``). The phase function ends a walk at
+    each scattering with probability 1 − q and divides a survivor's weight by q, q = (max α)^p
+    at albedos in the window, max α elsewhere (mimarble/mitsuba/plugins/roulette_phase.py):
+    without it a white walk runs
+    to the boundary or the depth cap. Near albedo 1 it is more efficient than no roulette,
+    or as efficient; below 0.95 volpath's own roulette is the better, which the scene keeps
+    there (docs/benchmarks.md, "Russian roulette on white marble")."""
     if roulette_depth(translucent_materials(scene)) == VOLPATH_RR_DEPTH:
-        return {"phase": {"type": "roulette_isotropic"}}
+        lo, hi = WALK_POWER_ALBEDOS
+        return {"phase": {"type": "roulette_isotropic", "survival_power": WALK_SURVIVAL_POWER,
+                          "power_albedo_min": lo, "power_albedo_max": hi}}
     return {}
