@@ -31,13 +31,9 @@ from pathlib import Path
 import numpy as np
 
 import mimarble
-from mimarble.bench.oracle import level_images
-from mimarble.bench.timing import converged
-from mimarble.mitsuba import to_mitsuba
+from mimarble.bench.oracle import oracle_choice, oracle_scene, price_for, squared_errors
 from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.render import render_in_passes
-from mimarble.runtime import files
-from mimarble.scene.edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -91,24 +87,13 @@ def auc(low, high):
 
 
 for path in sys.argv[1:]:
-    scene = resized(mimarble.scene.load(path), 256)
-    truth = converged(scene, 256, Path(files.cache_folder())).astype(np.float64)
-    m = mi.load_dict(to_mitsuba(scene, spp=1))
-    rmse = lambda image: float(np.sqrt(np.mean(np.square(np.asarray(image, np.float64) - truth))))
+    measured = oracle_scene(path)
+    m, truth, rmse = measured.mitsuba, measured.truth, measured.rmse
+    images, costs, errors = measured.images, measured.costs, measured.errors
     target = rmse(render_in_passes(m, 16))
-    images, costs = level_images(m, 1, 81)
-    errors = np.stack([np.sum(np.square(i - truth), axis=-1).ravel() for i in images])
     pixels = errors.shape[1]
     cost = np.asarray(costs, np.float64)[:, None]
-    low, high = 1e-16, 1e2
-    for _ in range(100):
-        price = np.sqrt(low * high)
-        chosen = np.argmin(errors + price * cost, axis=0)
-        if np.sqrt(np.mean(errors[chosen, np.arange(pixels)]) / 3) > target:
-            high = price
-        else:
-            low = price
-    chosen = np.argmin(errors + low * cost, axis=0)
+    chosen = oracle_choice(errors, costs, target)
     oracle = cost[chosen, 0]
     for k in range(40):
         run = adaptive.render_adaptive(m, 1, 0.005 * 2.0 ** (-k / 2), 81)
@@ -147,15 +132,9 @@ for path in sys.argv[1:]:
         _, key = np.unique(key, return_inverse=True)
         sizes = np.bincount(key)
         means = np.stack([np.bincount(key, weights=e) / sizes for e in errors])  # (levels, bins)
-        lo, hi = 1e-16, 1e2
-        for _ in range(80):
-            price = np.sqrt(lo * hi)
-            pick = np.argmin(means + price * cost, axis=0)[key]
-            if np.sqrt(np.mean(errors[pick, np.arange(pixels)]) / 3) > target:
-                hi = price
-            else:
-                lo = price
-        pick = np.argmin(means + lo * cost, axis=0)[key]
+        choose = lambda price: np.argmin(means + price * cost, axis=0)[key]
+        pick = choose(price_for(lambda price: np.sqrt(
+            np.mean(errors[choose(price), np.arange(pixels)]) / 3), target, steps=80))
         print(f"    {name:24s} {cost[pick, 0].mean():.2f}  levels {dict(zip(*[a.tolist() for a in np.unique(cost[pick, 0].astype(int), return_counts=True)]))}")
     # A rule that knows, at each level it reaches, the pixel's true error there (but not
     # the error at the levels it has not traced), and expects the next level's from the
@@ -193,22 +172,15 @@ for path in sys.argv[1:]:
         "current; doubt at 9,17 (1/n²)": (current, current, current),
     }
     for name, (s1, s9, s17) in knowledge.items():
-        lo, hi = 1e-16, 1e2
-        for _ in range(80):
-            price = np.sqrt(lo * hi)
-            if stopping(price, s1, s9, s17)[0] > target:
-                hi = price
-            else:
-                lo = price
-        spent = stopping(lo, s1, s9, s17)[1]
+        price = price_for(lambda price: stopping(price, s1, s9, s17)[0], target, steps=80)
+        spent = stopping(price, s1, s9, s17)[1]
         print(f"    DP: {name:34s} {spent.mean():.2f}  levels "
               f"{dict(zip(*[a.tolist() for a in np.unique(spent, return_counts=True)]))}")
     # The same bound with a level of 4 samples added (the 2×2 grid, replacing the first
     # sample: 5 traced) and on from it to the 6×6 grid (which holds the 2×2 one's centres:
     # 37 traced): would a ladder through 4 leave more pixels low?
     for c, spp in ((5, 4), (37, 36)):
-        at[c] = np.sum(np.square(np.asarray(render_in_passes(m, spp), np.float64) - truth),
-                       axis=-1).ravel()
+        at[c] = squared_errors([render_in_passes(m, spp)], truth)[0]
     def tree(price, ladder):
         """Best cost-plus-error from each level down, knowing each reached level's error."""
         def value(c):
@@ -223,15 +195,9 @@ for path in sys.argv[1:]:
         return value(1)
     for name, ladder in (("1 9 17 81 98", {1: (9, 17), 9: (81,), 17: (98,)}),
                          ("+ 4, 36", {1: (5, 9, 17), 5: (37,), 9: (81,), 17: (98,)})):
-        lo, hi = 1e-16, 1e2
-        for _ in range(80):
-            price = np.sqrt(lo * hi)
-            final, spent = tree(price, ladder)
-            if np.sqrt(np.mean(final) / 3) > target:
-                hi = price
-            else:
-                lo = price
-        final, spent = tree(lo, ladder)
+        price = price_for(lambda price: np.sqrt(np.mean(tree(price, ladder)[0]) / 3), target,
+                          steps=80)
+        final, spent = tree(price, ladder)
         print(f"    DP, true errors, ladder {name:14s} {spent.mean():.2f}  levels "
               f"{dict(zip(*[a.tolist() for a in np.unique(spent.astype(int), return_counts=True)]))}")
     e1 = np.sqrt(errors[0]).ravel()
