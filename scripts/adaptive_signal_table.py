@@ -18,7 +18,8 @@ and their costs as the oracle has them (mimarble/bench/oracle.py: 1, 9, 17 = the
    RMSE. Calibrated on the truth: the best a rule on that signal alone can do, not a rule.
 3. Rules that know more (dynamic programming from the deepest level, each choice on the
    expectation of what follows given what is known, binned as in 2): the first image's
-   doubt at one sample and a signal at 9 and 17; and the pixel's *true* error at each
+   doubt at one sample and a signal at 9 and 17 (from the level images, or the pixel's own
+   samples' range, read as the second round reads it); and the pixel's *true* error at each
    level it reaches (but not at the levels it has not traced) — the bound of any estimate
    of a pixel's present error on this ladder, and the same with a level of 4 samples
    (the 2×2 grid, 5 traced) and on to 36 (the 6×6 grid, which holds the 2×2 one's
@@ -162,7 +163,24 @@ for path in sys.argv[1:]:
     second_of = lambda c: signals(image[c])["second"].ravel()
     current = table["current doubt"].ravel()
     window_range = lambda c: signals(image[c])["range3"].ravel()
+
+    def sample_range(jump):
+        """Each pixel's own samples' range (largest colour) at the first round's level, 9
+        (``jump`` "never") or 16 ("always"): read where the second round's estimate reads it."""
+        seen = []
+        plain = adaptive.refine
+        def reading(state, means, pixels, axis, *args, **kwargs):
+            if axis > 1 and not seen:
+                seen.append(np.max(np.asarray(state.high) - np.asarray(state.low), axis=0))
+            return plain(state, means, pixels, axis, *args, **kwargs)
+        adaptive.refine = reading
+        try:
+            adaptive.render_adaptive(m, 1, -1.0, 81, rounds=2, jump=jump)
+        finally:
+            adaptive.refine = plain
+        return seen[0]
     knowledge = {
+        "current; own range at 9, 16": (current, sample_range("never"), sample_range("always")),
         "current; range3 of means at 9, 17": (current, window_range(9), window_range(17)),
         "true e1 (binned); true at 9, 17": (at[1], at[9], at[17]),
         "current doubt; true at 9, 17": (current, at[9], at[17]),
