@@ -16,13 +16,9 @@ from pathlib import Path
 import numpy as np
 
 import mimarble
-from mimarble.bench.oracle import level_images
-from mimarble.bench.timing import converged
-from mimarble.mitsuba import to_mitsuba
+from mimarble.bench.oracle import oracle_scene, oracle_choice
 from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.render import render_in_passes
-from mimarble.runtime import files
-from mimarble.scene.edits import resized
 
 dr, mi = mimarble.dr, mimarble.mi
 
@@ -32,29 +28,18 @@ def counts(values) -> dict:
 
 
 for path in sys.argv[1:]:
-    scene = resized(mimarble.scene.load(path), 256)
-    truth = converged(scene, 256, Path(files.cache_folder())).astype(np.float64)
-    m = mi.load_dict(to_mitsuba(scene, spp=1))
-    rmse = lambda image: float(np.sqrt(np.mean(np.square(np.asarray(image, np.float64) - truth))))
+    measured = oracle_scene(path)
+    m, truth, rmse = measured.mitsuba, measured.truth, measured.rmse
+    images, costs, errors = measured.images, measured.costs, measured.errors
     target = rmse(render_in_passes(m, 16))
-    images, costs = level_images(m, 1, 81)
-    errors = np.stack([np.sum(np.square(i - truth), axis=-1).ravel() for i in images])
     for k in range(40):
         run = adaptive.render_adaptive(m, 1, 0.005 * 2.0 ** (-k / 2), 81)
         if rmse(run.image) <= target:
             break
     ours_rmse, pixels = rmse(run.image), errors.shape[1]
-    # The oracle's price for the same RMSE: bisected in the logarithm.
+    # The oracle's levels at the same RMSE (its price bisected, oracle.price_for).
     cost = np.asarray(costs, np.float64)[:, None]
-    low, high = 1e-16, 1e2
-    for _ in range(100):
-        price = np.sqrt(low * high)
-        chosen = np.argmin(errors + price * cost, axis=0)
-        if np.sqrt(np.mean(errors[chosen, np.arange(pixels)]) / 3) > ours_rmse:
-            high = price
-        else:
-            low = price
-    chosen = np.argmin(errors + low * cost, axis=0)
+    chosen = oracle_choice(errors, costs, ours_rmse)
     oracle_cost = cost[chosen, 0]
     # Our pixels' level (its index in the oracle's list, by the samples it ended with; a
     # pixel at 81 counted at the ladder's 81, whose image is the same).

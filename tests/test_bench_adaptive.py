@@ -157,6 +157,22 @@ def test_the_oracle_refines_the_pixels_whose_error_it_knows():
     assert oracle_samples([first, first], truth, [1, 3], 0.1) is None     # never reached
 
 
+def test_the_oracle_choice_at_an_rmse_refines_the_worst_pixels_first():
+    """Three pixels wrong at the first level (cost 1) by squared errors 0.03, 0.12, 0.27
+    (summed over the colours), right at the second (cost 3). Refining the worst leaves
+    RMSE √(0.15 / 9) ≈ 0.129, the worst two √(0.03 / 9) ≈ 0.0577, all three 0: at a
+    target of 0.1 the oracle refines the pixels of 0.27 and 0.12 and keeps 0.03. And
+    the price bisection finds where a rule's RMSE (here the price itself) crosses a
+    target."""
+    import numpy as np
+    from mimarble.bench.oracle import oracle_choice, price_for
+    errors = np.array([[0.03, 0.12, 0.27], [0.0, 0.0, 0.0]])
+    assert oracle_choice(errors, [1, 3], 0.1).tolist() == [0, 1, 1]
+    assert oracle_choice(errors, [1, 3], 0.13).tolist() == [0, 0, 1]
+    assert oracle_choice(errors, [1, 3], 0.0).tolist() == [1, 1, 1]
+    assert price_for(lambda price: price, 0.25) == pytest.approx(0.25)
+
+
 def test_a_scene_without_plain_64_has_only_the_16_spp_target():
     runs = [r for r in synthetic_runs() if not (r["mode"] == "plain" and r["spp"] == 64)]
     ttr = times_to_plain_rmse(runs)

@@ -15,6 +15,8 @@ reaches an RMSE. NumPy only.
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from mimarble.bench.curves import value_at_crossing
@@ -43,9 +45,7 @@ def oracle_curve(images: list[np.ndarray], truth: np.ndarray, costs: list[int],
     to one that takes every pixel to the last). ``images``: (H, W, 3) per level, in the
     ladder's order; ``costs``: the samples a pixel traces to end at each
     (:func:`level_images`)."""
-    truth = np.asarray(truth, np.float64)
-    errors = np.stack([np.sum(np.square(np.asarray(i, np.float64) - truth), axis=-1).ravel()
-                       for i in images])                            # (levels, pixels)
+    errors = squared_errors(images, truth)                          # (levels, pixels)
     cost = np.asarray(costs, np.float64)[:, None]
     gains = np.abs(np.diff(errors, axis=0)) / np.maximum(np.diff(cost, axis=0), 1.0)
     top = max(float(gains.max()) if gains.size else 1.0, 1e-30) * 2
@@ -63,3 +63,68 @@ def oracle_samples(images: list[np.ndarray], truth: np.ndarray, costs: list[int]
     """Samples a pixel the oracle needs for RMSE ``target`` (interpolated in log-log
     between its runs), None when even every pixel at its best level misses it."""
     return value_at_crossing(oracle_curve(images, truth, costs), target, "mean_spp")
+
+
+def price_for(rmse_at, target: float, low: float = 1e-16, high: float = 1e2,
+              steps: int = 100) -> float:
+    """The largest price per sample, bisected in the logarithm between ``low`` and ``high``,
+    at which ``rmse_at(price)`` (a rule's RMSE, growing with the price) is at most
+    ``target``: where a priced rule reaches an RMSE."""
+    for _ in range(steps):
+        price = (low * high) ** 0.5
+        if rmse_at(price) > target:
+            high = price
+        else:
+            low = price
+    return low
+
+
+def oracle_choice(errors: np.ndarray, costs: list[int], target: float) -> np.ndarray:
+    """Each pixel's level (an index into ``costs``) in the oracle's run of RMSE ``target``:
+    ``errors`` (levels, pixels) the squared errors summed over the colours, ``costs`` the
+    samples a pixel traces to end at each level (:func:`level_images`)."""
+    cost = np.asarray(costs, np.float64)[:, None]
+    pixels = np.arange(errors.shape[1])
+    choose = lambda price: np.argmin(errors + price * cost, axis=0)
+    rmse_at = lambda price: float(np.sqrt(np.mean(errors[choose(price), pixels]) / 3.0))
+    return choose(price_for(rmse_at, target))
+
+
+def squared_errors(images: list[np.ndarray], truth: np.ndarray) -> np.ndarray:
+    """(levels, pixels): each image's squared error against ``truth`` per pixel, summed over
+    the colours, in float64."""
+    truth = np.asarray(truth, np.float64)
+    return np.stack([np.sum(np.square(np.asarray(i, np.float64) - truth), axis=-1).ravel()
+                     for i in images])
+
+
+class OracleScene(NamedTuple):
+    """A scene file as the oracle's scripts measure it (:func:`oracle_scene`): the loaded
+    whitted scene ``mitsuba``, the float64 reference ``truth`` (H, W, 3), and the oracle's
+    level ``images``, their ``costs`` and ``errors`` (:func:`squared_errors`)."""
+    mitsuba: object
+    truth: np.ndarray
+    images: list
+    costs: list
+    errors: np.ndarray
+
+    def rmse(self, image) -> float:
+        """RMSE of ``image`` (H, W, 3) against the truth, over pixels and colours."""
+        return float(np.sqrt(np.mean(np.square(np.asarray(image, np.float64) - self.truth))))
+
+
+def oracle_scene(path: str, size: int = 256, reference_spp: int = 256) -> OracleScene:
+    """The scene file ``path`` resized to ``size`` (point-sampled), its reference at
+    ``reference_spp`` (cached), and its level images from 1 to 81 samples a pixel
+    (:func:`level_images`)."""
+    from pathlib import Path
+    import mimarble
+    from mimarble.bench.timing import converged
+    from mimarble.mitsuba import to_mitsuba
+    from mimarble.runtime import files
+    from mimarble.scene.edits import resized
+    scene = resized(mimarble.scene.load(path), size)
+    truth = converged(scene, reference_spp, Path(files.cache_folder())).astype(np.float64)
+    mitsuba = mimarble.mi.load_dict(to_mitsuba(scene, spp=1))
+    images, costs = level_images(mitsuba, 1, 81)
+    return OracleScene(mitsuba, truth, images, costs, squared_errors(images, truth))
