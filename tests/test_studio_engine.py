@@ -438,7 +438,10 @@ def test_save_changes_only_the_edited_values(tmp_path):
         assert reparsed.materials["marble"].diffuse.period == 2.25
         assert reparsed.materials["marble"].ambient.period == 1.3
         assert reparsed.camera == mimarble.scene.parse(after).camera
-        assert np.allclose(reparsed.camera.eye, s.scene.camera.eye, rtol=1e-12)
+        # Once failed in a whole --jit-debug run (the session's camera back at the file's
+        # first eye: a render of the edit failed and the session went back to its last
+        # frame's state?); the state says which, if it happens again.
+        assert np.allclose(reparsed.camera.eye, s.scene.camera.eye, rtol=1e-12), s.state()
         assert not s.state()["dirty"] and s.poll_file() is None    # its own save: no reload
         s.save()                                                    # nothing edited: same bytes
         assert path.read_text() == after
