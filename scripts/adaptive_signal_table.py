@@ -169,10 +169,10 @@ for path in sys.argv[1:]:
         (``jump`` "never") or 16 ("always"): read where the second round's estimate reads it."""
         seen = []
         plain = adaptive.refine
-        def reading(state, means, pixels, axis, *args, **kwargs):
+        def reading(state, packed, pixels, axis, *args, **kwargs):
             if axis > 1 and not seen:
                 seen.append(np.max(np.asarray(state.high) - np.asarray(state.low), axis=0))
-            return plain(state, means, pixels, axis, *args, **kwargs)
+            return plain(state, packed, pixels, axis, *args, **kwargs)
         adaptive.refine = reading
         try:
             adaptive.render_adaptive(m, 1, -1.0, 81, rounds=2, jump=jump)

@@ -223,6 +223,17 @@ def test_compensated_sums_of_huge_and_non_finite_samples_are_the_float64_sums(ll
                 assert got == pytest.approx(expected, rel=1e-12, abs=0.0), (run, got)
 
 
+@pytest.mark.parametrize("block", [1, 2])
+def test_a_compensated_sum_of_negative_zeros_is_positive_zero(llvm, block):
+    """0 + (−0) + … is +0 in the loop's arithmetic; a run of one sample (no loop) gives it
+    too, not the sample's −0."""
+    from mimarble.mitsuba.rendering.passes import compensated_block_sum
+    values = np.full(3 * block, -0.0, np.float32)
+    for opaque in (None, dr.opaque(mi.UInt32, block)):
+        ours = np.array(compensated_block_sum(mi.Float(values), block, opaque))
+        assert np.array_equal(ours, np.zeros(3)) and not np.signbit(ours).any()
+
+
 @pytest.mark.parametrize("block", [2, 8, 72])
 def test_compensated_sums_find_each_runs_extremes_with_the_sum_unchanged(llvm, block):
     """``extremes_of`` (an adaptive round's shapes and colours): each run's least and largest

@@ -345,6 +345,18 @@ class PixelState:
         division, as a plain render's), rounded once."""
         return mi.Color3f(self.sums / mi.Float64(dr.maximum(self.samples, 1)))
 
+    def neighbourhood(self):
+        """What a pixel's neighbours are read for (:func:`refine`), one packet of four
+        float32 a pixel: its mean's three colours and the bits of its least first-shape id
+        (a flat Float, evaluated). One packet gather a neighbour reads them — on the LLVM
+        back end about half the time of four gathers (docs/benchmarks.md, "Adaptive samples:
+        the fixed costs of a render")."""
+        mean = self.means()
+        packed = dr.ravel(mi.Array4f(mean.x, mean.y, mean.z,
+                                     dr.reinterpret_array(mi.Float, self.first)), order="F")
+        dr.eval(packed)
+        return packed
+
 
 def _neighbours(pixels, width: int, height: int):
     """The 3×3 neighbourhood of each of ``pixels`` (UInt32 local indices of a width ×
@@ -358,7 +370,14 @@ def _neighbours(pixels, width: int, height: int):
             yield mi.UInt32(y * w + x)
 
 
-def refine(state: PixelState, means, pixels, axis: float, threshold: float, width: int,
+def _read_neighbour(packed, pixels):
+    """The mean (Color3f) and least first-shape id (UInt32) of ``pixels`` from
+    :meth:`PixelState.neighbourhood`'s packets."""
+    value = dr.gather(mi.Array4f, packed, pixels)
+    return mi.Color3f(value.x, value.y, value.z), dr.reinterpret_array(mi.UInt32, value.w)
+
+
+def refine(state: PixelState, packed, pixels, axis: float, threshold: float, width: int,
            height: int, doubt_from_image: bool = False, jump: tuple | None = None):
     """The pixels of ``pixels`` (UInt32 local indices, each of ``axis``² samples) whose
     estimated error is above ``threshold`` · axis^:data:`BAR_POWER` (module docstring), in
@@ -379,28 +398,26 @@ def refine(state: PixelState, means, pixels, axis: float, threshold: float, widt
     not in (lo, hi], and those whose is (:data:`JUMP`)."""
     least = most = None
     low_mean = high_mean = total = None
-    centre = dr.gather(mi.Color3f, means, pixels) if doubt_from_image else None
-    deviation = None                 # the largest |neighbour − pixel| (doubt_from_image)
     # A pixel of one sample has one first shape (its least and largest id are one) and no
     # spread (its least and largest radiance are one): gathers the kernel need not make.
     single = axis * axis == 1
     for around in _neighbours(pixels, width, height):
-        first = dr.gather(mi.UInt32, state.first, around)
+        mean, first = _read_neighbour(packed, around)
         last = first if single else dr.gather(mi.UInt32, state.last, around)
-        mean = dr.gather(mi.Color3f, means, around)
         if least is None:
             least, most, low_mean, high_mean, total = first, last, mean, mean, mean
         else:
             least, most = dr.minimum(least, first), dr.maximum(most, last)
             low_mean, high_mean = dr.minimum(low_mean, mean), dr.maximum(high_mean, mean)
             total = total + mean
-        if centre is not None:
-            away = dr.abs(mean - centre)
-            deviation = away if deviation is None else dr.maximum(deviation, away)
     if doubt_from_image:
         # The pixel's curvature (its second difference / 8) or, where larger, a share of
         # its largest step to a neighbour: the step sees a vein that crosses the pixel
         # and one neighbour, which the sum over all eight can cancel (DEVIATION_SHARE).
+        # max |mean − centre| over the neighbours is max(high − centre, centre − low),
+        # rounding being monotone: the same bits, without a subtraction a neighbour.
+        centre, _ = _read_neighbour(packed, pixels)
+        deviation = dr.maximum(high_mean - centre, centre - low_mean)
         second = dr.maximum(0.125 * largest_component(dr.abs(total - 9.0 * centre)),
                             DEVIATION_SHARE * largest_component(deviation))
         image_doubt = mi.Float64(second) * (CURVATURE_WEIGHT / DOUBT_WEIGHT)
@@ -496,8 +513,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
             traced += listed * level.traced
         if rounds == taken:
             break
-        means = state.means()
-        dr.eval(means)                 # its three colours in one kernel, not one a gather
+        packed = state.neighbourhood()
         following = []
         for levels, number, pixels, listed in groups:
             if number + 1 == len(levels):
@@ -508,7 +524,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                 # order, made only when a round follows.
                 candidates = mi.UInt32(morton_order(width, height))
                 split = jumped is not None and jump == "estimate"
-                found = refine(state, means, candidates, axis, threshold, width, height,
+                found = refine(state, packed, candidates, axis, threshold, width, height,
                                doubt_from_image=not doubts, jump=JUMP if split else None)
                 if split:
                     dr.eval(*found)
@@ -522,7 +538,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                 # A jumped pixel goes on over a bar of its own (JUMPED_BAR).
                 bar = threshold * (JUMPED_BAR if levels is jumped else 1.0)
                 following.append((levels, number + 1,
-                                  refine(state, means, pixels, axis, bar, width, height)))
+                                  refine(state, packed, pixels, axis, bar, width, height)))
         dr.eval(*(pixels for _, _, pixels in following))
         groups = [(levels, number, pixels, dr.width(pixels))
                   for levels, number, pixels in following if dr.width(pixels)]

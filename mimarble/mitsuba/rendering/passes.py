@@ -196,7 +196,7 @@ def trace_in_passes(target: Target, spp: int, pixels: np.ndarray | None = None, 
                   None if first is None else first.numpy()[:n_pixels],
                   None if last is None else last.numpy()[:n_pixels])
         if estimates is not None and split:   # doubt sums, lows and highs, per colour
-            traced += tuple(x.numpy().astype(np.float64) if k == 0 else x.numpy().reshape(-1, 3)
+            traced += tuple(x.numpy().astype(np.float64) if k == 0 else x.numpy().T
                             for k, x in enumerate(estimates))
         elif estimates is not None:           # the pixels' mean doubt and spread
             traced += tuple(x.numpy()[:n_pixels] for x in estimates)
@@ -327,7 +327,6 @@ def trace_sums(target: Target, spp: int, pixels, count: int, *, with_estimates: 
         doubt_sums = low = high = None
         if estimates is not None:
             doubt_sums, low, high = estimates
-            low, high = (dr.unravel(mi.Color3f, x, order="F") for x in (low, high))
         yield PassSums(p0, n_pixels, n_samples, values, first, last, doubt_sums, low, high)
 
 
@@ -350,7 +349,7 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
     float32, the pixels' RGB interleaved in one Float (``split``: the sums, a Color3d); the
     smallest and largest id of the first shape hit (UInt32); with ``with_estimates``, the
     mean doubt (float32) and the spread (:class:`Estimates`; ``split``: the doubt's sum,
-    the least and the largest radiance per colour); None where not asked for.
+    the least and the largest radiance, Color3f); None where not asked for.
     Lane k is sample
     ``first_sample + k mod n`` of pixel ``first_pixel + ⌊k / n⌋`` (n = ``numbers.samples``),
     or of pixel ``subset[⌊k / n⌋]``; with ``nested`` = (m, per cell), an adaptive round
@@ -422,8 +421,8 @@ def _trace_pass(key: tuple, scene, inputs: tuple, sampler, lanes: int, n_samples
         low, high = (colour, colour) if extremes is None else extremes[1]
         if doubt is not None:
             doubt = compensated_block_sum(doubt, n_samples, numbers.samples)   # Float64
-        if split:        # summed and combined over the pixel's passes in NumPy
-            estimates = (doubt, dr.ravel(low, order="F"), dr.ravel(high, order="F"))
+        if split:        # summed and combined over the pixel's passes (NumPy, PixelState)
+            estimates = (doubt, low, high)
         else:            # one mean doubt and one spread per pixel come back
             spread = high - low
             estimates = (mi.Float(doubt / mi.Float64(numbers.samples)),
@@ -461,6 +460,11 @@ def compensated_block_sum(values, block: int, opaque_block=None, extremes_of: tu
     reduction and per colour (an adaptive round's pass: eight, docs/design-decisions.md,
     "Adaptive samples: the pass's fixed cost"). The sum is the same either way."""
     wide = mi.Color3d if dr.depth_v(values) > 1 else mi.Float64
+    if block == 1 and not extremes_of:
+        # A run of one sample: the loop below would give 0 + x, widened — x itself, but
+        # −0 made +0 (an opaque zero: Dr.Jit folds away the addition of a literal one).
+        # No loop, so no kernel of its own: it joins whatever reads the sums next.
+        return wide(values) + dr.opaque(mi.Float64, 0.0)
     kind = type(values)
     runs = dr.width(values) // block
     exponent = max(block - 1, 0).bit_length()            # 2^exponent ≥ block
