@@ -1,6 +1,7 @@
 """Time to plain 16 and 64 spp's RMSE, adaptive against plain, interleaved, in one process.
 
     ./go python scripts/adaptive_time_to_rmse.py SCENE …    # MAXSPP=64 for issue 24's code; DK=1 doubt kernel; JUMP=none no jump to 16; DS=0 no neighbour's step
+    FILTER=prefilter ./go python scripts/adaptive_time_to_rmse.py SCENE …   # the adaptive renders' marbles prefiltered (plain stays point-sampled, as the truth)
 
 For each target: the thresholds 0.005·2^−k until a render reaches plain N spp's RMSE, then
 plain N spp and the two bracketing thresholds timed in turn (medians of 7, each after a
@@ -13,7 +14,7 @@ import numpy as np, mimarble
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.render import render_in_passes
-from mimarble.scene.edits import resized
+from mimarble.scene.edits import resized, with_marbles
 from mimarble.bench.timing import converged
 from mimarble.bench.curves import time_to_rmse
 from mimarble.runtime import files
@@ -33,6 +34,10 @@ for path in sys.argv[1:]:
     scene = resized(mimarble.scene.load(path), 256)
     truth = converged(scene, 256, Path(files.cache_folder()))
     m = mi.load_dict(to_mitsuba(scene, spp=1))
+    # FILTER: the adaptive renders' marbles filtered so (plain 16 and 64 and the truth are
+    # point-sampled either way: the targets do not move).
+    a = m if "FILTER" not in os.environ else \
+        mi.load_dict(to_mitsuba(with_marbles(scene, filter=os.environ["FILTER"]), spp=1))
     rm = lambda im: float(np.sqrt(np.mean(np.square(np.asarray(im, np.float64) - truth))))
     out = []
     for target_spp in (16, 64):
@@ -40,13 +45,13 @@ for path in sys.argv[1:]:
         ts = [0.005 * 2.0 ** -k for k in range(0, 26)]
         runs = []
         for t in ts:
-            r = adaptive.render_adaptive(m, 1, t, maxspp)
+            r = adaptive.render_adaptive(a, 1, t, maxspp)
             runs.append((t, rm(r.image), r.traced / 65536))
             if runs[-1][1] <= target: break
         if runs[-1][1] > target:
             out.append(f"{target_spp}: never"); continue
         pick = runs[-2:] if len(runs) > 1 else runs
-        renders = [("plain", lambda: render_in_passes(m, target_spp))] + [(t, (lambda t=t: adaptive.render_adaptive(m, 1, t, maxspp))) for t, _, _ in pick]
+        renders = [("plain", lambda: render_in_passes(m, target_spp))] + [(t, (lambda t=t: adaptive.render_adaptive(a, 1, t, maxspp))) for t, _, _ in pick]
         for _, f in renders: f()
         times = {k: [] for k, _ in renders}
         for _ in range(7):
