@@ -279,6 +279,7 @@ class PixelState:
 
     def __init__(self, count: int):
         self.count = count
+        self.packed = None          # neighbourhood()'s packets
         self.sums = dr.zeros(mi.Color3d, count)
         self.samples = dr.zeros(mi.UInt32, count)
         self.first = dr.full(mi.UInt32, _UINT_ENDS[1], count)
@@ -345,17 +346,35 @@ class PixelState:
         division, as a plain render's), rounded once."""
         return mi.Color3f(self.sums / mi.Float64(dr.maximum(self.samples, 1)))
 
-    def neighbourhood(self):
+    def neighbourhood(self, changed: list | None = None, one_sample: bool = False):
         """What a pixel's neighbours are read for (:func:`refine`), one packet of four
-        float32 a pixel: its mean's three colours and the bits of its least first-shape id
-        (a flat Float, evaluated). One packet gather a neighbour reads them — on the LLVM
-        back end about half the time of four gathers (docs/benchmarks.md, "Adaptive samples:
-        the fixed costs of a render")."""
-        mean = self.means()
-        packed = dr.ravel(mi.Array4f(mean.x, mean.y, mean.z,
-                                     dr.reinterpret_array(mi.Float, self.first)), order="F")
-        dr.eval(packed)
-        return packed
+        float32 a pixel: its mean's three colours (:meth:`means`) and the bits of its least
+        first-shape id (a flat Float, evaluated, kept as ``packed``). One packet gather a
+        neighbour reads them — on the LLVM back end about half the time of four gathers
+        (docs/benchmarks.md, "Adaptive samples: the fixed costs of a render").
+
+        ``changed``: the pixel lists (UInt32) traced since the packets were last made:
+        only theirs are made again (a mean is a float64 division, the dearest part of
+        the kernel), None: every pixel's. ``one_sample``: every pixel holds one sample,
+        whose mean is its sum (x / 1 is x: the same bits, without the division)."""
+        if changed is None or self.packed is None:
+            mean = mi.Color3f(self.sums) if one_sample else self.means()
+            self.packed = dr.ravel(mi.Array4f(mean.x, mean.y, mean.z,
+                                              dr.reinterpret_array(mi.Float, self.first)),
+                                   order="F")
+        else:
+            for pixels in changed:
+                samples = mi.Float64(dr.maximum(dr.gather(mi.UInt32, self.samples, pixels), 1))
+                mean = mi.Color3f(dr.gather(mi.Color3d, self.sums, pixels) / samples)
+                first = dr.reinterpret_array(mi.Float, dr.gather(mi.UInt32, self.first, pixels))
+                dr.scatter(self.packed, mi.Array4f(mean.x, mean.y, mean.z, first), pixels)
+        dr.eval(self.packed)
+        return self.packed
+
+    def image(self) -> np.ndarray:
+        """Every pixel's mean, (count, 3) float32, from the packets (:meth:`neighbourhood`,
+        brought up to date by the caller)."""
+        return self.packed.numpy().reshape(-1, 4)[:, :3]
 
 
 def _neighbours(pixels, width: int, height: int):
@@ -486,6 +505,7 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
     # ladder, traced in one pass a round. The first pass: every pixel, row by row.
     groups = [(main, 0, dr.arange(mi.UInt32, count), count)]
     taken = 0
+    unpacked = []                  # the pixel lists traced since the packets were made
     while groups:
         for levels, number, pixels, listed in groups:
             level = levels[number]
@@ -511,9 +531,11 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                 done(traced + (part.start + part.count) * level.traced, total + 1)
             dr.scatter(state.samples, mi.UInt32(level.spp), pixels)
             traced += listed * level.traced
+            unpacked.append(pixels)
         if rounds == taken:
             break
-        packed = state.neighbourhood()
+        packed = state.neighbourhood(unpacked, one_sample=spp == 1)
+        unpacked = []
         following = []
         for levels, number, pixels, listed in groups:
             if number + 1 == len(levels):
@@ -546,8 +568,9 @@ def render_adaptive(mitsuba_scene, spp: int, threshold: float,
                              for levels, number, _, listed in groups)
         taken += bool(groups)
     done(traced, traced)
-    image = state.means()
-    image = dr.ravel(image, order="F").numpy().reshape(height, width, 3)
+    if unpacked:
+        state.neighbourhood(unpacked, one_sample=spp == 1)
+    image = state.image().reshape(height, width, 3)
     samples = state.samples.numpy().astype(np.int64).reshape(height, width)
     return AdaptiveRender(window.window_of(image), window.window_of(samples[..., None])[..., 0],
                           traced, taken)
