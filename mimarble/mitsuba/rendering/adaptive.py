@@ -382,11 +382,12 @@ def _neighbours(pixels, width: int, height: int):
     height window), clipped at the border (an edge pixel's own row or column again)."""
     row, column = mi.Int32(pixels // width), mi.Int32(pixels % width)
     w, h = dr.opaque(mi.Int32, width), dr.opaque(mi.Int32, height)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            y = dr.clip(row + dy, 0, h - 1)
-            x = dr.clip(column + dx, 0, w - 1)
-            yield mi.UInt32(y * w + x)
+    # The three rows' starts and three columns, each clipped once (a pixel is inside).
+    starts = (dr.maximum(row - 1, 0) * w, row * w, dr.minimum(row + 1, h - 1) * w)
+    columns = (dr.maximum(column - 1, 0), column, dr.minimum(column + 1, w - 1))
+    for start in starts:
+        for x in columns:
+            yield mi.UInt32(start + x)
 
 
 def _read_neighbour(packed, pixels):
