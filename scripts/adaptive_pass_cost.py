@@ -14,7 +14,7 @@ set before the first render, since JIT flags are part of a recording's key):
   the inputs, then the recorded kernels' launch), ``walk`` what a frozen function that
   does nothing costs with the same inputs (the scene, its facts, the sampler);
 - ``add``: the pass's sums into the pixels' state (``PixelState.add`` / ``take``);
-- ``means``: the pixels' means (``PixelState.means``, one kernel);
+- ``means``: the neighbourhood's packets of the pixels' means (``PixelState.neighbourhood``);
 - ``refine``: the estimate and the next lists (``adaptive.refine``), host and kernels;
 - ``rest``: everything else of the render (the lists' lengths read back — the sync of a
   round —, the image to NumPy, Python), the total less the steps.
@@ -77,7 +77,7 @@ def _instrument() -> None:
     """Wrap the adaptive render's steps (module docstring) in :data:`PROFILE`'s timers."""
     trace_sums, refine = adaptive.trace_sums, adaptive.refine
     add, take, means = adaptive.PixelState.add, adaptive.PixelState.take, \
-        adaptive.PixelState.means
+        adaptive.PixelState.neighbourhood
     recorded = passes.traced_pass
 
     def timed_trace_sums(*args, **kwargs):
@@ -114,7 +114,7 @@ def _instrument() -> None:
     adaptive.trace_sums, adaptive.refine = timed_trace_sums, timed_refine
     adaptive.PixelState.add = timed(add, "add")
     adaptive.PixelState.take = timed(take, "add")
-    adaptive.PixelState.means = timed(means, "means")
+    adaptive.PixelState.neighbourhood = timed(means, "means")
     passes.traced_pass = TimedRecorded()
 
 
