@@ -40,7 +40,10 @@ samples a pixel keeps from a coarser grid keep their wider footprints
 Everything between rounds stays on the device (Dr.Jit): the pixels' sums, sample counts,
 first-hit shapes, doubts and sample ranges, the estimate, and the next round's pixel list
 (``dr.compress``); only its length comes back to size the passes. The scatters into the
-pixels' arrays are queued together and run as one kernel (:meth:`PixelState.add`). The
+pixels' arrays are queued together and run as one kernel (:meth:`PixelState.add`). A
+pixel's mean and first shape are kept in one packet of four float32, read with one packet
+gather a neighbour and made again only where a round traced
+(:meth:`PixelState.neighbourhood`); the image is read from them. The
 lists are in Morton order (:func:`morton_order`), so that a pass's neighbouring lanes are
 neighbouring pixels.
 The first pass is the plain kernel, and a pixel's doubt is read from its image (the
