@@ -344,10 +344,12 @@ class PixelState:
             self.first, self.last, self.low, self.high = \
                 traced.first, traced.last, traced.low, traced.high
 
-    def means(self):
-        """Each pixel's mean (Color3f): its sum divided by its samples in float64 (a true
-        division, as a plain render's), rounded once."""
-        return mi.Color3f(self.sums / mi.Float64(dr.maximum(self.samples, 1)))
+    def means(self, pixels=None):
+        """Each pixel's mean (Color3f), or those of ``pixels`` (UInt32): its sum divided by
+        its samples in float64 (a true division, as a plain render's), rounded once."""
+        sums, samples = (self.sums, self.samples) if pixels is None else \
+            (dr.gather(mi.Color3d, self.sums, pixels), dr.gather(mi.UInt32, self.samples, pixels))
+        return mi.Color3f(sums / mi.Float64(dr.maximum(samples, 1)))
 
     def neighbourhood(self, changed: list | None = None, one_sample: bool = False):
         """What a pixel's neighbours are read for (:func:`refine`), one packet of four
@@ -367,8 +369,7 @@ class PixelState:
                                    order="F")
         else:
             for pixels in changed:
-                samples = mi.Float64(dr.maximum(dr.gather(mi.UInt32, self.samples, pixels), 1))
-                mean = mi.Color3f(dr.gather(mi.Color3d, self.sums, pixels) / samples)
+                mean = self.means(pixels)
                 first = dr.reinterpret_array(mi.Float, dr.gather(mi.UInt32, self.first, pixels))
                 dr.scatter(self.packed, mi.Array4f(mean.x, mean.y, mean.z, first), pixels)
         dr.eval(self.packed)
