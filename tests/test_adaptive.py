@@ -445,3 +445,20 @@ def test_the_morton_order_interleaves_the_bits_of_x_and_y():
 
     expected = sorted(range(width * height), key=lambda i: code(i % width, i // width))
     assert morton_order(width, height).tolist() == expected
+
+
+def test_an_adaptive_render_traced_without_replay_is_the_replayed_one(llvm, monkeypatch):
+    """``MIMARBLE_FREEZE=0`` traces every pass: a pass of one sample then hands back one
+    array as its least and largest colour (and shape), which the pixel state must not hold
+    as one (a scatter into either would change both, the spread 0 and the rounds other):
+    samples, traced counts and image bit for bit the replayed render's, over rounds that
+    keep, jump and replace samples."""
+    monkeypatch.setattr(adaptive, "JUMP_LEAST", 0)
+    m = loaded(small(size=29))
+    replayed = adaptive.render_adaptive(m, 1, 2e-5, 81)
+    assert {1, 9, 16} <= set(np.unique(replayed.samples)) and replayed.rounds >= 2
+    monkeypatch.setenv("MIMARBLE_FREEZE", "0")
+    traced = adaptive.render_adaptive(m, 1, 2e-5, 81)
+    np.testing.assert_array_equal(traced.samples, replayed.samples)
+    assert traced.traced == replayed.traced
+    np.testing.assert_array_equal(traced.image, replayed.image)

@@ -341,8 +341,11 @@ class PixelState:
             self.doubt_sums = traced.doubt_sums
             self.doubted = dr.full(mi.UInt32, samples, self.count)
         if traced.first is not None:
-            self.first, self.last, self.low, self.high = \
-                traced.first, traced.last, traced.low, traced.high
+            # Arrays of their own: a pass of one sample traced without replay hands back one
+            # object as least and largest, which the scatters into each would both change
+            # (a new wrapper shares the values; Dr.Jit copies them at the first scatter).
+            self.first, self.last = traced.first, mi.UInt32(traced.last)
+            self.low, self.high = traced.low, mi.Color3f(traced.high)
 
     def means(self, pixels=None):
         """Each pixel's mean (Color3f), or those of ``pixels`` (UInt32): its sum divided by
