@@ -18,8 +18,9 @@ This module imports neither ``drjit`` nor ``mitsuba`` at module level: call
 :func:`prepare_llvm` first, import them afterwards (:func:`import_drjit_and_mitsuba`
 does both). Nor does it import any module of mimarble at module level (``./go``
 runs it as a plain file to look for a libLLVM before the package is installed);
-inside functions it imports only mimarble/runtime/llvm_target.py, which imports nothing
-of this module back (it reaches drjit-core through mimarble/runtime/drjit_core.py).
+inside functions it imports only mimarble/runtime/llvm_target.py and llvm_blocks.py,
+which import nothing of this module back (they reach drjit-core through
+mimarble/runtime/drjit_core.py).
 """
 
 from __future__ import annotations
@@ -270,7 +271,8 @@ def import_drjit_and_mitsuba():
     Every module of mimarble that needs them comes through here, so the set-up
     holds whichever module loads first: the libLLVM is chosen before Dr.Jit
     loads one, the CPU kernels' LLVM target is set before the first kernel
-    (mimarble/runtime/llvm_target.py), and ``MIMARBLE_JIT_DEBUG=1`` turns on Dr.Jit's
+    (mimarble/runtime/llvm_target.py) and the lanes of its launches' blocks
+    (mimarble/runtime/llvm_blocks.py), and ``MIMARBLE_JIT_DEBUG=1`` turns on Dr.Jit's
     bounds checks (every gather, scatter and symbolic call checked, bad lanes
     masked and reported on stderr; ``./go test --jit-debug``).
     """
@@ -282,8 +284,9 @@ def import_drjit_and_mitsuba():
     if not _jit_configured:
         _jit_configured = True
         if llvm_backend_up():
-            from . import llvm_target
+            from . import llvm_blocks, llvm_target
             llvm_target.configure()
+            llvm_blocks.configure()          # after the target: its vector width
         if os.environ.get(JIT_DEBUG_ENV) == "1":
             enable_bounds_checks()
     return dr, mi
@@ -469,6 +472,10 @@ def doctor(requested: str | None = None) -> tuple[list[tuple[str, str]], bool]:
         outcome = llvm_target.configure()
         rows.append(("llvm target", f"{outcome.target.summary()} ({outcome.how})"
                      if outcome.target else outcome.how))
+        from . import llvm_blocks
+        blocks = llvm_blocks.configure()
+        rows.append(("llvm blocks", f"{blocks.block_size} lanes ({blocks.how})"
+                     if blocks.block_size else blocks.how))
     rows.append(("cuda", "usable" if cuda_usable() else "not usable"))
     try:
         with warnings.catch_warnings():
