@@ -21,7 +21,9 @@ same surface, without what plain 16 saves on the background's cheap lanes.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+import math
 import os
 import statistics
 import time
@@ -65,8 +67,6 @@ def covered(scene):
     fov that just fills it vertically (``filling_the_view``), then the frame's half-diagonal
     brought inside that half-height (tan(fov/2) / 1.5: √2 would put the corners on the
     silhouette)."""
-    import dataclasses
-    import math
     filled = filling_the_view(scene)
     fov = 2 * math.degrees(math.atan(math.tan(math.radians(filled.camera.fov) / 2) / 1.5))
     return dataclasses.replace(filled, camera=dataclasses.replace(filled.camera, fov=fov))

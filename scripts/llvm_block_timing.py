@@ -7,16 +7,15 @@ threshold T) and a plain 16 spp render, under each block size in turn (set throu
 drjit-core's ``jit_llvm_set_block_size``, mimarble/runtime/llvm_blocks.py), nine rounds;
 prints the medians (ms) and the load (docs/benchmarks.md, "Dr.Jit's blocks").
 """
-import ctypes, os, statistics, sys, time
+import os, statistics, sys, time
 import mimarble
 from mimarble.mitsuba import to_mitsuba
 from mimarble.mitsuba.rendering import adaptive
 from mimarble.mitsuba.rendering.render import render_in_passes
 from mimarble.scene.edits import resized
 dr, mi = mimarble.dr, mimarble.mi
-from mimarble.runtime import drjit_core, llvm_blocks
-lib = drjit_core.library()
-setbs = getattr(lib, llvm_blocks._SET_BLOCK_SIZE); setbs.argtypes = [ctypes.c_uint32]
+from mimarble.runtime import llvm_blocks
+setbs = llvm_blocks.set_block_size
 T = float(os.environ.get("T", "1.5e-3"))
 SIZES = tuple(int(x) for x in os.environ.get("SIZES","16384,8192,4096,2048").split(","))
 for path in sys.argv[1:]:

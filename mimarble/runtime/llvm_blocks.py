@@ -33,6 +33,7 @@ import os
 import sys
 
 from . import drjit_core
+from .llvm_target import _VECTOR_WIDTH
 
 BLOCK_SIZE_ENV = "MIMARBLE_LLVM_BLOCK_SIZE"
 #: Lanes a block: enough blocks to balance two threads over kernels of 65 536 lanes, few
@@ -42,7 +43,6 @@ BLOCK_SIZE = 4096
 # drjit-core 1.5's C++ symbols (Itanium mangling of the declarations in drjit-core/jit.h).
 _SET_BLOCK_SIZE = "_Z23jit_llvm_set_block_sizej"
 _BLOCK_SIZE = "_Z19jit_llvm_block_sizev"
-_VECTOR_WIDTH = "_Z21jit_llvm_vector_widthv"
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,6 +66,35 @@ def parse(value: str, vector_width: int) -> int | None:
     return size
 
 
+class _Core:
+    """drjit-core's block size calls through ctypes; raises OSError/AttributeError when absent."""
+
+    def __init__(self):
+        lib = drjit_core.library()
+        self._set, self._get, self._width = (getattr(lib, name) for name in
+                                             (_SET_BLOCK_SIZE, _BLOCK_SIZE, _VECTOR_WIDTH))
+        self._set.argtypes, self._set.restype = [ctypes.c_uint32], None
+        self._get.restype = self._width.restype = ctypes.c_uint32
+
+    def vector_width(self) -> int:
+        return int(self._width())
+
+    def read(self) -> int:
+        return int(self._get())
+
+    def write(self, size: int) -> None:
+        """Set ``size`` lanes a block, checked first (drjit-core's refusal would end the
+        process). Raises ValueError."""
+        parse(str(size), self.vector_width())
+        self._set(size)
+
+
+def set_block_size(size: int) -> None:
+    """Set the block size now (a benchmark's comparison of sizes); raises ValueError for one
+    drjit-core would refuse, OSError/AttributeError where its calls are missing."""
+    _Core().write(size)
+
+
 _outcome: Outcome | None = None
 
 
@@ -78,30 +107,25 @@ def configure() -> Outcome:
     if "drjit" not in sys.modules:
         return Outcome(None, "not decided yet: Dr.Jit is not imported")
     try:
-        lib = drjit_core.library()
-        set_size, get_size, get_width = (getattr(lib, name) for name in
-                                         (_SET_BLOCK_SIZE, _BLOCK_SIZE, _VECTOR_WIDTH))
+        core = _Core()
     except (OSError, AttributeError) as e:
         _outcome = Outcome(None, f"Dr.Jit's own (drjit-core's block size calls are not "
                                  f"available: {e})")
         return _outcome
-    set_size.argtypes, set_size.restype = [ctypes.c_uint32], None
-    get_size.restype = get_width.restype = ctypes.c_uint32
     requested = os.environ.get(BLOCK_SIZE_ENV)
     try:
         if requested is None:
             wanted, how = BLOCK_SIZE, "set by mimarble: blocks balanced over the threads"
         else:
-            wanted = parse(requested, int(get_width()))
+            wanted = parse(requested, core.vector_width())
             how = (f"Dr.Jit's own, as {BLOCK_SIZE_ENV}={requested!r} asks" if wanted is None
                    else f"from {BLOCK_SIZE_ENV}={requested!r}")
+        if wanted is not None:
+            core.write(wanted)
     except ValueError as e:
         import warnings
         warnings.warn(f"mimarble: {e}; keeping Dr.Jit's block size", stacklevel=2)
-        wanted, how = None, f"Dr.Jit's own; {BLOCK_SIZE_ENV} was not understood"
-    if wanted is not None and wanted < int(get_width()):
-        wanted, how = None, f"Dr.Jit's own (the vector width {int(get_width())} is above {wanted})"
-    if wanted is not None:
-        set_size(wanted)
-    _outcome = Outcome(int(get_size()), how)
+        how = f"Dr.Jit's own; {BLOCK_SIZE_ENV} was not understood" if requested is not None \
+            else f"Dr.Jit's own ({e})"
+    _outcome = Outcome(core.read(), how)
     return _outcome
